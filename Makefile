@@ -1,0 +1,47 @@
+# Set-up and everyday commands. `make run` and `make test` each build the
+# virtual environment on first use (and reinstall when the sources change).
+
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml) \
+           $(wildcard uav_comm_planner/*.py) resource/uav_comm_planner
+
+# One DDS domain per run, discovery on this machine only, so that test runs
+# and planners on a shared machine do not hear each other.
+ROS_ENV := ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST AMENT_PREFIX_PATH=$(abspath $(VENV))
+
+.PHONY: install run test bench figures clean
+
+install: $(STAMP)
+
+$(STAMP): $(SOURCES)
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade 'pip>=23'
+	$(BIN)/python -m pip install --quiet '.[ros,plots,test]'
+	@# `ros2 run uav_comm_planner planner` looks for lib/<package>/<executable>;
+	@# pip puts console scripts in bin/, so link them where ros2 run looks.
+	mkdir -p $(VENV)/lib/uav_comm_planner
+	ln -sf ../../bin/planner $(VENV)/lib/uav_comm_planner/planner
+	ln -sf ../../bin/uav-comm-planner $(VENV)/lib/uav_comm_planner/uav-comm-planner
+	touch $(STAMP)
+
+run: $(STAMP)
+	$(ROS_ENV) ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-0} $(BIN)/planner $(ARGS)
+
+test: $(STAMP)
+	$(ROS_ENV) ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-$$(( 100 + $$$$ % 100 ))} \
+		$(BIN)/python -m pytest $(PYTEST_ARGS)
+
+bench: $(STAMP)
+	$(BIN)/uav-comm-planner bench $(ARGS)
+
+figures: $(STAMP)
+	mkdir -p docs
+	$(BIN)/uav-comm-planner plan --case I --figure docs/fig1_case_I.png
+	$(BIN)/uav-comm-planner plan --case II --figure docs/fig1_case_II.png
+	$(BIN)/uav-comm-planner sweep --case I --budgets 0.5,1,2,5,10,20 --figure docs/fig2_sweep_case_I.png
+
+clean:
+	rm -rf $(VENV) build *.egg-info

@@ -1,0 +1,50 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'uav_comm_planner'
+
+ROS_JAZZY = [
+    'ros-jazzy-rclpy>=7.1,<8',
+    'ros-jazzy-common-interfaces>=5.3,<6',
+    'ros-jazzy-std-srvs>=5.3,<6',
+    'ros-jazzy-rmw-fastrtps-cpp>=8.4,<9',
+]
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
+        (f'share/{PACKAGE}', ['package.xml']),
+        (f'share/{PACKAGE}/config', glob('config/*.yaml')),
+    ],
+    python_requires='>=3.10',
+    install_requires=[
+        'numpy>=1.26,<3',
+        'cvxpy>=1.5,<2',
+        'clarabel>=0.9,<0.12',
+        'scipy>=1.11,<2',
+        'pymavlink>=2.4.40,<3',
+        'pymap3d>=3.0,<4',
+    ],
+    extras_require={
+        # In a ROS 2 Jazzy workspace these come from the distribution (rosdep);
+        # outside one, the PyPI wheels of Jazzy provide them.
+        'ros': ROS_JAZZY,
+        'plots': ['matplotlib>=3.8,<4'],
+        'test': ['pytest>=8,<10'],
+    },
+    zip_safe=True,
+    maintainer='uav_comm_planner maintainers',
+    maintainer_email='maintainers@uav-comm-planner.invalid',
+    description='Joint transmit-power and trajectory planning for a communication UAV.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            f'planner = {PACKAGE}.node:main',
+            f'uav-comm-planner = {PACKAGE}.cli:main',
+        ],
+    },
+)
