@@ -1,0 +1,21 @@
+"""Typed errors of the planner; each message says what is wrong and what to change."""
+
+
+class PlannerError(Exception):
+    """Base of every error the planner raises on purpose."""
+
+
+class InvalidScenarioError(PlannerError, ValueError):
+    """A scenario or solver setting is out of its domain (NaN, non-positive, duplicates...)."""
+
+
+class InfeasibleHorizonError(InvalidScenarioError):
+    """The goal cannot be reached from the start within the horizon at the speed limit."""
+
+
+class SolverError(PlannerError, RuntimeError):
+    """A convex sub-problem was not solved to optimality (numerical failure of the solver)."""
+
+
+class MissionExportError(PlannerError):
+    """A mission file could not be written; the previous file, if any, is left untouched."""

@@ -1,0 +1,61 @@
+"""The letter's channel and throughput model (Section II), vectorised over nodes and slots.
+
+Notation: q (M, 2) waypoints in metres, w (N, 2) ground nodes in metres, p (N, M) watts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from uav_comm_planner.scenario import Scenario
+
+
+def squared_distances(q: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """d_n[m] = ||q[m] - w_n||^2 + H^2: (N, M) square metres."""
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    horizontal = ((q[None, :, :] - scenario.nodes[:, None, :]) ** 2).sum(axis=-1)
+    return horizontal + scenario.altitude_m ** 2
+
+
+def channel_gains(q: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """g_n[m] = beta0 / (||q[m] - w_n||^2 + H^2): (N, M), line of sight."""
+    return scenario.reference_gain / squared_distances(q, scenario)
+
+
+def snr_per_watt(q: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """a_n[m] = N g_n[m] / (B sigma^2): (N, M) per watt (OFDMA, B/N per node)."""
+    scale = scenario.num_nodes / (scenario.bandwidth_hz * scenario.noise_psd_w_per_hz)
+    return scale * channel_gains(q, scenario)
+
+
+def spectral_efficiency_to_rate(bits_per_use: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """R = (B / N) * mean over slots of log2(1 + SNR): the average throughput in bit/s.
+
+    (1/T) sum_m delta (B/N) log2(...) equals (B/N) times the mean over the M slots, because
+    delta / T = 1 / M: the time-weighted form of the letter's eq. (3).
+    """
+    return scenario.bandwidth_hz / scenario.num_nodes * bits_per_use
+
+
+def average_rates(q: np.ndarray, p: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """R_n: (N,) bit/s, the average throughput of each node over the horizon."""
+    a = snr_per_watt(q, scenario)
+    bits = np.log2(1.0 + np.asarray(p, dtype=float) * a).mean(axis=1)
+    return spectral_efficiency_to_rate(bits, scenario)
+
+
+def min_rate(q: np.ndarray, p: np.ndarray, scenario: Scenario) -> float:
+    """min_n R_n, bit/s: the letter's objective."""
+    return float(average_rates(q, p, scenario).min())
+
+
+def leg_lengths(q: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """||q[1] - q0||, ||q[m] - q[m-1]||, ||qF - q[M]||: (M + 1,) metres."""
+    path = np.vstack([scenario.start_m, np.asarray(q, dtype=float).reshape(-1, 2),
+                      scenario.goal_m])
+    return np.linalg.norm(np.diff(path, axis=0), axis=1)
+
+
+def speeds(q: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """Speed on each of the M + 1 legs: (M + 1,) m/s."""
+    return leg_lengths(q, scenario) / scenario.slot_s

@@ -1,0 +1,174 @@
+"""Algorithm 1 of the letter: alternate the power step and the SCA trajectory loop."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import logging
+import time
+from typing import Callable
+
+import numpy as np
+
+from uav_comm_planner import initial
+from uav_comm_planner.errors import SolverError
+from uav_comm_planner.model import average_rates, snr_per_watt, spectral_efficiency_to_rate
+from uav_comm_planner.power import PowerAllocation, conic_power, waterfilling_power
+from uav_comm_planner.scenario import Scenario, SolverSettings
+from uav_comm_planner.trajectory import TrajectoryStep, trajectory_step_cvxpy
+
+logger = logging.getLogger(__name__)
+
+PowerSolver = Callable[[np.ndarray, float], PowerAllocation]
+TrajectorySolver = Callable[[np.ndarray, np.ndarray, Scenario], TrajectoryStep]
+
+POWER_SOLVERS: dict[str, PowerSolver] = {
+    'waterfilling': waterfilling_power,
+    'conic': conic_power,
+}
+TRAJECTORY_SOLVERS: dict[str, TrajectorySolver] = {
+    'cvxpy': trajectory_step_cvxpy,
+}
+
+
+@dataclass(frozen=True)
+class Step:
+    """One entry of the objective history: which step ran and the true min rate after it."""
+
+    kind: str            # 'power' or 'trajectory'
+    min_throughput: float
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """A plan and how it was obtained.
+
+    trajectory: q (M, 2) metres; times: (M,) seconds at which q[m] is reached;
+    power: p (N, M) watts; rates: R_n (N,) bit/s; min_throughput: min_n R_n, bit/s;
+    history: the true min rate after every power and trajectory step (never decreasing);
+    baselines: min throughput of the straight line ('straight') and the static access point
+    ('static'), each with its optimal power, bit/s.
+    """
+
+    scenario: Scenario
+    trajectory: np.ndarray
+    times: np.ndarray
+    power: np.ndarray
+    rates: np.ndarray
+    min_throughput: float
+    history: tuple[Step, ...]
+    baselines: dict[str, float] = field(default_factory=dict)
+    outer_iterations: int = 0
+    trajectory_steps: int = 0
+    converged: bool = True
+    solve_time_s: float = 0.0
+    start: str = 'straight'
+
+    @property
+    def status(self) -> str:
+        return 'converged' if self.converged else 'iteration limit'
+
+
+def _tolerance(settings: SolverSettings, value: float) -> float:
+    return max(settings.tolerance_bps, settings.relative_tolerance * abs(value))
+
+
+def optimal_power(q: np.ndarray, scenario: Scenario,
+                  power_solver: PowerSolver = waterfilling_power) -> np.ndarray:
+    """The max-min power schedule p (N, M) watts for a fixed trajectory q (M, 2)."""
+    return power_solver(snr_per_watt(q, scenario), scenario.power_budget_w).p
+
+
+def baseline_rates(scenario: Scenario,
+                   power_solver: PowerSolver = waterfilling_power) -> dict[str, float]:
+    """The letter's benchmarks, each with its optimal power: min throughput in bit/s."""
+    rates = {}
+    for name, q in (('straight', initial.straight_line(scenario)),
+                    ('static', initial.static_point(scenario))):
+        p = optimal_power(q, scenario, power_solver)
+        rates[name] = float(average_rates(q, p, scenario).min())
+    return rates
+
+
+def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
+              power_solver: PowerSolver = waterfilling_power,
+              trajectory_solver: TrajectorySolver = trajectory_step_cvxpy,
+              ) -> tuple[np.ndarray, np.ndarray, list[Step], int, int, bool]:
+    """Algorithm 1 from trajectory q (M, 2): returns (q, p, history, outer, inner, converged).
+
+    Each outer iteration solves the power step, then runs SCA trajectory steps until one
+    gains at most the tolerance; it stops when a power step gains at most the tolerance over
+    the previous one (the letter's rule). A last power step on the final trajectory follows,
+    which can only raise the objective. A trajectory step that would lower the true minimum
+    rate (possible only through solver round-off) is discarded and ends its loop.
+    """
+    history: list[Step] = []
+
+    def power_step(q_now: np.ndarray) -> tuple[np.ndarray, float]:
+        p_now = power_solver(snr_per_watt(q_now, scenario), scenario.power_budget_w).p
+        value = float(average_rates(q_now, p_now, scenario).min())
+        history.append(Step('power', value))
+        return p_now, value
+
+    previous_power_value = -np.inf
+    inner_total = 0
+    converged = False
+    outer = 0
+    p = None
+    for outer in range(1, settings.max_outer_iterations + 1):
+        p, value = power_step(q)
+        if value - previous_power_value <= _tolerance(settings, value):
+            converged = True
+            break
+        previous_power_value = value
+        for _ in range(settings.max_inner_iterations):
+            step = trajectory_solver(q, p, scenario)
+            inner_total += 1
+            new_value = float(average_rates(step.q, p, scenario).min())
+            if new_value < value:
+                logger.debug('trajectory step lowered the objective by %.3g; kept the old one',
+                             value - new_value)
+                break
+            history.append(Step('trajectory', new_value))
+            gain = new_value - value
+            q, value = step.q, new_value
+            if gain <= _tolerance(settings, value):
+                break
+    else:
+        p, value = power_step(q)
+    if p is None:
+        raise SolverError('Algorithm 1 ran no iteration; max_outer_iterations must be >= 1')
+    return q, p, history, outer, inner_total, converged
+
+
+def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
+         power_method: str = 'waterfilling', trajectory_method: str = 'cvxpy') -> PlanResult:
+    """Jointly optimise the trajectory and the transmit power for ``scenario``.
+
+    Runs the letter's Algorithm 1 from the straight line q0 -> qF at uniform speed and
+    returns a :class:`PlanResult`. Raises :class:`~uav_comm_planner.errors.InvalidScenarioError`
+    for a scenario outside the limits of ``settings`` and
+    :class:`~uav_comm_planner.errors.SolverError` when a convex step fails.
+    """
+    settings = settings or SolverSettings()
+    settings.check(scenario)
+    try:
+        power_solver = POWER_SOLVERS[power_method]
+        trajectory_solver = TRAJECTORY_SOLVERS[trajectory_method]
+    except KeyError as exc:
+        raise ValueError(f'unknown method {exc.args[0]!r}; power: {sorted(POWER_SOLVERS)}, '
+                         f'trajectory: {sorted(TRAJECTORY_SOLVERS)}') from None
+    began = time.perf_counter()
+    q, p, history, outer, inner, converged = alternate(
+        scenario, initial.straight_line(scenario), settings,
+        power_solver=power_solver, trajectory_solver=trajectory_solver)
+    rates = average_rates(q, p, scenario)
+    baselines = baseline_rates(scenario, power_solver) if settings.compute_baselines else {}
+    return PlanResult(
+        scenario=scenario, trajectory=q, times=scenario.times_s, power=p, rates=rates,
+        min_throughput=float(rates.min()), history=tuple(history), baselines=baselines,
+        outer_iterations=outer, trajectory_steps=inner, converged=converged,
+        solve_time_s=time.perf_counter() - began, start='straight')
+
+
+__all__ = ['PlanResult', 'Step', 'alternate', 'baseline_rates', 'optimal_power', 'plan',
+           'spectral_efficiency_to_rate']

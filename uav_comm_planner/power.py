@@ -1,0 +1,117 @@
+"""Power step (letter, problem (6)): the max-min power allocation on a fixed trajectory.
+
+Given a_n[m] (SNR per watt), find p_n[m] >= 0 with sum p <= P_T that maximises the common
+rate. Two exact solvers, which must agree:
+
+* :func:`waterfilling_power`: for a target spectral efficiency c (bits per channel use),
+  node n's least power is the water-filling p_n[m] = (mu_n - 1/a_n[m])^+ with mu_n set so
+  that mean_m log2(1 + p_n[m] a_n[m]) = c. The total power P(c) is increasing and convex in
+  c, with dP/dc = M ln 2 sum_n mu_n, so Newton's method from above finds P(c) = P_T.
+* :func:`conic_power`: the same problem as an exponential-cone program (cvxpy + Clarabel).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+import cvxpy as cp
+import numpy as np
+
+from uav_comm_planner.errors import SolverError
+
+_NEWTON_MAX_STEPS = 200
+
+
+@dataclass(frozen=True)
+class PowerAllocation:
+    """p: (N, M) watts; efficiency: the common mean_m log2(1 + p a) reached, bits per use."""
+
+    p: np.ndarray
+    efficiency: float
+
+
+class _WaterLevels:
+    """Per-node minimum power as a function of the common target c, for fixed a (N, M)."""
+
+    def __init__(self, a: np.ndarray):
+        self.a = a
+        self.num_slots = a.shape[1]
+        best_first = -np.sort(-a, axis=1)
+        log_a = np.log2(best_first)
+        self.log_sum = np.cumsum(log_a, axis=1)                   # S_k
+        self.inv_sum = np.cumsum(1.0 / best_first, axis=1)        # sum_{i<=k} 1/a_i
+        k = np.arange(1, self.num_slots + 1)
+        # k slots are active at target c iff M c >= S_k - k log2 a_k (nondecreasing in k).
+        self.threshold = self.log_sum - k * log_a
+
+    def levels(self, c: float) -> tuple[np.ndarray, np.ndarray]:
+        """Water level mu_n (N,) and node power P_n(c) (N,) for target c >= 0."""
+        active = np.count_nonzero(self.threshold <= self.num_slots * c, axis=1)
+        rows = np.arange(self.a.shape[0])
+        idx = active - 1
+        log_mu = (self.num_slots * c - self.log_sum[rows, idx]) / active
+        mu = np.exp2(log_mu)
+        return mu, active * mu - self.inv_sum[rows, idx]
+
+
+def waterfilling_power(a: np.ndarray, power_budget_w: float) -> PowerAllocation:
+    """Exact max-min power for SNR per watt ``a`` (N, M) and budget P_T, by water-filling.
+
+    Newton's method on P(c) = P_T converges from above, monotonically, because P is convex
+    and increasing; the start c = min_n log2(1 + P_T max_m a_n[m] / M) is above the root
+    (no node can exceed it even with the whole budget, by Jensen's inequality).
+    """
+    a = np.asarray(a, dtype=float)
+    if a.ndim != 2 or not np.all(np.isfinite(a)) or np.any(a <= 0):
+        raise SolverError('water-filling needs a finite, positive SNR-per-watt array (N, M)')
+    water = _WaterLevels(a)
+    m = a.shape[1]
+    c = float(np.min(np.log2(1.0 + power_budget_w * a.max(axis=1) / m)))
+    for _ in range(_NEWTON_MAX_STEPS):
+        mu, node_power = water.levels(c)
+        excess = node_power.sum() - power_budget_w
+        slope = m * math.log(2.0) * mu.sum()
+        step = excess / slope
+        if excess <= 1e-13 * power_budget_w or step <= 1e-15 * max(c, 1.0):
+            break
+        c = max(c - step, 0.0)
+    else:
+        raise SolverError('water-filling did not converge; check that a (SNR per watt) is sane')
+    p = np.maximum(mu[:, None] - 1.0 / a, 0.0)
+    total = p.sum()
+    if total > power_budget_w:
+        p *= power_budget_w / total
+    efficiency = float(np.log2(1.0 + p * a).mean(axis=1).min())
+    return PowerAllocation(p=p, efficiency=efficiency)
+
+
+def conic_power(a: np.ndarray, power_budget_w: float, *, solver: str = 'CLARABEL',
+                **solver_options) -> PowerAllocation:
+    """Exact max-min power for ``a`` (N, M) as an exponential-cone program.
+
+    Written for conditioning: with x = p / P_T (a share of the budget) and b = 1 / (P_T a),
+    log2(1 + p a) = log2(P_T a) + log2(x + b), so the cone sees log(x + b) with x in [0, 1]
+    instead of log(1 + a p) with a around 1e13.
+    """
+    a = np.asarray(a, dtype=float)
+    n, m = a.shape
+    b = 1.0 / (power_budget_w * a)
+    offset = np.log(power_budget_w * a).mean(axis=1)
+    x = cp.Variable((n, m), nonneg=True)
+    t = cp.Variable()
+    constraints = [cp.sum(x) <= 1.0,
+                   cp.sum(cp.log(x + b), axis=1) / m + offset >= math.log(2.0) * t]
+    problem = cp.Problem(cp.Maximize(t), constraints)
+    try:
+        problem.solve(solver=solver, **solver_options)
+    except cp.error.SolverError as exc:
+        raise SolverError(f'power step: {solver} failed ({exc})') from exc
+    if problem.status != cp.OPTIMAL:
+        raise SolverError(f'power step: {solver} returned status {problem.status!r}')
+    p = power_budget_w * np.maximum(x.value, 0.0)
+    total = p.sum()
+    if total > power_budget_w:
+        p *= power_budget_w / total
+    efficiency = float(np.log2(1.0 + p * a).mean(axis=1).min())
+    return PowerAllocation(p=p, efficiency=efficiency)

@@ -1,0 +1,101 @@
+"""Trajectory step (letter, problem (11)): successive convex approximation with power fixed.
+
+Around the current trajectory q^k, with d^k_{n,m} = ||q^k[m] - w_n||^2 + H^2 and the SNR
+there, snr^k_{n,m} = p_n[m] a_n[m](q^k) = gamma beta0 / d^k, the convexity of
+log2(1 + A / (d + x)) in x gives, for x = ||q[m] - w_n||^2 - ||q^k[m] - w_n||^2,
+
+    r_{n,m}(q) >= lbr_{n,m}(q) = log2(1 + snr^k) - snr^k / ((1 + snr^k) ln 2) * x / d^k,
+
+which is the letter's bound with gamma beta0 / (d^k (gamma beta0 + d^k)) = snr^k / ((1 + snr^k) d^k).
+The bound is global and tight at q^k, so maximising min_n mean_m lbr_{n,m} subject to the
+speed limits never lowers the true minimum rate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+import cvxpy as cp
+import numpy as np
+
+from uav_comm_planner.errors import SolverError
+from uav_comm_planner.model import snr_per_watt, squared_distances
+from uav_comm_planner.scenario import Scenario
+
+#: The conic problems see positions in kilometres: coordinates of order 1, not 1000.
+KM = 1000.0
+
+
+@dataclass(frozen=True)
+class SurrogateCoefficients:
+    """lbr_{n,m}(q) = value - slope * (||q[m] - w_n||^2 - ||q^k[m] - w_n||^2) / d^k.
+
+    value: log2(1 + snr^k), (N, M) bits per use; slope: snr^k / ((1 + snr^k) ln 2), (N, M);
+    d: d^k, (N, M) square metres; horizontal: ||q^k[m] - w_n||^2, (N, M) square metres.
+    """
+
+    value: np.ndarray
+    slope: np.ndarray
+    d: np.ndarray
+    horizontal: np.ndarray
+
+
+def surrogate_coefficients(q_k: np.ndarray, p: np.ndarray,
+                           scenario: Scenario) -> SurrogateCoefficients:
+    """The SCA bound's coefficients at the expansion point q^k (M, 2) for power p (N, M)."""
+    d = squared_distances(q_k, scenario)
+    snr = np.asarray(p, dtype=float) * snr_per_watt(q_k, scenario)
+    return SurrogateCoefficients(value=np.log2(1.0 + snr),
+                                 slope=snr / ((1.0 + snr) * math.log(2.0)),
+                                 d=d, horizontal=d - scenario.altitude_m ** 2)
+
+
+def sca_lower_bound(q: np.ndarray, q_k: np.ndarray, p: np.ndarray,
+                    scenario: Scenario) -> np.ndarray:
+    """lbr_{n,m}(q) expanded at q^k: (N, M) bits per use, a lower bound of log2(1 + p a(q))."""
+    coef = surrogate_coefficients(q_k, p, scenario)
+    x = squared_distances(q, scenario) - coef.d
+    return coef.value - coef.slope * x / coef.d
+
+
+@dataclass(frozen=True)
+class TrajectoryStep:
+    """q: (M, 2) metres, the maximiser; bound: min_n mean_m lbr_{n,m}(q), bits per use."""
+
+    q: np.ndarray
+    bound: float
+
+
+def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
+                          solver: str = 'CLARABEL', **solver_options) -> TrajectoryStep:
+    """One SCA step, built afresh as a cvxpy problem (the reference implementation).
+
+    Variables are z = q / 1000 (kilometres) and t (bits per use): maximise t subject to
+    mean_m lbr_{n,m}(z) >= t for every node and every leg at most V delta.
+    """
+    coef = surrogate_coefficients(q_k, p, scenario)
+    m = scenario.num_slots
+    w = scenario.nodes / KM
+    # x / d^k is dimensionless, so the slope may be divided by d^k in km^2.
+    weight = coef.slope / (coef.d / KM ** 2)
+    constant = (coef.value + weight * coef.horizontal / KM ** 2).mean(axis=1)
+
+    z = cp.Variable((m, 2))
+    t = cp.Variable()
+    path = cp.vstack([np.reshape(scenario.start_m, (1, 2)) / KM, z,
+                      np.reshape(scenario.goal_m, (1, 2)) / KM])
+    constraints = [cp.norm(path[1:] - path[:-1], 2, axis=1) <= scenario.max_step_m / KM]
+    for n in range(scenario.num_nodes):
+        spread = cp.sum(cp.square(z - w[n][None, :]), axis=1)
+        constraints.append(constant[n] - weight[n] @ spread / m >= t)
+    problem = cp.Problem(cp.Maximize(t), constraints)
+    try:
+        problem.solve(solver=solver, **solver_options)
+    except cp.error.SolverError as exc:
+        raise SolverError(f'trajectory step: {solver} failed ({exc})') from exc
+    if problem.status != cp.OPTIMAL:
+        raise SolverError(f'trajectory step: {solver} returned status {problem.status!r}')
+    q = np.asarray(z.value) * KM
+    bound = float(sca_lower_bound(q, q_k, p, scenario).mean(axis=1).min())
+    return TrajectoryStep(q=q, bound=bound)
