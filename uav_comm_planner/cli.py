@@ -1,0 +1,196 @@
+"""Command line: ``uav-comm-planner plan`` and ``uav-comm-planner sweep``.
+
+Both take the letter's case (``--case I`` or ``II``) or a scenario file, with flags that
+override single settings; bad input ends with a one-line error and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+from pathlib import Path
+import sys
+from typing import Sequence
+
+from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.files import write_text_atomic
+from uav_comm_planner.optimizer import plan, PlanResult
+from uav_comm_planner.scenario import paper_scenario, Scenario, SolverSettings
+from uav_comm_planner.serialize import result_to_dict, scenario_from_dict
+
+# Scenario field -> (flag, help) for the single-value overrides.
+_SCALAR_FLAGS = {
+    'altitude_m': ('--altitude', 'UAV altitude H, metres'),
+    'max_speed_mps': ('--speed', 'maximum speed V, m/s'),
+    'horizon_s': ('--horizon', 'horizon T, seconds'),
+    'num_slots': ('--slots', 'number of slots M'),
+    'bandwidth_hz': ('--bandwidth', 'total bandwidth B, Hz'),
+    'noise_psd_dbm_per_hz': ('--noise-dbm', 'noise PSD sigma^2, dBm/Hz'),
+    'reference_gain': ('--beta0', 'channel gain beta0 at 1 m (linear)'),
+    'power_budget_w': ('--budget', 'power budget P_T, watts'),
+}
+
+
+def _floats(text: str, count: int | None = None) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(',')]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected comma-separated numbers, got {text!r}')
+    if count is not None and len(values) != count:
+        raise argparse.ArgumentTypeError(f'expected {count} comma-separated numbers, got {text!r}')
+    return values
+
+
+def _pair(text: str) -> tuple[float, float]:
+    x, y = _floats(text, 2)
+    return (x, y)
+
+
+def _nodes(text: str) -> list[tuple[float, float]]:
+    return [_pair(item) for item in text.split(';') if item.strip()]
+
+
+def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument('--case', default='I', choices=['I', 'II', 'i', 'ii'],
+                        help="the letter's case: I ends at (2000, 0), II at (2000, 500)")
+    source.add_argument('--scenario', type=Path, metavar='FILE.json',
+                        help='scenario file: a JSON object of Scenario fields (a result file '
+                             'written by --json also works)')
+    parser.add_argument('--nodes', type=_nodes, metavar='X,Y;X,Y;...',
+                        help='ground node positions, metres')
+    parser.add_argument('--start', type=_pair, metavar='X,Y', help='launch point q0, metres')
+    parser.add_argument('--goal', type=_pair, metavar='X,Y', help='landing point qF, metres')
+    for field, (flag, text) in _SCALAR_FLAGS.items():
+        kind = int if field == 'num_slots' else float
+        parser.add_argument(flag, dest=field, type=kind, help=text)
+    parser.add_argument('--tolerance', type=float, default=None,
+                        help='convergence tolerance epsilon, bit/s (default 0.01)')
+    parser.add_argument('--max-nodes', type=int, default=None, help='largest number of nodes')
+
+
+def _scenario(args: argparse.Namespace) -> Scenario:
+    if args.scenario is not None:
+        try:
+            data = json.loads(args.scenario.read_text(encoding='utf-8'))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise PlannerError(f'cannot read scenario file {str(args.scenario)!r}: {exc}')
+        base = scenario_from_dict(data)
+    else:
+        base = paper_scenario(args.case)
+    changes = {field: getattr(args, field) for field in _SCALAR_FLAGS
+               if getattr(args, field) is not None}
+    for field, name in (('ground_nodes_m', 'nodes'), ('start_m', 'start'), ('goal_m', 'goal')):
+        if getattr(args, name) is not None:
+            changes[field] = getattr(args, name)
+    return base.replace(**changes) if changes else base
+
+
+def _settings(args: argparse.Namespace) -> SolverSettings:
+    changes = {}
+    if args.tolerance is not None:
+        changes['tolerance_bps'] = args.tolerance
+    if args.max_nodes is not None:
+        changes['max_nodes'] = args.max_nodes
+    return SolverSettings(**changes)
+
+
+def format_plan(result: PlanResult) -> str:
+    """The short table of one plan: the proposed method against both baselines."""
+    scenario = result.scenario
+    rows = [('proposed (joint power and trajectory)', result.min_throughput)]
+    rows += [(label, result.baselines[key]) for key, label in
+             (('straight', 'straight line, optimal power'),
+              ('static', 'static access point, optimal power')) if key in result.baselines]
+    upper_bound = getattr(result, 'upper_bound', None)
+    if upper_bound is not None:
+        rows.append(('upper bound (every channel at its best)', upper_bound))
+    lines = [f'N = {scenario.num_nodes} nodes, M = {scenario.num_slots} slots of '
+             f'{scenario.slot_s:g} s, P_T = {scenario.power_budget_w:g} W, '
+             f'H = {scenario.altitude_m:g} m, V = {scenario.max_speed_mps:g} m/s',
+             f'{"method":<42}{"min avg throughput (bit/s)":>28}']
+    lines += [f'{label:<42}{value:>28.4f}' for label, value in rows]
+    lines.append(f'{result.outer_iterations} power steps, {result.trajectory_steps} trajectory '
+                 f'steps, {result.status}, start: {result.start}, '
+                 f'plan time {result.solve_time_s:.2f} s')
+    return '\n'.join(lines)
+
+
+def _check_output_folders(*paths: Path | None) -> None:
+    """Fail before planning, not after, when an output file cannot be placed."""
+    for path in paths:
+        if path is not None and not path.parent.is_dir():
+            raise PlannerError(f'folder {str(path.parent)!r} for {str(path)!r} does not exist')
+
+
+def _command_plan(args: argparse.Namespace) -> int:
+    _check_output_folders(args.json, args.figure)
+    result = plan(_scenario(args), _settings(args))
+    print(format_plan(result))
+    if args.json is not None:
+        text = json.dumps(result_to_dict(result), indent=1)
+        print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
+    if args.figure is not None:
+        from uav_comm_planner.plots import plan_figure
+        print(f'wrote {plan_figure(result, args.figure)}')
+    return 0
+
+
+def _command_sweep(args: argparse.Namespace) -> int:
+    _check_output_folders(args.json, args.figure)
+    scenario, settings = _scenario(args), _settings(args)
+    rows: dict[str, list[float]] = {'proposed': [], 'straight': [], 'static': []}
+    print(f'{"P_T (W)":>8}{"proposed":>12}{"straight":>12}{"static":>12}{"time (s)":>10}')
+    for budget in args.budgets:
+        result = plan(scenario.replace(power_budget_w=budget), settings)
+        values = [result.min_throughput, result.baselines['straight'], result.baselines['static']]
+        for key, value in zip(rows, values):
+            rows[key].append(value)
+        print(f'{budget:>8g}' + ''.join(f'{v:>12.4f}' for v in values)
+              + f'{result.solve_time_s:>10.2f}')
+    if args.json is not None:
+        text = json.dumps({'budgets_w': args.budgets, 'min_throughput': rows}, indent=1)
+        print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
+    if args.figure is not None:
+        from uav_comm_planner.plots import sweep_figure
+        print(f'wrote {sweep_figure(args.budgets, rows, args.figure)}')
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog='uav-comm-planner',
+        description='Joint transmit-power and trajectory planning for a communication UAV.')
+    commands = parser.add_subparsers(dest='command', required=True)
+
+    plan_parser = commands.add_parser('plan', help='plan one scenario and print the table')
+    _add_scenario_arguments(plan_parser)
+    plan_parser.add_argument('--json', type=Path, metavar='FILE.json', help='write the plan')
+    plan_parser.add_argument('--figure', type=Path, metavar='FILE.png',
+                             help="draw the letter's Fig. 1 for this plan")
+    plan_parser.set_defaults(handler=_command_plan)
+
+    sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')
+    _add_scenario_arguments(sweep_parser)
+    sweep_parser.add_argument('--budgets', type=_floats, default=[0.5, 1, 2, 5, 10, 20],
+                              metavar='W,W,...', help='power budgets P_T, watts')
+    sweep_parser.add_argument('--json', type=Path, metavar='FILE.json', help='write the table')
+    sweep_parser.add_argument('--figure', type=Path, metavar='FILE.png',
+                              help="draw the letter's Fig. 2")
+    sweep_parser.set_defaults(handler=_command_sweep)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    logging.basicConfig(level=logging.WARNING, format='%(levelname)s %(name)s: %(message)s')
+    args = build_parser().parse_args(argv)
+    try:
+        return args.handler(args)
+    except (PlannerError, FileNotFoundError, PermissionError, IsADirectoryError) as exc:
+        print(f'uav-comm-planner: error: {exc}', file=sys.stderr)
+        return 2
+
+
+if __name__ == '__main__':
+    sys.exit(main())
