@@ -1,0 +1,91 @@
+"""The exact water-filling power step against the conic (cvxpy + Clarabel) power step."""
+
+import numpy as np
+import pytest
+
+from uav_comm_planner import paper_scenario
+from uav_comm_planner.errors import SolverError
+from uav_comm_planner.initial import static_point, straight_line
+from uav_comm_planner.model import snr_per_watt
+from uav_comm_planner.power import conic_power, waterfilling_power
+
+
+def letter_cases():
+    for case in ('I', 'II'):
+        scenario = paper_scenario(case)
+        for q in (straight_line(scenario), static_point(scenario)):
+            yield snr_per_watt(q, scenario), scenario.power_budget_w
+
+
+def random_cases():
+    rng = np.random.default_rng(2024)
+    for _ in range(6):
+        n, m = rng.integers(2, 7), rng.integers(5, 60)
+        # Spread over 4 decades so that at a low budget many slots get no power at all.
+        a = 10.0 ** rng.uniform(-1.0, 3.0, size=(n, m))
+        for budget in (0.05, 1.0, 30.0):
+            yield a, budget
+
+
+def both(a, budget):
+    return waterfilling_power(a, budget), conic_power(a, budget)
+
+
+@pytest.mark.parametrize('a, budget', list(letter_cases()) + list(random_cases()))
+def test_waterfilling_equals_conic_form(a, budget):
+    exact, conic = both(a, budget)
+    assert exact.efficiency == pytest.approx(conic.efficiency, rel=1e-6)
+    # Same allocation, up to the conic solver's accuracy relative to the budget.
+    np.testing.assert_allclose(exact.p, conic.p, atol=1e-5 * budget)
+
+
+@pytest.mark.parametrize('a, budget', list(random_cases()))
+def test_waterfilling_is_a_water_level_per_node_with_equal_rates(a, budget):
+    result = waterfilling_power(a, budget)
+    p = result.p
+    assert np.all(p >= 0.0)
+    assert p.sum() == pytest.approx(budget, rel=1e-9)
+    efficiencies = np.log2(1.0 + p * a).mean(axis=1)
+    np.testing.assert_allclose(efficiencies, result.efficiency, rtol=1e-8)
+    for p_n, a_n in zip(p, a):
+        active = p_n > 0
+        level = p_n[active] + 1.0 / a_n[active]
+        np.testing.assert_allclose(level, level.mean(), rtol=1e-9)
+        # Inactive slots are those whose 1/a lies above the water level.
+        assert np.all(1.0 / a_n[~active] >= level.mean() * (1 - 1e-9))
+
+
+def test_low_snr_cases_leave_some_slots_without_power():
+    rng = np.random.default_rng(5)
+    a = 10.0 ** rng.uniform(-1.0, 3.0, size=(4, 40))
+    exact, conic = both(a, 0.05)
+    silent = exact.p == 0.0
+    assert silent.sum() > 20
+    assert np.all(conic.p[silent] <= 1e-6 * 0.05)
+
+
+def test_the_letters_high_snr_power_is_nearly_constant_along_the_flight():
+    # At a ~ 1e13 per watt, 1/a ~ 1e-13 W: water-filling is flat to within 1e-11 W.
+    scenario = paper_scenario('I')
+    a = snr_per_watt(straight_line(scenario), scenario)
+    p = waterfilling_power(a, scenario.power_budget_w).p
+    assert np.all(p > 0)
+    assert np.ptp(p, axis=1).max() < 1e-10
+
+
+def test_bad_snr_array_is_refused():
+    with pytest.raises(SolverError, match='finite, positive'):
+        waterfilling_power(np.array([[1.0, np.nan]]), 1.0)
+    with pytest.raises(SolverError, match='finite, positive'):
+        waterfilling_power(np.array([[1.0, 0.0]]), 1.0)
+
+
+def test_conic_failure_is_reported(monkeypatch):
+    import cvxpy as cp
+
+    def fail(self, *args, **kwargs):
+        raise cp.error.SolverError('numerical trouble')
+
+    monkeypatch.setattr(cp.Problem, 'solve', fail)
+    with pytest.raises(SolverError, match='power step: CLARABEL failed'):
+        conic_power(np.ones((2, 3)), 1.0)

@@ -1,0 +1,87 @@
+"""The SCA bound of the trajectory step, checked against the letter's own formula."""
+
+import math
+
+import numpy as np
+import pytest
+
+from uav_comm_planner import paper_scenario
+from uav_comm_planner.errors import SolverError
+from uav_comm_planner.initial import straight_line
+from uav_comm_planner.model import leg_lengths, snr_per_watt
+from uav_comm_planner.power import waterfilling_power
+from uav_comm_planner.trajectory import sca_lower_bound, trajectory_step_cvxpy
+
+
+def letter_bound(q, q_k, p, scenario):
+    """lbr of eq. (10), written as the letter does: gamma beta0 and d^k, in metres."""
+    sigma2 = 10 ** ((scenario.noise_psd_dbm_per_hz - 30) / 10)
+    n_nodes = scenario.num_nodes
+    out = np.zeros((n_nodes, len(q)))
+    for n, (xn, yn) in enumerate(scenario.ground_nodes_m):
+        for m in range(len(q)):
+            gamma_beta0 = n_nodes * p[n, m] / (scenario.bandwidth_hz * sigma2) \
+                * scenario.reference_gain
+            xk, yk = q_k[m]
+            d_k = (xk - xn) ** 2 + (yk - yn) ** 2 + scenario.altitude_m ** 2
+            dx, dy = q[m][0] - xk, q[m][1] - yk
+            f = dx ** 2 + dy ** 2 + 2 * (xk - xn) * dx + 2 * (yk - yn) * dy
+            out[n, m] = math.log2(1 + gamma_beta0 / d_k) \
+                - gamma_beta0 / (math.log(2) * d_k * (gamma_beta0 + d_k)) * f
+    return out
+
+
+def true_bits(q, p, scenario):
+    return np.log2(1.0 + p * snr_per_watt(q, scenario))
+
+
+@pytest.fixture(params=[('I', 5.0), ('II', 5.0), ('I', 1e-9)], ids=['I', 'II', 'I-low-snr'])
+def expansion(request):
+    case, budget = request.param
+    scenario = paper_scenario(case, power_budget_w=budget)
+    q_k = straight_line(scenario)
+    p = waterfilling_power(snr_per_watt(q_k, scenario), budget).p
+    return scenario, q_k, p
+
+
+def test_bound_equals_the_letters_formula_and_touches_at_the_expansion_point(expansion):
+    scenario, q_k, p = expansion
+    rng = np.random.default_rng(11)
+    q = q_k + rng.normal(scale=300.0, size=q_k.shape)
+    np.testing.assert_allclose(sca_lower_bound(q, q_k, p, scenario),
+                               letter_bound(q, q_k, p, scenario), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(sca_lower_bound(q_k, q_k, p, scenario),
+                               true_bits(q_k, p, scenario), rtol=1e-12)
+
+
+def test_bound_is_below_the_true_rate_everywhere(expansion):
+    scenario, q_k, p = expansion
+    rng = np.random.default_rng(3)
+    for scale in (1.0, 50.0, 500.0, 3000.0):
+        q = q_k + rng.normal(scale=scale, size=q_k.shape)
+        gap = true_bits(q, p, scenario) - sca_lower_bound(q, q_k, p, scenario)
+        assert gap.min() >= -1e-9 * true_bits(q, p, scenario).max()
+
+
+def test_step_keeps_the_speed_limits_and_raises_the_true_minimum(expansion):
+    scenario, q_k, p = expansion
+    step = trajectory_step_cvxpy(q_k, p, scenario)
+    assert leg_lengths(step.q, scenario).max() <= scenario.max_step_m * (1 + 1e-7)
+    before = true_bits(q_k, p, scenario).mean(axis=1).min()
+    after = true_bits(step.q, p, scenario).mean(axis=1).min()
+    assert step.bound >= before - 1e-7 * before
+    assert after >= step.bound - 1e-9 * step.bound
+    assert after > before
+
+
+def test_solver_status_is_checked(monkeypatch, expansion):
+    import cvxpy as cp
+    scenario, q_k, p = expansion
+
+    def infeasible(self, *args, **kwargs):
+        self._status = cp.INFEASIBLE
+
+    monkeypatch.setattr(cp.Problem, 'solve', infeasible)
+    monkeypatch.setattr(cp.Problem, 'status', property(lambda self: self._status))
+    with pytest.raises(SolverError, match="trajectory step: CLARABEL returned status 'infeasible'"):
+        trajectory_step_cvxpy(q_k, p, scenario)
