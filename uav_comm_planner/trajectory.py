@@ -21,7 +21,6 @@ import numpy as np
 
 from uav_comm_planner.errors import SolverError
 from uav_comm_planner.model import snr_per_watt, squared_distances
-from uav_comm_planner.power import CLARABEL_TIGHT
 from uav_comm_planner.scenario import Scenario
 
 #: The conic problems see positions in kilometres: coordinates of order 1, not 1000.
@@ -91,10 +90,8 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
         spread = cp.sum(cp.square(z - w[n][None, :]), axis=1)
         constraints.append(constant[n] - weight[n] @ spread / m >= t)
     problem = cp.Problem(cp.Maximize(t), constraints)
-    options = dict(CLARABEL_TIGHT) if solver == 'CLARABEL' else {}
-    options.update(solver_options)
     try:
-        problem.solve(solver=solver, **options)
+        problem.solve(solver=solver, **solver_options)
     except cp.error.SolverError as exc:
         raise SolverError(f'trajectory step: {solver} failed ({exc})') from exc
     if problem.status != cp.OPTIMAL:

@@ -1,0 +1,75 @@
+"""The command line as a user runs it: tables, JSON, figures and clear errors."""
+
+import json
+
+import pytest
+
+from uav_comm_planner import cli
+
+
+def run(capsys, *argv):
+    status = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def test_plan_writes_the_json_and_the_figure(tmp_path, capsys):
+    result_file, figure = tmp_path / 'r.json', tmp_path / 'f.png'
+    status, out, _ = run(capsys, 'plan', '--case', 'I', '--json', str(result_file),
+                         '--figure', str(figure))
+    assert status == 0
+    assert 'proposed (joint power and trajectory)' in out and 'static access point' in out
+    data = json.loads(result_file.read_text())
+    for key in ('trajectory', 'times', 'power', 'rates', 'min_throughput', 'baselines',
+                'history', 'scenario'):
+        assert key in data
+    assert len(data['trajectory']) == 50 and len(data['power']) == 3
+    assert data['min_throughput'] > max(data['baselines']['straight'],
+                                        data['baselines']['static'])
+    assert figure.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_a_result_file_is_a_scenario_file_and_flags_override_it(tmp_path, capsys):
+    first = tmp_path / 'first.json'
+    assert run(capsys, 'plan', '--case', 'II', '--json', str(first))[0] == 0
+    second = tmp_path / 'second.json'
+    status, out, _ = run(capsys, 'plan', '--scenario', str(first), '--budget', '1',
+                         '--nodes', '300,300;900,100', '--json', str(second))
+    assert status == 0 and 'N = 2 nodes' in out and 'P_T = 1 W' in out
+    scenario = json.loads(second.read_text())['scenario']
+    assert scenario['goal_m'] == [2000.0, 500.0]
+    assert scenario['ground_nodes_m'] == [[300.0, 300.0], [900.0, 100.0]]
+
+
+def test_sweep_prints_one_row_per_budget_and_draws_fig_2(tmp_path, capsys):
+    figure = tmp_path / 'sweep.png'
+    status, out, _ = run(capsys, 'sweep', '--case', 'I', '--budgets', '0.5,5',
+                         '--figure', str(figure))
+    assert status == 0
+    rows = [line.split() for line in out.splitlines() if line.strip()[:1].isdigit()]
+    assert [row[0] for row in rows] == ['0.5', '5']
+    assert all(float(row[1]) > max(float(row[2]), float(row[3])) for row in rows)
+    assert figure.stat().st_size > 0
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['plan', '--nodes', '1,1;1,1'], 'duplicate ground nodes'),
+    (['plan', '--slots', '5', '--horizon', '5'], 'goal unreachable'),
+    (['plan', '--budget', '-1'], 'power_budget_w must be a positive finite number'),
+    (['plan', '--json', '/no/such/folder/r.json'], "folder '/no/such/folder'"),
+    (['plan', '--nodes', '1,2;3,4', '--max-nodes', '1'], 'too many ground nodes'),
+])
+def test_bad_input_ends_with_a_one_line_error(capsys, argv, message):
+    status, out, err = run(capsys, *argv)
+    assert status == 2
+    assert message in err and err.count('\n') == 1
+    assert 'proposed' not in out
+
+
+def test_unreadable_scenario_file_is_reported(tmp_path, capsys):
+    bad = tmp_path / 'bad.json'
+    bad.write_text('{"ground_nodes_m": [[0, 0]], "altitude": 3}')
+    status, _, err = run(capsys, 'plan', '--scenario', str(bad))
+    assert status == 2 and "unknown scenario field(s) ['altitude']" in err
+    status, _, err = run(capsys, 'plan', '--scenario', str(tmp_path / 'missing.json'))
+    assert status == 2 and 'cannot read scenario file' in err
