@@ -1,0 +1,251 @@
+"""ROS parameters <-> the planner's settings dataclasses.
+
+Every field of :class:`~uav_comm_planner.scenario.Scenario`,
+:class:`~uav_comm_planner.scenario.SolverSettings` and :class:`NodeSettings` becomes one ROS
+parameter of the same name (``ground_nodes_m`` is published as ``ground_nodes``), typed from
+the field's annotation: ``float`` -> double, ``int`` -> integer, ``bool``, ``str``, a point
+``(x, y)`` -> a double array of two values, a tuple of points -> a flat double array
+``x1, y1, x2, y2, ...``. A field of any other type is not exposed and keeps its default.
+Defaults are the letter's case I. :func:`config_from_parameters` is the one way back from
+parameter values to validated dataclasses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+import math
+import typing
+from typing import Any, Mapping, Sequence
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
+from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.scenario import paper_scenario, Point, Scenario, SolverSettings
+
+MISSION_ENDS = ('land', 'rtl')
+MISSION_FIRMWARES = ('ardupilot', 'px4')
+
+ParameterValue = typing.Union[bool, int, float, str, list]
+
+
+@dataclass(frozen=True)
+class NodeSettings:
+    """How the node labels its output and where it writes the flight as a mission file.
+
+    ``mission_file`` empty means no mission is written; its extension chooses the format
+    (``.waypoints`` or ``.plan``). The home position anchors the planning frame's origin
+    (east-north metres) on WGS84; ``home_altitude_m`` is above mean sea level.
+    """
+
+    frame_id: str = 'map'
+    mission_file: str = ''
+    home_latitude_deg: float = 47.397742
+    home_longitude_deg: float = 8.545594
+    home_altitude_m: float = 488.0
+    mission_end: str = 'land'
+    mission_firmware: str = 'ardupilot'
+
+    def __post_init__(self) -> None:
+        if not self.frame_id.strip():
+            raise InvalidScenarioError('frame_id must not be empty, e.g. "map"')
+        if not (math.isfinite(self.home_latitude_deg) and abs(self.home_latitude_deg) <= 90):
+            raise InvalidScenarioError(
+                f'home_latitude_deg must be in [-90, 90], got {self.home_latitude_deg!r}')
+        if not (math.isfinite(self.home_longitude_deg) and abs(self.home_longitude_deg) <= 180):
+            raise InvalidScenarioError(
+                f'home_longitude_deg must be in [-180, 180], got {self.home_longitude_deg!r}')
+        if not math.isfinite(self.home_altitude_m):
+            raise InvalidScenarioError(
+                f'home_altitude_m must be finite, got {self.home_altitude_m!r}')
+        if self.mission_end not in MISSION_ENDS:
+            raise InvalidScenarioError(
+                f'mission_end must be one of {MISSION_ENDS}, got {self.mission_end!r}')
+        if self.mission_firmware not in MISSION_FIRMWARES:
+            raise InvalidScenarioError(
+                f'mission_firmware must be one of {MISSION_FIRMWARES}, '
+                f'got {self.mission_firmware!r}')
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Everything the node's parameters say: what to plan, how, and how to publish it."""
+
+    scenario: Scenario
+    settings: SolverSettings
+    node: NodeSettings
+
+
+#: ROS names of fields whose parameter is not named like the field.
+PARAMETER_NAMES = {'ground_nodes_m': 'ground_nodes'}
+
+DESCRIPTIONS = {
+    'ground_nodes_m': 'ground node positions w_n in frame_id as a flat list x1, y1, x2, y2, '
+                      '... (metres); the ground_nodes topic replaces them',
+    'altitude_m': 'flight altitude H above the ground nodes (m)',
+    'max_speed_mps': 'speed limit V (m/s)',
+    'horizon_s': 'mission duration T from launch to the last waypoint (s)',
+    'num_slots': 'number of waypoints M; slot length delta = T / M',
+    'start_m': 'launch point q0 as x, y in frame_id (m)',
+    'goal_m': 'landing point qF as x, y in frame_id (m)',
+    'bandwidth_hz': 'total bandwidth B shared equally by the nodes (Hz)',
+    'noise_psd_dbm_per_hz': 'noise power spectral density sigma^2 (dBm/Hz)',
+    'reference_gain': 'channel power gain beta0 at 1 m (linear)',
+    'power_budget_w': 'total transmit power budget P_T over all nodes and slots (W)',
+    'tolerance_bps': 'stop when an iteration gains at most this much (bit/s); epsilon',
+    'relative_tolerance': 'stop when an iteration gains at most this fraction of the objective',
+    'max_outer_iterations': 'limit on power steps of Algorithm 1',
+    'max_inner_iterations': 'limit on SCA trajectory steps per power step',
+    'max_nodes': 'largest number of ground nodes accepted',
+    'compute_baselines': 'also compute the straight-line and static-point baselines',
+    'frame_id': 'frame of the ground nodes, the UAV pose and every output',
+    'mission_file': 'write the planned flight here on every plan (.waypoints or .plan); '
+                    'empty: no mission file',
+    'home_latitude_deg': 'WGS84 latitude of the frame origin (deg)',
+    'home_longitude_deg': 'WGS84 longitude of the frame origin (deg)',
+    'home_altitude_m': 'altitude of the frame origin above mean sea level (m)',
+    'mission_end': 'what the mission does at the goal: land or rtl',
+    'mission_firmware': 'mission dialect: ardupilot or px4',
+}
+
+#: Inclusive (low, high) limits shown to tools; the dataclasses check the exact domain.
+RANGES = {
+    'altitude_m': (0.0, 100000.0),
+    'max_speed_mps': (0.0, 1000.0),
+    'horizon_s': (0.0, 1.0e6),
+    'num_slots': (1, 100000),
+    'bandwidth_hz': (0.0, 1.0e12),
+    'noise_psd_dbm_per_hz': (-300.0, 100.0),
+    'reference_gain': (0.0, 1.0e6),
+    'power_budget_w': (0.0, 1.0e6),
+    'tolerance_bps': (0.0, 1.0e12),
+    'relative_tolerance': (0.0, 1.0),
+    'max_outer_iterations': (1, 100000),
+    'max_inner_iterations': (1, 100000),
+    'max_nodes': (1, 100000),
+    'home_latitude_deg': (-90.0, 90.0),
+    'home_longitude_deg': (-180.0, 180.0),
+}
+
+_SCALAR_KINDS = {bool: 'bool', int: 'int', float: 'float', str: 'str'}
+
+
+def _kind(hint: Any) -> str | None:
+    """How a field of type ``hint`` is carried by a ROS parameter, or None if it is not."""
+    if hint in _SCALAR_KINDS:
+        return _SCALAR_KINDS[hint]
+    if hint == Point:
+        return 'pair'
+    if hint == tuple[Point, ...]:
+        return 'pairs'
+    return None
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """One ROS parameter: its name, the dataclass field it fills, its default and its kind."""
+
+    name: str
+    owner: type
+    field: str
+    kind: str
+    default: ParameterValue
+
+    def descriptor(self) -> ParameterDescriptor:
+        """The descriptor the node declares: description with units, and range if any."""
+        descriptor = ParameterDescriptor(
+            name=self.name,
+            description=DESCRIPTIONS.get(self.field, f'{self.owner.__name__}.{self.field}'))
+        if self.field == 'mission_end':
+            descriptor.additional_constraints = f'one of {", ".join(MISSION_ENDS)}'
+        elif self.field == 'mission_firmware':
+            descriptor.additional_constraints = f'one of {", ".join(MISSION_FIRMWARES)}'
+        elif self.kind == 'pair':
+            descriptor.additional_constraints = 'exactly two values: x, y'
+        elif self.kind == 'pairs':
+            descriptor.additional_constraints = 'an even number of values: x1, y1, x2, y2, ...'
+        limits = RANGES.get(self.field)
+        if limits and self.kind == 'float':
+            descriptor.floating_point_range = [FloatingPointRange(
+                from_value=float(limits[0]), to_value=float(limits[1]), step=0.0)]
+        elif limits and self.kind == 'int':
+            descriptor.integer_range = [IntegerRange(
+                from_value=int(limits[0]), to_value=int(limits[1]), step=1)]
+        return descriptor
+
+
+def to_parameter_value(value: Any, kind: str) -> ParameterValue:
+    """A dataclass field value as a ROS parameter value of ``kind``."""
+    if kind == 'pair':
+        return [float(v) for v in value]
+    if kind == 'pairs':
+        return [float(v) for point in value for v in point]
+    if kind == 'float':
+        return float(value)
+    return value
+
+
+def from_parameter_value(name: str, value: Any, kind: str) -> Any:
+    """A ROS parameter value back as the dataclass field value; refuses a wrong shape."""
+    if kind == 'pair':
+        values = [float(v) for v in value]
+        if len(values) != 2:
+            raise InvalidScenarioError(f'{name} must be two values x, y, got {len(values)}')
+        return (values[0], values[1])
+    if kind == 'pairs':
+        values = [float(v) for v in value]
+        if len(values) % 2:
+            raise InvalidScenarioError(
+                f'{name} must be a flat list x1, y1, x2, y2, ... with an even number of '
+                f'values, got {len(values)}')
+        return tuple(zip(values[0::2], values[1::2]))
+    return value
+
+
+def _defaults(owner: type) -> Any:
+    return paper_scenario('I') if owner is Scenario else owner()
+
+
+def _specs_of(owner: type) -> list[ParameterSpec]:
+    hints = typing.get_type_hints(owner)
+    defaults = _defaults(owner)
+    specs = []
+    for field in fields(owner):
+        kind = _kind(hints[field.name])
+        if kind is None:
+            continue
+        specs.append(ParameterSpec(
+            name=PARAMETER_NAMES.get(field.name, field.name), owner=owner, field=field.name,
+            kind=kind, default=to_parameter_value(getattr(defaults, field.name), kind)))
+    return specs
+
+
+def parameter_specs() -> tuple[ParameterSpec, ...]:
+    """Every parameter of the node, in declaration order: scenario, solver, node settings."""
+    return tuple(spec for owner in (Scenario, SolverSettings, NodeSettings)
+                 for spec in _specs_of(owner))
+
+
+def config_from_parameters(values: Mapping[str, Any]) -> PlannerConfig:
+    """Validated settings from parameter values by ROS name; missing names take defaults.
+
+    Raises :class:`~uav_comm_planner.errors.InvalidScenarioError` (or its subclass
+    :class:`~uav_comm_planner.errors.InfeasibleHorizonError`) with the reason.
+    """
+    chosen: dict[type, dict[str, Any]] = {Scenario: {}, SolverSettings: {}, NodeSettings: {}}
+    for spec in parameter_specs():
+        value = values.get(spec.name, spec.default)
+        chosen[spec.owner][spec.field] = from_parameter_value(spec.name, value, spec.kind)
+    scenario = Scenario(**chosen[Scenario])
+    settings = SolverSettings(**chosen[SolverSettings])
+    settings.check(scenario)
+    return PlannerConfig(scenario, settings, NodeSettings(**chosen[NodeSettings]))
+
+
+def flat_pairs(points: Sequence[Sequence[float]]) -> list[float]:
+    """Points ``[(x1, y1), (x2, y2), ...]`` as the flat list a parameter holds."""
+    return to_parameter_value(points, 'pairs')
+
+
+__all__ = ['MISSION_ENDS', 'MISSION_FIRMWARES', 'NodeSettings', 'ParameterSpec',
+           'PlannerConfig', 'config_from_parameters', 'flat_pairs', 'from_parameter_value',
+           'parameter_specs', 'to_parameter_value']
