@@ -1,0 +1,89 @@
+"""The geodetic anchor of the planning frame: east-north-up metres from a home point on WGS84.
+
+The planner works in metres with x = east and y = north; a mission file needs latitude and
+longitude. The conversion goes through pymap3d's ENU <-> geodetic transforms on the WGS84
+ellipsoid, which stay exact over any distance (a flat-earth approximation drifts by metres
+over a few kilometres at high latitude).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+import pymap3d
+
+from uav_comm_planner.errors import InvalidScenarioError
+
+#: PX4 and ArduPilot SITL's default launch point (Zurich, 488 m above sea level).
+DEFAULT_HOME = (47.397742, 8.545594, 488.0)
+
+
+@dataclass(frozen=True)
+class Home:
+    """Where the planning frame is anchored: the launch point, ground level.
+
+    ``altitude_m`` is the home altitude above mean sea level as the autopilot reports it. The
+    ENU transform reads it as the ellipsoidal height; the geoid separation (at most ~100 m)
+    scales horizontal distances by less than 2e-5, i.e. under 4 cm over the letter's 2 km.
+    """
+
+    latitude_deg: float
+    longitude_deg: float
+    altitude_m: float
+
+    def __post_init__(self) -> None:
+        for name in ('latitude_deg', 'longitude_deg', 'altitude_m'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) \
+                    or not math.isfinite(value):
+                raise InvalidScenarioError(f'home {name} must be a finite number, got {value!r}')
+            object.__setattr__(self, name, float(value))
+        if not -90.0 <= self.latitude_deg <= 90.0:
+            raise InvalidScenarioError(
+                f'home latitude must be in [-90, 90] degrees, got {self.latitude_deg}')
+        if not -180.0 <= self.longitude_deg <= 180.0:
+            raise InvalidScenarioError(
+                f'home longitude must be in [-180, 180] degrees, got {self.longitude_deg}')
+
+    @classmethod
+    def parse(cls, text: str) -> 'Home':
+        """Read ``'LAT,LON,ALT'`` (degrees, degrees, metres above sea level)."""
+        parts = [part.strip() for part in str(text).split(',')]
+        if len(parts) != 3:
+            raise InvalidScenarioError(
+                f'home must be LAT,LON,ALT (degrees, degrees, metres), got {text!r}')
+        try:
+            latitude, longitude, altitude = (float(part) for part in parts)
+        except ValueError:
+            raise InvalidScenarioError(
+                f'home must be three numbers LAT,LON,ALT, got {text!r}') from None
+        return cls(latitude, longitude, altitude)
+
+
+def enu_to_geodetic(east_m: np.ndarray, north_m: np.ndarray, up_m: np.ndarray | float,
+                    home: Home) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """ENU metres from ``home`` -> (latitude deg, longitude deg, ellipsoidal height m).
+
+    Inputs broadcast against each other: (K,) each, or scalars; outputs have their shape.
+    """
+    latitude, longitude, height = pymap3d.enu2geodetic(
+        np.asarray(east_m, dtype=float), np.asarray(north_m, dtype=float),
+        np.asarray(up_m, dtype=float), home.latitude_deg, home.longitude_deg, home.altitude_m,
+        ell=pymap3d.Ellipsoid.from_name('wgs84'), deg=True)
+    return np.asarray(latitude), np.asarray(longitude), np.asarray(height)
+
+
+def geodetic_to_enu(latitude_deg: np.ndarray, longitude_deg: np.ndarray,
+                    height_m: np.ndarray | float,
+                    home: Home) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(latitude deg, longitude deg, ellipsoidal height m) -> ENU metres from ``home``."""
+    east, north, up = pymap3d.geodetic2enu(
+        np.asarray(latitude_deg, dtype=float), np.asarray(longitude_deg, dtype=float),
+        np.asarray(height_m, dtype=float), home.latitude_deg, home.longitude_deg,
+        home.altitude_m, ell=pymap3d.Ellipsoid.from_name('wgs84'), deg=True)
+    return np.asarray(east), np.asarray(north), np.asarray(up)
+
+
+__all__ = ['DEFAULT_HOME', 'Home', 'enu_to_geodetic', 'geodetic_to_enu']

@@ -1,0 +1,421 @@
+"""MAVLink mission export: the planned flight as items an autopilot flies on the planned timing.
+
+The plan is a sequence of points P_0 = q0, P_m = q[m] (m = 1..M), P_{M+1} = qF, reached at
+t_m = m delta, in east-north metres from ``home`` at altitude H above it. The mission is
+
+0. home (frame 0, absolute altitude), as QGroundControl and Mission Planner expect in row 0;
+1. NAV_TAKEOFF to H above home (the vehicle climbs where it stands);
+2. NAV_WAYPOINT at q0 (frame 3, relative altitude H). Reaching it starts the plan's clock:
+   the climb and the transit from home to q0 are outside the horizon and not timed;
+3. per stop, a DO_CHANGE_SPEED (ground speed) when the leg's speed differs from the one in
+   force, then NAV_WAYPOINT with param1 = hold time, seconds;
+4. NAV_LAND at qF, or NAV_RETURN_TO_LAUNCH.
+
+A stop is a run of consecutive plan points that all lie within ``merge_radius_m`` of each
+other: the UAV hovers there (the letter's hovering over a node), so one waypoint with a hold
+stands for the whole run. Its hold is the time the plan spends inside the run; the leg into it
+ends at the run's first planned time, the leg out of it starts at the run's last.
+
+Timing. Each leg's speed is its length over the time left until the next stop's planned
+arrival, computed from the replayed clock (not from the plan's), so rounding never accumulates:
+a replay of the file (leg length / commanded speed, plus holds) reaches every waypoint at its
+planned time, within ``timing_tolerance_s``. A leg that would be slower than ``min_speed_mps``
+(autopilots do not hold a crawl of a few cm/s) is flown at that speed after holding at its start
+for the remaining time. ArduPilot keeps a waypoint's hold in whole seconds (a uint16), so for
+``firmware='ardupilot'`` holds are rounded down and the next leg is slowed by the fraction.
+The replay is kinematic: acceleration and corner rounding by the autopilot are not modelled.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import json
+import math
+import os
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+from pymavlink import mavutil, mavwp
+
+from uav_comm_planner.errors import MissionExportError
+from uav_comm_planner.files import atomic_path
+from uav_comm_planner.geodesy import enu_to_geodetic, Home
+from uav_comm_planner.optimizer import PlanResult
+
+MAV = mavutil.mavlink
+FRAME_GLOBAL = MAV.MAV_FRAME_GLOBAL                       # 0: absolute altitude (home row)
+FRAME_MISSION = MAV.MAV_FRAME_MISSION                     # 2: no position (DO commands, RTL)
+FRAME_RELATIVE_ALT = MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT    # 3: altitude above home
+NAV_WAYPOINT = MAV.MAV_CMD_NAV_WAYPOINT
+NAV_TAKEOFF = MAV.MAV_CMD_NAV_TAKEOFF
+NAV_LAND = MAV.MAV_CMD_NAV_LAND
+NAV_RETURN_TO_LAUNCH = MAV.MAV_CMD_NAV_RETURN_TO_LAUNCH
+DO_CHANGE_SPEED = MAV.MAV_CMD_DO_CHANGE_SPEED
+SPEED_TYPE_GROUND = 1.0
+THROTTLE_UNCHANGED = -1.0
+
+#: Plan points closer than this are one stop. ArduCopter's default waypoint radius
+#: (WPNAV_RADIUS) is 2 m: the autopilot counts points this close as reached together anyway,
+#: and at H = 100 m a 2 m offset changes the channel gain by under 0.04 %.
+MERGE_RADIUS_M = 2.0
+#: Slowest commanded ground speed; slower legs become a hold plus a leg at this speed.
+MIN_SPEED_MPS = 0.5
+#: Speeds are written to 1 cm/s; the replayed clock absorbs the rounding.
+SPEED_DECIMALS = 2
+#: Latitude and longitude to 1e-8 degree (about 1 mm).
+DEGREE_DECIMALS = 8
+#: Keep the speed in force when it reaches the next stop within this fraction of a slot.
+TIMING_TOLERANCE_SLOTS = 0.05
+
+FIRMWARE_TYPES = {'ardupilot': MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 'px4': MAV.MAV_AUTOPILOT_PX4}
+MISSION_ENDS = ('land', 'rtl')
+VEHICLE_TYPE_QUADROTOR = MAV.MAV_TYPE_QUADROTOR
+QGC_ALTITUDE_MODE_RELATIVE = 1
+
+
+@dataclass(frozen=True)
+class MissionItem:
+    """One MISSION_ITEM row: x, y in degrees (latitude, longitude), z in metres."""
+
+    command: int
+    frame: int
+    params: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    current: bool = False
+    autocontinue: bool = True
+
+
+@dataclass(frozen=True)
+class Stop:
+    """A waypoint of the timed part of the mission, in the planning frame.
+
+    position_m: (2,) east, north metres; plan_arrival_s, plan_departure_s: the planned times of
+    the first and last plan point the stop stands for; arrival_s: replayed arrival;
+    hold_s: the commanded hold; speed_mps: the speed commanded on the leg out of the stop
+    (None for the last stop).
+    """
+
+    position_m: np.ndarray
+    plan_arrival_s: float
+    plan_departure_s: float
+    arrival_s: float = 0.0
+    hold_s: float = 0.0
+    speed_mps: float | None = None
+    points: tuple[int, ...] = field(default=())
+
+
+def plan_points(result: PlanResult) -> tuple[np.ndarray, np.ndarray]:
+    """The flown path q0, q[1..M], qF: (M + 2, 2) metres, and its planned times (M + 2,) s."""
+    scenario = result.scenario
+    q = np.asarray(result.trajectory, dtype=float).reshape(-1, 2)
+    times = np.asarray(result.times, dtype=float).reshape(-1)
+    if len(times) != len(q) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(times))):
+        raise MissionExportError('the plan has no finite trajectory with one time per waypoint')
+    end_time = (len(q) + 1) * scenario.slot_s
+    path = np.vstack([scenario.start_m, q, scenario.goal_m])
+    return path, np.concatenate([[0.0], times, [end_time]])
+
+
+def hover_runs(points: np.ndarray, merge_radius_m: float) -> list[tuple[int, int]]:
+    """Split points (K, 2) into maximal runs [i, j] whose points are all within the radius.
+
+    Greedy in time order: a run grows while the next point is within ``merge_radius_m`` of
+    every point already in it, so the run's diameter never exceeds the radius.
+    """
+    runs = []
+    first = 0
+    for index in range(1, len(points) + 1):
+        if index < len(points):
+            gaps = np.linalg.norm(points[first:index] - points[index], axis=1)
+            if gaps.max() <= merge_radius_m:
+                continue
+        runs.append((first, index - 1))
+        first = index
+    return runs
+
+
+def _representative(points: np.ndarray, first: int, last: int, count: int) -> int:
+    """The plan point that stands for run [first, last]: q0 or qF if inside, else its medoid."""
+    if first == 0:
+        return 0
+    if last == count - 1:
+        return last
+    run = points[first:last + 1]
+    spread = np.linalg.norm(run[:, None, :] - run[None, :, :], axis=-1).max(axis=1)
+    return first + int(np.argmin(spread))
+
+
+def group_stops(points: np.ndarray, times: np.ndarray, merge_radius_m: float) -> list[Stop]:
+    """The stops of a path: points (K, 2) metres reached at times (K,) seconds."""
+    return [Stop(position_m=points[_representative(points, i, j, len(points))].copy(),
+                 plan_arrival_s=float(times[i]), plan_departure_s=float(times[j]),
+                 points=tuple(range(i, j + 1)))
+            for i, j in hover_runs(points, merge_radius_m)]
+
+
+@dataclass(frozen=True)
+class _Leg:
+    hold_s: float
+    speed_mps: float
+
+
+def _plan_leg(length_m: float, ready_s: float, wait_s: float, target_s: float, *,
+              min_speed_mps: float, whole_seconds: bool) -> _Leg:
+    """Hold and speed so that a leg of ``length_m`` started no earlier than ``ready_s + wait_s``
+    ends at ``target_s``."""
+    flight_s = target_s - ready_s - wait_s
+    if flight_s <= 0.0:
+        raise MissionExportError(
+            f'cannot reach a waypoint {length_m:.1f} m away by t = {target_s:.2f} s: the '
+            f'mission clock is already at {ready_s + wait_s:.2f} s')
+    if length_m / flight_s < min_speed_mps:
+        wait_s += flight_s - length_m / min_speed_mps
+    wait_s = _quantised_hold(wait_s, whole_seconds)
+    remaining_s = target_s - ready_s - wait_s
+    speed = length_m / remaining_s if remaining_s > 1e-9 else min_speed_mps
+    return _Leg(hold_s=wait_s, speed_mps=max(speed, min_speed_mps))
+
+
+def schedule_stops(stops: Sequence[Stop], *, slot_s: float,
+                   min_speed_mps: float = MIN_SPEED_MPS, whole_second_holds: bool = True,
+                   timing_tolerance_s: float | None = None) -> list[Stop]:
+    """Give each stop its hold and the speed of the leg out of it; replay the clock.
+
+    The clock is 0 at the first stop. The speed in force is kept on a leg when it reaches the
+    next stop within ``timing_tolerance_s`` (default 5 % of a slot) of the planned arrival;
+    otherwise the exact speed, rounded to 1 cm/s, is commanded.
+    """
+    tolerance = TIMING_TOLERANCE_SLOTS * slot_s if timing_tolerance_s is None \
+        else timing_tolerance_s
+    scheduled: list[Stop] = []
+    clock = 0.0
+    speed_in_force: float | None = None
+    for stop, following in zip(stops, list(stops[1:]) + [None]):
+        wait = max(0.0, stop.plan_departure_s - clock)
+        if following is None:
+            hold = _quantised_hold(wait, whole_second_holds)
+            scheduled.append(_with(stop, arrival_s=clock, hold_s=hold, speed_mps=None))
+            break
+        length = float(np.linalg.norm(following.position_m - stop.position_m))
+        leg = _plan_leg(length, clock, wait, following.plan_arrival_s,
+                        min_speed_mps=min_speed_mps, whole_seconds=whole_second_holds)
+        speed = _commanded_speed(leg, length, speed_in_force, tolerance, min_speed_mps)
+        scheduled.append(_with(stop, arrival_s=clock, hold_s=leg.hold_s, speed_mps=speed))
+        clock += leg.hold_s + length / speed
+        speed_in_force = speed
+    return scheduled
+
+
+def _quantised_hold(hold_s: float, whole_seconds: bool) -> float:
+    """Whole seconds rounded down (ArduPilot's resolution), else hundredths of a second."""
+    if whole_seconds:
+        return float(math.floor(hold_s + 1e-6))
+    return round(hold_s, 2)
+
+
+def _commanded_speed(leg: _Leg, length_m: float, speed_in_force: float | None,
+                     tolerance_s: float, min_speed_mps: float) -> float:
+    """The speed in force if it is on time within the tolerance, else the leg's own speed."""
+    if speed_in_force is not None and \
+            abs(length_m / speed_in_force - length_m / leg.speed_mps) <= tolerance_s:
+        return speed_in_force
+    return max(round(leg.speed_mps, SPEED_DECIMALS), min_speed_mps)
+
+
+def _with(stop: Stop, **changes) -> Stop:
+    values = {name: getattr(stop, name) for name in stop.__dataclass_fields__}
+    values.update(changes)
+    return Stop(**values)
+
+
+def plan_stops(result: PlanResult, *, firmware: str = 'ardupilot',
+               merge_radius_m: float = MERGE_RADIUS_M,
+               min_speed_mps: float = MIN_SPEED_MPS) -> list[Stop]:
+    """The timed stops of a plan, in the planning frame (no geodesy, no I/O)."""
+    _check_firmware(firmware)
+    if not (math.isfinite(merge_radius_m) and merge_radius_m >= 0):
+        raise MissionExportError(f'merge_radius_m must be >= 0, got {merge_radius_m!r}')
+    if not (math.isfinite(min_speed_mps) and min_speed_mps > 0):
+        raise MissionExportError(f'min_speed_mps must be > 0, got {min_speed_mps!r}')
+    points, times = plan_points(result)
+    return schedule_stops(group_stops(points, times, merge_radius_m),
+                          slot_s=result.scenario.slot_s, min_speed_mps=min_speed_mps,
+                          whole_second_holds=firmware == 'ardupilot')
+
+
+def _check_firmware(firmware: str) -> None:
+    if firmware not in FIRMWARE_TYPES:
+        raise MissionExportError(
+            f'unknown firmware {firmware!r}: choose one of {", ".join(FIRMWARE_TYPES)}')
+
+
+def build_mission_items(result: PlanResult, home: Home, *, end: str = 'land',
+                        firmware: str = 'ardupilot', merge_radius_m: float = MERGE_RADIUS_M,
+                        min_speed_mps: float = MIN_SPEED_MPS) -> list[MissionItem]:
+    """The mission rows of a plan, home first (see the module docstring for their meaning)."""
+    if end not in MISSION_ENDS:
+        raise MissionExportError(f'unknown mission end {end!r}: choose land or rtl')
+    stops = plan_stops(result, firmware=firmware, merge_radius_m=merge_radius_m,
+                       min_speed_mps=min_speed_mps)
+    # PX4 reads a yaw of 0 as "face north"; NaN keeps its own heading mode. ArduCopter
+    # ignores the waypoint yaw, and Mission Planner shows NaN as an error, so it gets 0.
+    yaw = math.nan if firmware == 'px4' else 0.0
+    altitude = result.scenario.altitude_m
+    east = np.array([stop.position_m[0] for stop in stops])
+    north = np.array([stop.position_m[1] for stop in stops])
+    latitude, longitude, _ = enu_to_geodetic(east, north, 0.0, home)
+    latitude, longitude = latitude.round(DEGREE_DECIMALS), longitude.round(DEGREE_DECIMALS)
+    items = [MissionItem(NAV_WAYPOINT, FRAME_GLOBAL, x=home.latitude_deg,
+                         y=home.longitude_deg, z=home.altitude_m, current=True),
+             MissionItem(NAV_TAKEOFF, FRAME_RELATIVE_ALT, (0.0, 0.0, 0.0, yaw),
+                         home.latitude_deg, home.longitude_deg, altitude)]
+    speed_in_force = None
+    for index, stop in enumerate(stops):
+        if index > 0 and stops[index - 1].speed_mps != speed_in_force:
+            speed_in_force = stops[index - 1].speed_mps
+            items.append(MissionItem(DO_CHANGE_SPEED, FRAME_MISSION,
+                                     (SPEED_TYPE_GROUND, speed_in_force, THROTTLE_UNCHANGED, 0.0)))
+        items.append(MissionItem(NAV_WAYPOINT, FRAME_RELATIVE_ALT, (stop.hold_s, 0.0, 0.0, yaw),
+                                 float(latitude[index]), float(longitude[index]), altitude))
+    if end == 'land':
+        items.append(MissionItem(NAV_LAND, FRAME_RELATIVE_ALT, (0.0, 0.0, 0.0, yaw),
+                                 float(latitude[-1]), float(longitude[-1]), 0.0))
+    else:
+        items.append(MissionItem(NAV_RETURN_TO_LAUNCH, FRAME_MISSION))
+    return items
+
+
+# Writers.
+
+def _mavlink_message(item: MissionItem, seq: int) -> object:
+    return MAV.MAVLink_mission_item_message(
+        target_system=0, target_component=0, seq=seq, frame=item.frame, command=item.command,
+        current=int(item.current), autocontinue=int(item.autocontinue),
+        param1=item.params[0], param2=item.params[1], param3=item.params[2],
+        param4=item.params[3], x=item.x, y=item.y, z=item.z)
+
+
+def write_waypoints(items: Sequence[MissionItem], path: Path) -> None:
+    """Write QGC WPL 110 through pymavlink's mavwp, then read it back to check it."""
+    loader = mavwp.MAVWPLoader()
+    for seq, item in enumerate(items):
+        loader.add(_mavlink_message(item, seq))
+    loader.save(str(path))
+    check = mavwp.MAVWPLoader()
+    if check.load(str(path)) != len(items):
+        raise MissionExportError(f'{path}: mavwp read back a different number of items')
+
+
+def _json_number(value: float) -> float | None:
+    return None if math.isnan(value) else value
+
+
+def plan_document(items: Sequence[MissionItem], home: Home, *,
+                  firmware: str = 'ardupilot') -> dict:
+    """The QGroundControl .plan JSON object (file version 1, mission version 2)."""
+    _check_firmware(firmware)
+    speeds = [item.params[1] for item in items if item.command == DO_CHANGE_SPEED]
+    default_speed = speeds[0] if speeds else 5.0
+    return {
+        'fileType': 'Plan',
+        'version': 1,
+        'groundStation': 'QGroundControl',
+        'mission': {
+            'version': 2,
+            'firmwareType': FIRMWARE_TYPES[firmware],
+            'vehicleType': VEHICLE_TYPE_QUADROTOR,
+            'cruiseSpeed': default_speed,
+            'hoverSpeed': default_speed,
+            'globalPlanAltitudeMode': QGC_ALTITUDE_MODE_RELATIVE,
+            'plannedHomePosition': [home.latitude_deg, home.longitude_deg, home.altitude_m],
+            'items': [_plan_item(item, seq) for seq, item in enumerate(items[1:], start=1)],
+        },
+        'geoFence': {'circles': [], 'polygons': [], 'version': 2},
+        'rallyPoints': {'points': [], 'version': 2},
+    }
+
+
+def _plan_item(item: MissionItem, seq: int) -> dict:
+    entry = {
+        'type': 'SimpleItem',
+        'autoContinue': item.autocontinue,
+        'command': item.command,
+        'doJumpId': seq,
+        'frame': item.frame,
+        'params': [_json_number(v) for v in (*item.params, item.x, item.y, item.z)],
+    }
+    if item.frame == FRAME_RELATIVE_ALT:
+        entry.update(AMSLAltAboveTerrain=None, Altitude=item.z,
+                     AltitudeMode=QGC_ALTITUDE_MODE_RELATIVE)
+    return entry
+
+
+def write_plan(items: Sequence[MissionItem], path: Path, home: Home, *,
+               firmware: str = 'ardupilot') -> None:
+    """Write a QGroundControl .plan file."""
+    text = json.dumps(plan_document(items, home, firmware=firmware), indent=4, allow_nan=False)
+    path.write_text(text + '\n', encoding='utf-8')
+
+
+MISSION_FORMATS = ('.waypoints', '.plan')
+
+
+def export_mission(result: PlanResult, path: str | os.PathLike, home: Home, *,
+                   end: str = 'land', firmware: str = 'ardupilot',
+                   merge_radius_m: float = MERGE_RADIUS_M) -> Path:
+    """Write the plan as a mission file, format from the extension; return the path written.
+
+    ``.waypoints``: QGC WPL 110 (QGroundControl, Mission Planner, MAVProxy); ``.plan``:
+    QGroundControl JSON. The file is replaced atomically; on any failure a
+    :class:`MissionExportError` says why and a previous file at ``path`` is left as it was.
+    """
+    target = Path(path)
+    suffix = target.suffix.lower()
+    if suffix not in MISSION_FORMATS:
+        raise MissionExportError(
+            f'unknown mission format {target.suffix or "(no extension)"!r} for {str(target)!r}: '
+            f'use a .waypoints or .plan file')
+    if not isinstance(home, Home):
+        raise MissionExportError(f'home must be a Home(latitude, longitude, altitude), got '
+                                 f'{home!r}')
+    items = build_mission_items(result, home, end=end, firmware=firmware,
+                                merge_radius_m=merge_radius_m)
+    if suffix == '.plan':
+        def writer(temporary: Path) -> None:
+            write_plan(items, temporary, home, firmware=firmware)
+    else:
+        def writer(temporary: Path) -> None:
+            write_waypoints(items, temporary)
+    _write_atomically(target, writer)
+    return target
+
+
+def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
+    folder = target.parent
+    if not folder.exists():
+        raise MissionExportError(f'cannot write {str(target)!r}: folder {str(folder)!r} '
+                                 f'does not exist')
+    if not folder.is_dir():
+        raise MissionExportError(f'cannot write {str(target)!r}: {str(folder)!r} is not a folder')
+    if target.is_dir():
+        raise MissionExportError(f'cannot write {str(target)!r}: it is a folder')
+    mode = target.stat().st_mode & 0o777 if target.exists() else 0o644
+    try:
+        with atomic_path(target) as temporary:
+            writer(temporary)
+            os.chmod(temporary, mode)
+    except MissionExportError:
+        raise
+    except (OSError, ValueError, TypeError) as exc:
+        raise MissionExportError(f'cannot write {str(target)!r}: {exc}; the previous file, if '
+                                 f'any, is unchanged') from exc
+
+
+__all__ = [
+    'Home', 'MERGE_RADIUS_M', 'MIN_SPEED_MPS', 'MissionItem', 'Stop', 'build_mission_items',
+    'export_mission', 'group_stops', 'hover_runs', 'plan_document', 'plan_points',
+    'plan_stops', 'schedule_stops', 'write_plan', 'write_waypoints',
+]
