@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import paper_scenario, plan, Scenario, SolverError, SolverSettings
+from uav_comm_planner.initial import straight_line
 from uav_comm_planner.model import average_rates, leg_lengths
 from uav_comm_planner.optimizer import alternate, baseline_rates
-from uav_comm_planner.initial import straight_line
 
 
 def random_scenario(seed: int, nodes: int = 5, slots: int = 40) -> Scenario:
@@ -23,7 +23,8 @@ def assert_feasible(result):
     assert leg_lengths(result.trajectory, scenario).max() <= scenario.max_step_m * (1 + 1e-7)
     assert np.all(result.power >= 0.0)
     assert result.power.sum() <= scenario.power_budget_w * (1 + 1e-12)
-    np.testing.assert_allclose(result.times, scenario.slot_s * np.arange(1, scenario.num_slots + 1))
+    expected_times = scenario.slot_s * np.arange(1, scenario.num_slots + 1)
+    np.testing.assert_allclose(result.times, expected_times)
 
 
 @pytest.fixture(scope='module', params=['I', 'II', 'random-1', 'random-2'])

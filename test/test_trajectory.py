@@ -83,5 +83,5 @@ def test_solver_status_is_checked(monkeypatch, expansion):
 
     monkeypatch.setattr(cp.Problem, 'solve', infeasible)
     monkeypatch.setattr(cp.Problem, 'status', property(lambda self: self._status))
-    with pytest.raises(SolverError, match="trajectory step: CLARABEL returned status 'infeasible'"):
+    with pytest.raises(SolverError, match="CLARABEL returned status 'infeasible'"):
         trajectory_step_cvxpy(q_k, p, scenario)

@@ -24,7 +24,8 @@ def _point(name: str, value: Sequence[float]) -> Point:
     try:
         x, y = (float(v) for v in value)
     except (TypeError, ValueError) as exc:
-        raise InvalidScenarioError(f'{name} must be a pair (x, y) in metres, got {value!r}') from exc
+        raise InvalidScenarioError(
+            f'{name} must be a pair (x, y) in metres, got {value!r}') from exc
     if not (math.isfinite(x) and math.isfinite(y)):
         raise InvalidScenarioError(f'{name} must be finite, got ({x}, {y})')
     return (x, y)
@@ -64,7 +65,8 @@ class Scenario:
         try:
             nodes = tuple(_point(f'ground node {i + 1}', w) for i, w in enumerate(nodes))
         except TypeError as exc:
-            raise InvalidScenarioError('ground_nodes_m must be a sequence of (x, y) pairs') from exc
+            raise InvalidScenarioError(
+                'ground_nodes_m must be a sequence of (x, y) pairs') from exc
         if not nodes:
             raise InvalidScenarioError('no ground nodes: give at least one (x, y) position')
         object.__setattr__(self, 'ground_nodes_m', nodes)
@@ -78,7 +80,8 @@ class Scenario:
                 f'noise_psd_dbm_per_hz must be finite, got {self.noise_psd_dbm_per_hz!r}')
         if isinstance(self.num_slots, bool) or not isinstance(self.num_slots, (int, np.integer)) \
                 or self.num_slots < 1:
-            raise InvalidScenarioError(f'num_slots must be an integer >= 1, got {self.num_slots!r}')
+            raise InvalidScenarioError(
+                f'num_slots must be an integer >= 1, got {self.num_slots!r}')
         object.__setattr__(self, 'num_slots', int(self.num_slots))
         self._check_duplicates()
         self._check_reachable()

@@ -6,7 +6,8 @@ log2(1 + A / (d + x)) in x gives, for x = ||q[m] - w_n||^2 - ||q^k[m] - w_n||^2,
 
     r_{n,m}(q) >= lbr_{n,m}(q) = log2(1 + snr^k) - snr^k / ((1 + snr^k) ln 2) * x / d^k,
 
-which is the letter's bound with gamma beta0 / (d^k (gamma beta0 + d^k)) = snr^k / ((1 + snr^k) d^k).
+which is the letter's bound, since
+gamma beta0 / (d^k (gamma beta0 + d^k)) = snr^k / ((1 + snr^k) d^k).
 The bound is global and tight at q^k, so maximising min_n mean_m lbr_{n,m} subject to the
 speed limits never lowers the true minimum rate.
 """
