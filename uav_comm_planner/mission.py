@@ -157,72 +157,89 @@ def group_stops(points: np.ndarray, times: np.ndarray, merge_radius_m: float) ->
 
 
 @dataclass(frozen=True)
-class _Leg:
-    hold_s: float
-    speed_mps: float
+class Pace:
+    """How the stops are timed.
 
-
-def _plan_leg(length_m: float, ready_s: float, wait_s: float, target_s: float, *,
-              min_speed_mps: float, whole_seconds: bool) -> _Leg:
-    """Hold and speed so that a leg of ``length_m`` started no earlier than ``ready_s + wait_s``
-    ends at ``target_s``."""
-    flight_s = target_s - ready_s - wait_s
-    if flight_s <= 0.0:
-        raise MissionExportError(
-            f'cannot reach a waypoint {length_m:.1f} m away by t = {target_s:.2f} s: the '
-            f'mission clock is already at {ready_s + wait_s:.2f} s')
-    if length_m / flight_s < min_speed_mps:
-        wait_s += flight_s - length_m / min_speed_mps
-    wait_s = _quantised_hold(wait_s, whole_seconds)
-    remaining_s = target_s - ready_s - wait_s
-    speed = length_m / remaining_s if remaining_s > 1e-9 else min_speed_mps
-    return _Leg(hold_s=wait_s, speed_mps=max(speed, min_speed_mps))
-
-
-def schedule_stops(stops: Sequence[Stop], *, slot_s: float,
-                   min_speed_mps: float = MIN_SPEED_MPS, whole_second_holds: bool = True,
-                   timing_tolerance_s: float | None = None) -> list[Stop]:
-    """Give each stop its hold and the speed of the leg out of it; replay the clock.
-
-    The clock is 0 at the first stop. The speed in force is kept on a leg when it reaches the
-    next stop within ``timing_tolerance_s`` (default 5 % of a slot) of the planned arrival;
-    otherwise the exact speed, rounded to 1 cm/s, is commanded.
+    Commanded speeds stay in [min_speed_mps, max_speed_mps]; a speed is kept while it reaches
+    the next stop within ``tolerance_s`` of the planned time; holds are whole seconds when
+    ``whole_second_holds`` (ArduPilot), else hundredths of a second.
     """
-    tolerance = TIMING_TOLERANCE_SLOTS * slot_s if timing_tolerance_s is None \
-        else timing_tolerance_s
+
+    min_speed_mps: float
+    max_speed_mps: float
+    tolerance_s: float
+    whole_second_holds: bool = True
+
+    def bound(self, speed_mps: float) -> float:
+        """A speed rounded to 1 cm/s and clipped to the allowed range."""
+        return min(max(round(speed_mps, SPEED_DECIMALS), self.min_speed_mps),
+                   self.max_speed_mps)
+
+
+def schedule_stops(stops: Sequence[Stop], pace: Pace) -> list[Stop]:
+    """Give each stop its hold and the speed of the leg out of it, replaying the clock.
+
+    The clock is 0 at the first stop. Before each leg the UAV holds until the stop's planned
+    departure (plus, for a leg slower than the minimum speed, the time that leg would crawl);
+    the leg then flies at the first of: the speed in force, the plan's own speed for the leg,
+    the speed that lands exactly on the next planned arrival, that is on time.
+    """
     scheduled: list[Stop] = []
     clock = 0.0
-    speed_in_force: float | None = None
+    in_force: float | None = None
     for stop, following in zip(stops, list(stops[1:]) + [None]):
         wait = max(0.0, stop.plan_departure_s - clock)
         if following is None:
-            hold = _quantised_hold(wait, whole_second_holds)
-            scheduled.append(_with(stop, arrival_s=clock, hold_s=hold, speed_mps=None))
+            scheduled.append(_with(stop, arrival_s=clock, hold_s=_quantised_hold(wait, pace)))
             break
         length = float(np.linalg.norm(following.position_m - stop.position_m))
-        leg = _plan_leg(length, clock, wait, following.plan_arrival_s,
-                        min_speed_mps=min_speed_mps, whole_seconds=whole_second_holds)
-        speed = _commanded_speed(leg, length, speed_in_force, tolerance, min_speed_mps)
-        scheduled.append(_with(stop, arrival_s=clock, hold_s=leg.hold_s, speed_mps=speed))
-        clock += leg.hold_s + length / speed
-        speed_in_force = speed
+        target = following.plan_arrival_s
+        hold = _hold_before_leg(length, clock + wait, target, pace) + wait
+        hold = _quantised_hold(hold, pace)
+        nominal = length / max(target - stop.plan_departure_s, 1e-9)
+        in_force = _leg_speed(length, clock + hold, target, (in_force, nominal), pace)
+        scheduled.append(_with(stop, arrival_s=clock, hold_s=hold, speed_mps=in_force))
+        clock += hold + length / in_force
     return scheduled
 
 
-def _quantised_hold(hold_s: float, whole_seconds: bool) -> float:
-    """Whole seconds rounded down (ArduPilot's resolution), else hundredths of a second."""
-    if whole_seconds:
-        return float(math.floor(hold_s + 1e-6))
-    return round(hold_s, 2)
+def _hold_before_leg(length_m: float, ready_s: float, target_s: float, pace: Pace) -> float:
+    """Extra hold so that a leg too slow to command is flown at the minimum speed instead."""
+    flight_s = target_s - ready_s
+    if flight_s <= 0.0:
+        raise MissionExportError(
+            f'cannot reach a waypoint {length_m:.1f} m away by t = {target_s:.2f} s: the '
+            f'mission clock is already at {ready_s:.2f} s; the plan breaks its speed limit')
+    return max(0.0, flight_s - length_m / pace.min_speed_mps)
 
 
-def _commanded_speed(leg: _Leg, length_m: float, speed_in_force: float | None,
-                     tolerance_s: float, min_speed_mps: float) -> float:
-    """The speed in force if it is on time within the tolerance, else the leg's own speed."""
-    if speed_in_force is not None and \
-            abs(length_m / speed_in_force - length_m / leg.speed_mps) <= tolerance_s:
-        return speed_in_force
-    return max(round(leg.speed_mps, SPEED_DECIMALS), min_speed_mps)
+def _leg_speed(length_m: float, departure_s: float, target_s: float,
+               preferred: tuple[float | None, float], pace: Pace) -> float:
+    """The first preferred speed that is on time within the tolerance, else the exact one."""
+    def lateness(speed: float) -> float:
+        return abs(departure_s + length_m / speed - target_s)
+
+    in_force, nominal = preferred
+    for speed in (in_force, pace.bound(nominal)):
+        if speed is not None and lateness(speed) <= pace.tolerance_s:
+            return speed
+    remaining = target_s - departure_s
+    return pace.bound(length_m / remaining if remaining > 1e-9 else pace.max_speed_mps)
+
+
+def _quantised_hold(hold_s: float, pace: Pace) -> float:
+    """Hundredths of a second, or whole seconds (ArduPilot's resolution).
+
+    Whole seconds round to the nearest when that is within the tolerance (a clock a few ms
+    late must not cost a second of hovering), else down, so that the next leg can slow down
+    to absorb the fraction.
+    """
+    if hold_s <= pace.tolerance_s:
+        return 0.0  # any hold stops the vehicle; a few ms are not worth a stop
+    if not pace.whole_second_holds:
+        return round(hold_s, 2)
+    nearest = round(hold_s)
+    return float(nearest if abs(hold_s - nearest) <= pace.tolerance_s else math.floor(hold_s))
 
 
 def _with(stop: Stop, **changes) -> Stop:
@@ -238,12 +255,15 @@ def plan_stops(result: PlanResult, *, firmware: str = 'ardupilot',
     _check_firmware(firmware)
     if not (math.isfinite(merge_radius_m) and merge_radius_m >= 0):
         raise MissionExportError(f'merge_radius_m must be >= 0, got {merge_radius_m!r}')
-    if not (math.isfinite(min_speed_mps) and min_speed_mps > 0):
-        raise MissionExportError(f'min_speed_mps must be > 0, got {min_speed_mps!r}')
+    scenario = result.scenario
+    if not (math.isfinite(min_speed_mps) and 0 < min_speed_mps < scenario.max_speed_mps):
+        raise MissionExportError(f'min_speed_mps must be in (0, max_speed_mps = '
+                                 f'{scenario.max_speed_mps}), got {min_speed_mps!r}')
+    pace = Pace(min_speed_mps=min_speed_mps, max_speed_mps=scenario.max_speed_mps,
+                tolerance_s=TIMING_TOLERANCE_SLOTS * scenario.slot_s,
+                whole_second_holds=firmware == 'ardupilot')
     points, times = plan_points(result)
-    return schedule_stops(group_stops(points, times, merge_radius_m),
-                          slot_s=result.scenario.slot_s, min_speed_mps=min_speed_mps,
-                          whole_second_holds=firmware == 'ardupilot')
+    return schedule_stops(group_stops(points, times, merge_radius_m), pace)
 
 
 def _check_firmware(firmware: str) -> None:
@@ -409,13 +429,13 @@ def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
             os.chmod(temporary, mode)
     except MissionExportError:
         raise
-    except (OSError, ValueError, TypeError) as exc:
+    except (OSError, ValueError, TypeError, mavwp.MAVWPError) as exc:
         raise MissionExportError(f'cannot write {str(target)!r}: {exc}; the previous file, if '
                                  f'any, is unchanged') from exc
 
 
 __all__ = [
-    'Home', 'MERGE_RADIUS_M', 'MIN_SPEED_MPS', 'MissionItem', 'Stop', 'build_mission_items',
-    'export_mission', 'group_stops', 'hover_runs', 'plan_document', 'plan_points',
-    'plan_stops', 'schedule_stops', 'write_plan', 'write_waypoints',
+    'Home', 'MERGE_RADIUS_M', 'MIN_SPEED_MPS', 'MissionItem', 'Pace', 'Stop',
+    'build_mission_items', 'export_mission', 'group_stops', 'hover_runs', 'plan_document',
+    'plan_points', 'plan_stops', 'schedule_stops', 'write_plan', 'write_waypoints',
 ]

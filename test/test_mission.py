@@ -1,0 +1,431 @@
+"""Mission export: files that pymavlink and QGroundControl load, on the plan's points and timing.
+
+The checks read the written files back (mavwp's loader, json) and replay them kinematically
+with their own code: leg length over the commanded speed, plus the holds.
+"""
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pymap3d
+from pymavlink import mavwp
+import pytest
+
+from uav_comm_planner import InvalidScenarioError, MissionExportError, paper_scenario, plan
+from uav_comm_planner import mission
+from uav_comm_planner.geodesy import DEFAULT_HOME, enu_to_geodetic, geodetic_to_enu, Home
+from uav_comm_planner.mission import build_mission_items, export_mission
+from uav_comm_planner.optimizer import PlanResult
+from uav_comm_planner.scenario import Scenario
+
+WAYPOINT, TAKEOFF, LAND, RTL, CHANGE_SPEED = 16, 22, 21, 20, 178
+POSITION_TOLERANCE_M = 0.5
+
+
+@pytest.fixture(scope='module')
+def case_one() -> PlanResult:
+    return plan(paper_scenario('I'))
+
+
+@pytest.fixture(scope='module')
+def home() -> Home:
+    return Home(*DEFAULT_HOME)
+
+
+def synthetic_result(q, *, start=(0.0, 0.0), goal, horizon_s, speed=10.0) -> PlanResult:
+    """A plan with a given trajectory q (M, 2); the power schedule plays no part in export."""
+    q = np.asarray(q, dtype=float)
+    scenario = Scenario(ground_nodes_m=((0.0, 50.0),), altitude_m=30.0, max_speed_mps=speed,
+                        horizon_s=horizon_s, num_slots=len(q), start_m=start, goal_m=goal)
+    return PlanResult(scenario=scenario, trajectory=q, times=scenario.times_s,
+                      power=np.zeros((1, len(q))), rates=np.zeros(1), min_throughput=0.0,
+                      history=())
+
+
+def planned_path(result: PlanResult) -> tuple[np.ndarray, np.ndarray]:
+    """q0, q[1..M], qF (M + 2, 2) and their times (M + 2,), from the result's own fields."""
+    scenario = result.scenario
+    path = np.vstack([scenario.start_m, result.trajectory, scenario.goal_m])
+    times = np.concatenate([[0.0], result.times, [result.times[-1] + scenario.slot_s]])
+    return path, times
+
+
+def load(path: Path):
+    loader = mavwp.MAVWPLoader()
+    count = loader.load(str(path))
+    return [loader.wp(i) for i in range(count)]
+
+
+def to_enu(item, home: Home) -> np.ndarray:
+    east, north, _ = pymap3d.geodetic2enu(item.x, item.y, home.altitude_m, home.latitude_deg,
+                                          home.longitude_deg, home.altitude_m)
+    return np.array([east, north])
+
+
+def replay(items, home: Home) -> list[tuple[np.ndarray, float, float]]:
+    """(position, arrival, hold) of every waypoint from q0 on; the clock is 0 at q0."""
+    first = next(i for i, item in enumerate(items) if item.command == TAKEOFF) + 1
+    clock, speed, here, stops = 0.0, None, None, []
+    for item in items[first:]:
+        if item.command == CHANGE_SPEED:
+            speed = item.param2
+        elif item.command == WAYPOINT:
+            position = to_enu(item, home)
+            if here is not None:
+                clock += float(np.linalg.norm(position - here)) / speed
+            stops.append((position, clock, item.param1))
+            clock += item.param1
+            here = position
+    return stops
+
+
+def track(stops, t: float) -> np.ndarray:
+    """Where the replayed UAV is at time t: holding at a waypoint or on a straight leg."""
+    for (position, arrival, hold), following in zip(stops, stops[1:] + [None]):
+        if t <= arrival + hold or following is None:
+            return position
+        next_position, next_arrival, _ = following
+        if t <= next_arrival:
+            fraction = (t - arrival - hold) / max(next_arrival - arrival - hold, 1e-12)
+            return position + np.clip(fraction, 0, 1) * (next_position - position)
+    raise AssertionError('unreachable')
+
+
+def planned_arrivals(stops, path, times, radius) -> list[float]:
+    """Each waypoint's planned arrival: the first plan point (in order) it stands for."""
+    arrivals, cursor = [], 0
+    for position, _, _ in stops:
+        near = np.linalg.norm(path - position, axis=1) <= radius
+        m = cursor + int(np.argmax(near[cursor:]))
+        assert near[m], f'waypoint {position} stands for no plan point after t = {times[cursor]}'
+        arrivals.append(times[m])
+        while m + 1 < len(path) and near[m + 1]:
+            m += 1
+        cursor = m + 1 if m + 1 < len(path) else m
+    return arrivals
+
+
+def written(result, tmp_path, home, name='m.waypoints', **options):
+    target = export_mission(result, tmp_path / name, home, **options)
+    assert target == tmp_path / name
+    return target
+
+
+# The QGC WPL 110 file.
+
+def test_waypoints_file_has_the_format_qgroundcontrol_and_mission_planner_read(
+        case_one, home, tmp_path):
+    target = written(case_one, tmp_path, home)
+    lines = target.read_text().splitlines()
+    assert lines[0] == 'QGC WPL 110'
+    for number, line in enumerate(lines[1:]):
+        fields = line.split('\t')
+        assert len(fields) == 12, line
+        assert not line.startswith('#')
+        assert int(fields[0]) == number
+    items = load(target)
+    assert len(items) == len(lines) - 1
+    home_row, takeoff = items[0], items[1]
+    assert (home_row.command, home_row.frame) == (WAYPOINT, 0)
+    assert (home_row.x, home_row.y, home_row.z) == pytest.approx(DEFAULT_HOME, abs=1e-6)
+    assert (takeoff.command, takeoff.frame, takeoff.z) == (TAKEOFF, 3, 100.0)
+    assert items[-1].command == LAND and items[-1].z == 0.0
+    assert all(item.autocontinue == 1 for item in items)
+    assert {item.frame for item in items if item.command == WAYPOINT} - {0} == {3}
+
+
+def test_every_waypoint_lies_on_the_plan_and_covers_it(case_one, home, tmp_path):
+    items = load(written(case_one, tmp_path, home))
+    path, _ = planned_path(case_one)
+    waypoints = np.array([to_enu(item, home) for item in items[2:] if item.command == WAYPOINT])
+    gaps = np.linalg.norm(waypoints[:, None, :] - path[None, :, :], axis=-1)
+    assert gaps.min(axis=1).max() <= POSITION_TOLERANCE_M
+    # Every plan point is stood for by a waypoint within the merge radius.
+    assert gaps.min(axis=0).max() <= mission.MERGE_RADIUS_M + POSITION_TOLERANCE_M
+    assert np.allclose(waypoints[0], case_one.scenario.start_m, atol=POSITION_TOLERANCE_M)
+    assert np.allclose(waypoints[-1], case_one.scenario.goal_m, atol=POSITION_TOLERANCE_M)
+    land = to_enu(items[-1], home)
+    assert np.allclose(land, case_one.scenario.goal_m, atol=POSITION_TOLERANCE_M)
+
+
+def check_timing(result, items, home):
+    """Replay: planned arrival at every waypoint within one slot; on the plan at every slot."""
+    delta = result.scenario.slot_s
+    stops = replay(items, home)
+    path, times = planned_path(result)
+    radius = mission.MERGE_RADIUS_M + POSITION_TOLERANCE_M
+    expected = planned_arrivals(stops, path, times, radius)
+    errors = [abs(arrival - planned) for (_, arrival, _), planned in zip(stops, expected)]
+    assert max(errors) <= delta, f'worst arrival error {max(errors):.3f} s > one slot'
+    assert stops[-1][1] == pytest.approx(times[-1], abs=delta)
+    # Where the replayed UAV is at each planned time, against where the plan puts it.
+    drift = [np.linalg.norm(track(stops, t) - point) for t, point in zip(times, path)]
+    return max(errors), max(drift)
+
+
+@pytest.mark.parametrize('firmware', ['ardupilot', 'px4'])
+def test_replay_reaches_every_waypoint_on_the_planned_time(case_one, home, tmp_path, firmware):
+    items = load(written(case_one, tmp_path, home, firmware=firmware))
+    worst_arrival, worst_drift = check_timing(case_one, items, home)
+    # The exporter keeps a speed that is on time within 5 % of a slot; the file's 6 decimals
+    # of a degree (0.1 m) add at most a millisecond per leg at these speeds.
+    delta = case_one.scenario.slot_s
+    assert worst_arrival <= mission.TIMING_TOLERANCE_SLOTS * delta + 0.01
+    assert worst_drift <= mission.MERGE_RADIUS_M + POSITION_TOLERANCE_M
+
+
+def test_hover_holds_where_the_plan_hovers(case_one, home, tmp_path):
+    items = load(written(case_one, tmp_path, home))
+    path, _ = planned_path(case_one)
+    delta = case_one.scenario.slot_s
+    legs = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    waypoints = [(to_enu(item, home), item.param1) for item in items[2:]
+                 if item.command == WAYPOINT]
+    for node in case_one.scenario.nodes:
+        near = np.linalg.norm(path - node, axis=1) < 25.0
+        hovering = (legs < 0.5) & near[:-1] & near[1:]
+        assert hovering.sum() >= 3, 'case I hovers over every node'
+        holds = sum(hold for position, hold in waypoints
+                    if np.linalg.norm(position - node) < 25.0)
+        assert holds == pytest.approx(hovering.sum() * delta, abs=delta)
+
+
+def test_speed_changes_precede_the_legs_whose_speed_changes(case_one, home, tmp_path):
+    items = load(written(case_one, tmp_path, home))
+    timed = items[next(i for i, item in enumerate(items) if item.command == TAKEOFF) + 1:]
+    assert timed[0].command == WAYPOINT and timed[1].command == CHANGE_SPEED
+    speeds, in_force = [], None
+    for previous, item in zip(timed, timed[1:]):
+        if item.command == CHANGE_SPEED:
+            assert previous.command == WAYPOINT
+            assert (item.param1, item.param3) == (1.0, -1.0)
+            assert item.param2 != in_force, 'a speed change that changes nothing'
+            in_force = item.param2
+        elif item.command == WAYPOINT:
+            speeds.append(in_force)
+    assert min(speeds) >= mission.MIN_SPEED_MPS
+    assert max(speeds) <= case_one.scenario.max_speed_mps * 1.02
+    # The letter's case I flies 100 m/s between nodes, slower into and out of each hover.
+    assert len({round(s) for s in speeds}) >= 4
+
+
+def test_rtl_ends_the_mission_when_asked(case_one, home, tmp_path):
+    items = load(written(case_one, tmp_path, home, end='rtl'))
+    assert items[-1].command == RTL
+    assert items[-2].command == WAYPOINT
+    assert np.allclose(to_enu(items[-2], home), case_one.scenario.goal_m, atol=0.5)
+
+
+# Plans that are not the letter's: slow crawls, zero-length legs, a start away from home.
+
+def crawl_plan(slot_s: float) -> PlanResult:
+    """Start 40 m east of home, crawl 3 m per slot, hover 4 slots, then fly to the goal."""
+    crawl = [(40.0 + 3.0 * k, 0.0) for k in range(1, 6)]
+    hover = [(55.0, 0.0)] * 4
+    dash = [(55.0 + 8.0 * k * slot_s, 0.0) for k in range(1, 4)]
+    goal = (dash[-1][0] + 8.0 * slot_s, 0.0)
+    return synthetic_result(crawl + hover + dash, start=(40.0, 0.0), goal=goal,
+                            horizon_s=slot_s * 12)
+
+
+@pytest.mark.parametrize('slot_s', [10.0, 1.5, 0.5])
+@pytest.mark.parametrize('firmware', ['ardupilot', 'px4'])
+def test_slow_legs_become_holds_and_timing_survives(home, tmp_path, slot_s, firmware):
+    result = crawl_plan(slot_s)
+    items = load(written(result, tmp_path, home, firmware=firmware))
+    speeds = [item.param2 for item in items if item.command == CHANGE_SPEED]
+    assert min(speeds) >= mission.MIN_SPEED_MPS
+    check_timing(result, items, home)
+    waypoints = [item for item in items[2:] if item.command == WAYPOINT]
+    assert np.allclose(to_enu(waypoints[0], home), (40.0, 0.0), atol=0.5)
+    holds = [item.param1 for item in waypoints]
+    if firmware == 'ardupilot':
+        assert all(float(hold).is_integer() for hold in holds)
+    assert sum(holds) >= 3 * slot_s - 1.0
+
+
+def test_a_plan_that_never_moves_is_one_hold_then_land(home, tmp_path):
+    result = synthetic_result([(0.5, 0.0)] * 6, goal=(0.0, 0.5), horizon_s=12.0)
+    items = load(written(result, tmp_path, home))
+    commands = [item.command for item in items]
+    assert commands == [WAYPOINT, TAKEOFF, WAYPOINT, LAND]
+    assert items[2].param1 == pytest.approx(result.scenario.slot_s * 7)
+
+
+# The QGroundControl .plan file.
+
+@pytest.mark.parametrize('firmware, firmware_type', [('ardupilot', 3), ('px4', 12)])
+def test_plan_file_has_every_field_qgroundcontrol_requires(case_one, home, tmp_path, firmware,
+                                                           firmware_type):
+    target = written(case_one, tmp_path, home, name='m.plan', firmware=firmware)
+    document = json.loads(target.read_text())
+    assert (document['fileType'], document['version']) == ('Plan', 1)
+    assert document['groundStation'] == 'QGroundControl'
+    assert document['geoFence'] == {'circles': [], 'polygons': [], 'version': 2}
+    assert document['rallyPoints'] == {'points': [], 'version': 2}
+    plan_mission = document['mission']
+    assert plan_mission['version'] == 2
+    assert plan_mission['firmwareType'] == firmware_type
+    assert plan_mission['vehicleType'] == 2
+    assert plan_mission['plannedHomePosition'] == pytest.approx(list(DEFAULT_HOME))
+    for key in ('cruiseSpeed', 'hoverSpeed'):
+        assert plan_mission[key] > 0
+    for seq, item in enumerate(plan_mission['items'], start=1):
+        assert item['type'] == 'SimpleItem' and item['autoContinue'] is True
+        assert item['doJumpId'] == seq
+        assert isinstance(item['command'], int) and isinstance(item['frame'], int)
+        assert len(item['params']) == 7
+        assert all(v is None or isinstance(v, (int, float)) for v in item['params'])
+        if item['frame'] == 3:
+            assert item['AltitudeMode'] == 1
+            assert item['Altitude'] == item['params'][6]
+            assert 'AMSLAltAboveTerrain' in item
+
+
+@pytest.mark.parametrize('firmware', ['ardupilot', 'px4'])
+def test_plan_file_holds_the_same_items_as_the_waypoints_file(case_one, home, tmp_path,
+                                                              firmware):
+    rows = load(written(case_one, tmp_path, home, firmware=firmware))
+    document = json.loads(written(case_one, tmp_path, home, name='m.plan',
+                                  firmware=firmware).read_text())
+    entries = document['mission']['items']
+    assert len(entries) == len(rows) - 1
+    for row, entry in zip(rows[1:], entries):
+        assert (entry['command'], entry['frame']) == (row.command, row.frame)
+        mine = [math.nan if v is None else v for v in entry['params']]
+        theirs = [row.param1, row.param2, row.param3, row.param4, row.x, row.y, row.z]
+        assert np.allclose(mine, theirs, atol=1e-6, equal_nan=True)
+    if firmware == 'px4':
+        assert any(entry['params'][3] is None for entry in entries)
+
+
+# Safe writing and clear errors.
+
+@pytest.mark.parametrize('name', ['m.txt', 'mission', 'm.json'])
+def test_an_unknown_extension_is_refused(case_one, home, tmp_path, name):
+    with pytest.raises(MissionExportError, match=r'unknown mission format.*\.waypoints or \.plan'):
+        export_mission(case_one, tmp_path / name, home)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_missing_folder_is_a_clear_error(case_one, home, tmp_path):
+    with pytest.raises(MissionExportError, match='folder .*nowhere.* does not exist'):
+        export_mission(case_one, tmp_path / 'nowhere' / 'm.waypoints', home)
+
+
+def test_an_unwritable_path_is_a_clear_error(case_one, home, tmp_path):
+    (tmp_path / 'taken.waypoints').mkdir()
+    with pytest.raises(MissionExportError, match='it is a folder'):
+        export_mission(case_one, tmp_path / 'taken.waypoints', home)
+    (tmp_path / 'file').write_text('x')
+    with pytest.raises(MissionExportError, match='is not a folder'):
+        export_mission(case_one, tmp_path / 'file' / 'm.waypoints', home)
+
+
+def test_a_folder_without_write_permission_is_a_clear_error(case_one, home, tmp_path,
+                                                            monkeypatch):
+    # Tests may run as root, whom chmod does not stop; refuse the temporary file instead.
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, 'Permission denied', str(tmp_path))
+    monkeypatch.setattr('tempfile.mkstemp', refuse)
+    with pytest.raises(MissionExportError, match='cannot write .*Permission denied'):
+        export_mission(case_one, tmp_path / 'm.waypoints', home)
+
+
+@pytest.mark.parametrize('name, breaks', [
+    ('m.waypoints', 'write_waypoints'), ('m.plan', 'plan_document'), ('m.plan', 'os.replace')])
+def test_a_failed_write_keeps_the_old_file_byte_for_byte(case_one, home, tmp_path,
+                                                         monkeypatch, name, breaks):
+    target = written(case_one, tmp_path, home, name=name)
+    before = target.read_bytes()
+
+    def half_write(items, path, *args, **kwargs):
+        Path(path).write_text('QGC WPL 110\n0\t1\t0\t16')
+        raise OSError(28, 'No space left on device')
+
+    def no_document(*args, **kwargs):
+        raise ValueError('cannot serialise')
+
+    def no_rename(*args, **kwargs):
+        raise OSError(5, 'Input/output error')
+
+    replacement = {'write_waypoints': half_write, 'plan_document': no_document,
+                   'os.replace': no_rename}[breaks]
+    if breaks == 'os.replace':
+        monkeypatch.setattr(os, 'replace', replacement)
+    else:
+        monkeypatch.setattr(mission, breaks, replacement)
+    with pytest.raises(MissionExportError, match='previous file, if any, is unchanged'):
+        export_mission(case_one, target, home, end='rtl')
+    assert target.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+
+
+def test_rewriting_keeps_the_file_mode(case_one, home, tmp_path):
+    target = written(case_one, tmp_path, home)
+    assert target.stat().st_mode & 0o777 == 0o644
+    target.chmod(0o640)
+    written(case_one, tmp_path, home)
+    assert target.stat().st_mode & 0o777 == 0o640
+
+
+@pytest.mark.parametrize('options, message', [
+    ({'end': 'hover'}, 'unknown mission end'),
+    ({'firmware': 'inav'}, 'unknown firmware'),
+    ({'merge_radius_m': -1.0}, 'merge_radius_m'),
+])
+def test_bad_options_are_refused(case_one, home, tmp_path, options, message):
+    with pytest.raises(MissionExportError, match=message):
+        export_mission(case_one, tmp_path / 'm.waypoints', home, **options)
+    assert list(tmp_path.iterdir()) == []
+
+
+# The geodetic anchor.
+
+@pytest.mark.parametrize('values, message', [
+    ((math.nan, 8.5, 400.0), 'latitude_deg must be a finite number'),
+    ((47.0, math.inf, 400.0), 'longitude_deg must be a finite number'),
+    ((91.0, 8.5, 400.0), r'latitude must be in \[-90, 90\]'),
+    ((47.0, -180.5, 400.0), r'longitude must be in \[-180, 180\]'),
+    ((47.0, 8.5, '400'), 'altitude_m must be a finite number'),
+])
+def test_home_is_validated(values, message):
+    with pytest.raises(InvalidScenarioError, match=message):
+        Home(*values)
+
+
+def test_home_is_parsed_from_the_command_line_form():
+    assert Home.parse(' 47.397742, 8.545594 ,488') == Home(*DEFAULT_HOME)
+    for text in ('47.3,8.5', '47.3,8.5,abc', '47.3;8.5;400'):
+        with pytest.raises(InvalidScenarioError, match='LAT,LON,ALT'):
+            Home.parse(text)
+
+
+def test_enu_anchor_is_wgs84_not_a_sphere(home):
+    latitude, longitude, _ = enu_to_geodetic(np.array([0.0, 2000.0]), np.array([2000.0, 0.0]),
+                                             0.0, home)
+    # Meridian and prime-vertical radii of curvature of WGS84 at the home latitude.
+    a, e2 = 6378137.0, 6.69437999014e-3
+    s = math.sin(math.radians(home.latitude_deg))
+    meridian = a * (1 - e2) / (1 - e2 * s * s) ** 1.5 + home.altitude_m
+    normal = a / math.sqrt(1 - e2 * s * s) + home.altitude_m
+    north_deg = math.degrees(2000.0 / meridian)
+    east_deg = math.degrees(2000.0 / (normal * math.cos(math.radians(home.latitude_deg))))
+    # A 6371 km sphere would be 1.2 m off northward over these 2 km; WGS84 is within 1 cm.
+    assert (latitude[0] - home.latitude_deg) * math.radians(1) * meridian \
+        == pytest.approx(north_deg * math.radians(1) * meridian, abs=0.01)
+    assert (longitude[1] - home.longitude_deg) / east_deg == pytest.approx(1.0, abs=5e-6)
+    east, north, _ = geodetic_to_enu(latitude, longitude, home.altitude_m, home)
+    assert np.allclose(east, [0.0, 2000.0], atol=1e-3)
+    assert np.allclose(north, [2000.0, 0.0], atol=1e-3)
+
+
+def test_items_need_no_file(case_one, home):
+    items = build_mission_items(case_one, home, end='rtl', firmware='px4')
+    assert items[0].current and items[0].frame == 0
+    assert [items[1].command, items[-1].command] == [TAKEOFF, RTL]
+    assert all(math.isnan(item.params[3]) for item in items if item.command == WAYPOINT
+               and item.frame == 3)
