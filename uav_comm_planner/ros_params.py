@@ -3,9 +3,9 @@
 Every field of :class:`~uav_comm_planner.scenario.Scenario`,
 :class:`~uav_comm_planner.scenario.SolverSettings` and :class:`NodeSettings` becomes one ROS
 parameter of the same name (``ground_nodes_m`` is published as ``ground_nodes``), typed from
-the field's annotation: ``float`` -> double, ``int`` -> integer, ``bool``, ``str``, a point
-``(x, y)`` -> a double array of two values, a tuple of points -> a flat double array
-``x1, y1, x2, y2, ...``. A field of any other type is not exposed and keeps its default.
+the field's annotation: ``float`` -> double, ``int`` -> integer, ``bool``, ``str``, a tuple of
+strings -> a string array, a point ``(x, y)`` -> a double array of two values, a tuple of
+points -> a flat double array ``x1, y1, x2, y2, ...``. A field of any other type is not exposed and keeps its default.
 Defaults are the letter's case I. :func:`config_from_parameters` is the one way back from
 parameter values to validated dataclasses.
 """
@@ -14,12 +14,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 import math
+from pathlib import PurePath
 import typing
 from typing import Any, Mapping, Sequence
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
 from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.mission import MISSION_FORMATS
 from uav_comm_planner.scenario import paper_scenario, Point, Scenario, SolverSettings
 
 MISSION_ENDS = ('land', 'rtl')
@@ -48,6 +50,10 @@ class NodeSettings:
     def __post_init__(self) -> None:
         if not self.frame_id.strip():
             raise InvalidScenarioError('frame_id must not be empty, e.g. "map"')
+        suffix = PurePath(self.mission_file).suffix.lower()
+        if self.mission_file and suffix not in MISSION_FORMATS:
+            raise InvalidScenarioError(
+                f'mission_file must end in one of {MISSION_FORMATS}, got {self.mission_file!r}')
         if not (math.isfinite(self.home_latitude_deg) and abs(self.home_latitude_deg) <= 90):
             raise InvalidScenarioError(
                 f'home_latitude_deg must be in [-90, 90], got {self.home_latitude_deg!r}')
@@ -97,6 +103,7 @@ DESCRIPTIONS = {
     'max_inner_iterations': 'limit on SCA trajectory steps per power step',
     'max_nodes': 'largest number of ground nodes accepted',
     'compute_baselines': 'also compute the straight-line and static-point baselines',
+    'starts': 'initial trajectories Algorithm 1 is run from; the best plan is kept',
     'frame_id': 'frame of the ground nodes, the UAV pose and every output',
     'mission_file': 'write the planned flight here on every plan (.waypoints or .plan); '
                     'empty: no mission file',
@@ -137,6 +144,8 @@ def _kind(hint: Any) -> str | None:
         return 'pair'
     if hint == tuple[Point, ...]:
         return 'pairs'
+    if hint == tuple[str, ...]:
+        return 'strings'
     return None
 
 
@@ -181,6 +190,8 @@ def to_parameter_value(value: Any, kind: str) -> ParameterValue:
         return [float(v) for point in value for v in point]
     if kind == 'float':
         return float(value)
+    if kind == 'strings':
+        return [str(v) for v in value]
     return value
 
 
@@ -198,6 +209,8 @@ def from_parameter_value(name: str, value: Any, kind: str) -> Any:
                 f'{name} must be a flat list x1, y1, x2, y2, ... with an even number of '
                 f'values, got {len(values)}')
         return tuple(zip(values[0::2], values[1::2]))
+    if kind == 'strings':
+        return tuple(str(v) for v in value)
     return value
 
 

@@ -1,0 +1,25 @@
+"""Shared fixtures: a private rclpy context per test, so that tests never share ROS state."""
+
+from __future__ import annotations
+
+from typing import Iterator
+
+import pytest
+
+
+@pytest.fixture
+def ros_context() -> Iterator[object]:
+    """An initialised ``rclpy.Context`` without signal handlers, shut down after the test.
+
+    The DDS domain is the one in ``ROS_DOMAIN_ID`` (the Makefile picks one per run).
+    """
+    # Imported here so that the core's tests run where ROS is not installed.
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    context = rclpy.Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        yield context
+    finally:
+        context.try_shutdown()

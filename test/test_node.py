@@ -1,0 +1,421 @@
+"""The planner node on real rclpy, driven through real topics and services in this process.
+
+Each test starts the node on its own context and executor with a probe node beside it, and
+spins until the expected messages arrive (with a generous deadline, never a timed assertion).
+The last test runs the installed ``planner`` executable and hears its plan across processes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path as FilePath
+import signal
+import subprocess
+import sys
+import threading
+import time
+from typing import Callable
+
+from geometry_msgs.msg import PoseArray, PoseStamped
+from nav_msgs.msg import Path
+import numpy as np
+import pytest
+from rcl_interfaces.msg import Log
+from rcl_interfaces.srv import SetParameters
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64, Float64MultiArray
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
+
+from uav_comm_planner import InfeasibleHorizonError, paper_scenario, plan, SolverSettings
+from uav_comm_planner.node import (GROUND_NODES_QOS, NODE_NAME, OUTPUT_QOS, PlannerNode,
+                                   TOPIC_GROUND_NODES, TOPIC_MARKERS, TOPIC_MIN_THROUGHPUT,
+                                   TOPIC_PATH, TOPIC_POWER, TOPIC_UAV_POSE)
+from uav_comm_planner.ros_messages import nanoseconds_of, pose_array
+
+DEADLINE_S = 30.0
+PROCESS_DEADLINE_S = 90.0
+SLOTS = 20
+HORIZON_S = 40.0
+SLOT_S = HORIZON_S / SLOTS
+MAX_STEP_M = 100.0 * SLOT_S
+NODES_A = [(300.0, 200.0), (900.0, -150.0), (1500.0, 250.0)]
+NODES_B = [(400.0, -200.0), (1100.0, 300.0)]
+#: How close the flight must pass over each node (the optimum hovers within about 20 m).
+NEAR_M = 50.0
+
+
+def small_scenario(nodes=NODES_A, **changes):
+    """The scenario the harness's node plans for ``nodes``, as the core sees it."""
+    return paper_scenario('I', ground_nodes_m=nodes, num_slots=SLOTS, horizon_s=HORIZON_S,
+                          **changes)
+
+
+class Harness:
+    """The node under test, a probe node that talks to it, and one executor for both."""
+
+    def __init__(self, context, *, planner=plan, **parameters) -> None:
+        values = {'num_slots': SLOTS, 'horizon_s': HORIZON_S, **parameters}
+        self.node = PlannerNode(context=context, planner=planner, parameter_overrides=[
+            Parameter(name, value=value) for name, value in values.items()])
+        self.probe = Node('planner_test_probe', context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.probe)
+        self.received: dict[str, list] = {topic: [] for topic in (
+            TOPIC_PATH, TOPIC_POWER, TOPIC_MIN_THROUGHPUT, TOPIC_MARKERS)}
+        for message_type, topic in ((Path, TOPIC_PATH), (Float64MultiArray, TOPIC_POWER),
+                                    (Float64, TOPIC_MIN_THROUGHPUT),
+                                    (MarkerArray, TOPIC_MARKERS)):
+            self.probe.create_subscription(message_type, topic, self.received[topic].append,
+                                           OUTPUT_QOS)
+        self.error_logs: list[str] = []
+        self.probe.create_subscription(Log, '/rosout', self._on_log, QoSProfile(
+            depth=100, reliability=ReliabilityPolicy.RELIABLE))
+        self.nodes_pub = self.probe.create_publisher(PoseArray, TOPIC_GROUND_NODES,
+                                                     GROUND_NODES_QOS)
+        self.pose_pub = self.probe.create_publisher(PoseStamped, TOPIC_UAV_POSE, 10)
+
+    def _on_log(self, message: Log) -> None:
+        if message.name == NODE_NAME and message.level == Log.ERROR:
+            self.error_logs.append(message.msg)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.probe.destroy_node()
+
+    def spin_until(self, condition: Callable[[], bool], what: str) -> None:
+        deadline = time.monotonic() + DEADLINE_S
+        while not condition():
+            if time.monotonic() > deadline:
+                pytest.fail(f'no {what} within {DEADLINE_S} s')
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def latest(self, topic: str):
+        messages = self.received[topic]
+        return messages[-1] if messages else None
+
+    def published(self, plans: int) -> None:
+        """Spin until the node has published ``plans`` plans and the probe holds the last."""
+        self.spin_until(lambda: self.node.plans_published >= plans, f'plan number {plans}')
+        outcome = self.node.current_plan
+        expected_power = outcome.result.power.T.ravel().tolist()
+
+        def arrived() -> bool:
+            path, power, rate, markers = (self.latest(t) for t in self.received)
+            return (path is not None and nanoseconds_of(path.header.stamp) == outcome.request
+                    .start_ns and markers is not None and nanoseconds_of(
+                        markers.markers[0].header.stamp) == outcome.request.start_ns
+                    and power is not None and list(power.data) == expected_power
+                    and rate is not None and rate.data == outcome.result.min_throughput)
+        self.spin_until(arrived, 'plan on every output topic')
+
+    def send_nodes(self, points, frame_id: str = 'map') -> None:
+        self.spin_until(lambda: self.nodes_pub.get_subscription_count() > 0,
+                        'subscriber of ground_nodes')
+        self.nodes_pub.publish(pose_array(points, frame_id))
+
+    def send_pose(self, x: float, y: float) -> None:
+        self.spin_until(lambda: self.pose_pub.get_subscription_count() > 0,
+                        'subscriber of uav_pose')
+        message = PoseStamped()
+        message.header.frame_id = 'map'
+        message.pose.position.x, message.pose.position.y = x, y
+        self.pose_pub.publish(message)
+
+    def call(self, service: str, request):
+        kind = Trigger if isinstance(request, Trigger.Request) else SetParameters
+        client = self.probe.create_client(kind, f'/{NODE_NAME}/{service}')
+        self.spin_until(client.service_is_ready, f'service {service}')
+        future = client.call_async(request)
+        self.spin_until(future.done, f'answer of {service}')
+        self.probe.destroy_client(client)
+        return future.result()
+
+    def errors_after(self, count: int) -> None:
+        self.spin_until(lambda: self.node.error_count > count, 'error')
+
+
+@pytest.fixture
+def harness(ros_context):
+    made = []
+
+    def make(**options) -> Harness:
+        made.append(Harness(ros_context, **options))
+        return made[-1]
+    yield make
+    for each in made:
+        each.close()
+
+
+def flight_points(path: Path) -> np.ndarray:
+    return np.array([[p.pose.position.x, p.pose.position.y] for p in path.poses])
+
+
+def test_pose_array_gives_path_power_and_throughput_of_the_core(harness):
+    h = harness()
+    h.published(1)
+    h.send_nodes(NODES_A)
+    h.published(2)
+    scenario = small_scenario()
+    core = plan(scenario, SolverSettings())
+
+    path = h.latest(TOPIC_PATH)
+    assert path.header.frame_id == 'map'
+    assert len(path.poses) == SLOTS + 2
+    stamps = np.array([nanoseconds_of(p.header.stamp) for p in path.poses])
+    assert np.all(np.abs(np.diff(stamps) - SLOT_S * 1e9) <= 1)
+    points = flight_points(path)
+    np.testing.assert_allclose(points[0], scenario.start_m)
+    np.testing.assert_allclose(points[-1], scenario.goal_m)
+    assert np.all(np.linalg.norm(np.diff(points, axis=0), axis=1) <= MAX_STEP_M * (1 + 1e-6))
+    assert all(p.pose.position.z == scenario.altitude_m for p in path.poses)
+    for node in NODES_A:
+        assert np.linalg.norm(points - node, axis=1).min() < NEAR_M, node
+
+    power = h.latest(TOPIC_POWER)
+    assert [d.label for d in power.layout.dim] == ['slot', 'node']
+    assert [d.size for d in power.layout.dim] == [SLOTS, 3]
+    assert [d.stride for d in power.layout.dim] == [SLOTS * 3, 3]
+    schedule = np.array(power.data).reshape(SLOTS, 3).T
+    np.testing.assert_allclose(schedule, core.power, rtol=1e-6, atol=1e-9)
+    assert h.latest(TOPIC_MIN_THROUGHPUT).data == pytest.approx(core.min_throughput, rel=1e-9)
+    nodes_marker = h.latest(TOPIC_MARKERS).markers[0]
+    assert [(p.x, p.y) for p in nodes_marker.points] == NODES_A
+
+
+def test_heading_follows_the_flight(harness):
+    h = harness()
+    h.published(1)
+    points = flight_points(h.latest(TOPIC_PATH))
+    yaws = [2 * math.atan2(p.pose.orientation.z, p.pose.orientation.w)
+            for p in h.latest(TOPIC_PATH).poses]
+    moving = np.linalg.norm(np.diff(points, axis=0), axis=1) > 0.01 * MAX_STEP_M
+    assert moving.any()
+    for i in np.flatnonzero(moving):
+        step = points[i + 1] - points[i]
+        difference = math.remainder(yaws[i] - math.atan2(step[1], step[0]), math.tau)
+        assert abs(difference) < 1e-9
+
+
+def test_second_pose_array_and_replan_service_make_new_plans(harness):
+    h = harness()
+    h.published(1)
+    h.send_nodes(NODES_A)
+    h.published(2)
+    h.send_nodes(NODES_B)
+    h.published(3)
+    points = flight_points(h.latest(TOPIC_PATH))
+    for node in NODES_B:
+        assert np.linalg.norm(points - node, axis=1).min() < NEAR_M, node
+    assert h.latest(TOPIC_MIN_THROUGHPUT).data == pytest.approx(
+        plan(small_scenario(NODES_B)).min_throughput, rel=1e-9)
+    first_stamp = nanoseconds_of(h.latest(TOPIC_PATH).header.stamp)
+
+    answer = h.call('replan', Trigger.Request())
+    assert answer.success, answer.message
+    h.published(4)
+    assert nanoseconds_of(h.latest(TOPIC_PATH).header.stamp) > first_stamp
+    assert list(h.node.get_parameter('ground_nodes').value) == [
+        v for point in NODES_B for v in point]
+
+
+def test_bad_parameter_is_refused_with_its_reason_and_the_plan_stays(harness):
+    h = harness()
+    h.published(1)
+    before = h.node.current_plan
+    requests = h.node.requests_made
+    too_short = Parameter('horizon_s', value=5.0).to_parameter_msg()
+    answer = h.call('set_parameters', SetParameters.Request(parameters=[too_short]))
+    assert not answer.results[0].successful
+    assert 'goal unreachable' in answer.results[0].reason
+    assert h.node.get_parameter('horizon_s').value == HORIZON_S
+    assert h.node.requests_made == requests
+    assert h.node.current_plan is before
+    assert nanoseconds_of(h.latest(TOPIC_PATH).header.stamp) == before.request.start_ns
+
+    budget = Parameter('power_budget_w', value=10.0).to_parameter_msg()
+    answer = h.call('set_parameters', SetParameters.Request(parameters=[budget]))
+    assert answer.results[0].successful, answer.results[0].reason
+    h.published(2)
+    assert h.latest(TOPIC_MIN_THROUGHPUT).data == pytest.approx(plan(small_scenario(
+        paper_scenario().ground_nodes_m, power_budget_w=10.0)).min_throughput, rel=1e-9)
+
+
+@pytest.mark.parametrize('points, frame_id, reason', [
+    ([(300.0, math.nan), (900.0, -150.0)], 'map', 'finite'),
+    ([(300.0, math.inf), (900.0, -150.0)], 'map', 'finite'),
+    ([], 'map', 'no ground nodes'),
+    ([(100.0 * i, 50.0) for i in range(1, 5)], 'map', 'too many ground nodes'),
+    ([(300.0, 200.0), (300.0, 200.0)], 'map', 'duplicate'),
+    (NODES_A, 'odom', "frame is 'odom'"),
+])
+def test_bad_ground_nodes_are_logged_and_publish_no_plan(harness, points, frame_id, reason):
+    h = harness(max_nodes=3)
+    h.published(1)
+    before = h.node.current_plan
+    requests, errors = h.node.requests_made, h.node.error_count
+    h.send_nodes(points, frame_id)
+    h.errors_after(errors)
+    assert reason in h.node.last_error
+    h.spin_until(lambda: any(reason in line for line in h.error_logs), 'error on /rosout')
+    assert h.node.requests_made == requests
+    assert h.node.current_plan is before
+    assert h.node.plans_run == 1
+
+    h.send_nodes(NODES_B)
+    h.published(2)
+    assert h.node.plans_run == 2
+
+
+class GatedPlanner:
+    """The core's plan(), held at a gate while the test lines up requests behind it."""
+
+    def __init__(self) -> None:
+        self.gate = threading.Event()
+        self.gate.set()
+        self.planned: list[tuple] = []
+
+    def __call__(self, scenario, settings):
+        self.planned.append(scenario.ground_nodes_m)
+        self.gate.wait(DEADLINE_S)
+        return plan(scenario, settings)
+
+
+def test_burst_of_updates_coalesces_and_ends_with_the_last(harness):
+    gated = GatedPlanner()
+    h = harness(planner=gated)
+    h.published(1)
+    runs, requests = h.node.plans_run, h.node.requests_made
+    gated.gate.clear()
+    updates = [[(300.0 + i, 200.0), (900.0, -150.0 + i), (1500.0, 250.0)] for i in range(50)]
+    for points in updates:
+        h.send_nodes(points)
+        flat = [v for point in points for v in point]
+        h.spin_until(lambda: list(h.node.get_parameter('ground_nodes').value) == flat,
+                     'update taken')
+    assert h.node.requests_made - requests == len(updates)
+    gated.gate.set()
+    h.spin_until(lambda: h.node.current_plan.request.scenario.ground_nodes_m == tuple(
+        updates[-1]), 'plan for the last update')
+    h.published(h.node.plans_published)
+    assert 1 <= h.node.plans_run - runs <= 2
+    assert gated.planned[-1] == tuple(updates[-1])
+    markers = h.latest(TOPIC_MARKERS).markers[0]
+    assert [(p.x, p.y) for p in markers.points] == updates[-1]
+
+
+def test_uav_pose_replans_the_rest_and_refuses_an_unreachable_goal(harness):
+    h = harness()
+    h.published(1)
+    h.send_pose(500.0, 50.0)
+    h.published(2)
+    path = h.latest(TOPIC_PATH)
+    points = flight_points(path)
+    np.testing.assert_allclose(points[0], (500.0, 50.0))
+    np.testing.assert_allclose(points[-1], paper_scenario().goal_m)
+    assert 3 <= len(path.poses) <= SLOTS + 2
+    assert h.node.current_plan.result.scenario.slot_s == pytest.approx(SLOT_S)
+    assert np.all(np.linalg.norm(np.diff(points, axis=0), axis=1) <= MAX_STEP_M * (1 + 1e-6))
+
+    errors, requests = h.node.error_count, h.node.requests_made
+    h.send_pose(100000.0, 0.0)
+    h.errors_after(errors)
+    assert 'goal unreachable' in h.node.last_error
+    assert h.node.requests_made == requests
+
+
+def test_solver_failure_is_logged_and_the_last_plan_stays(harness):
+    from uav_comm_planner import SolverError
+
+    def failing_after_first(scenario, settings, calls=[]):
+        calls.append(scenario)
+        if len(calls) > 1:
+            raise SolverError('trajectory step: solver reported NUMERICAL_ERROR')
+        return plan(scenario, settings)
+
+    h = harness(planner=failing_after_first)
+    h.published(1)
+    before = h.node.current_plan
+    errors = h.node.error_count
+    assert h.call('replan', Trigger.Request()).success
+    h.errors_after(errors)
+    assert 'NUMERICAL_ERROR' in h.node.last_error
+    assert h.node.current_plan is before
+    assert h.node.plans_run == 2 and h.node.plans_published == 1
+
+
+def test_mission_written_on_every_plan_and_on_demand(harness, tmp_path):
+    mission = tmp_path / 'flight.waypoints'
+    h = harness(mission_file=str(mission))
+    h.published(1)
+    assert mission.read_text().startswith('QGC WPL 110')
+    mission.unlink()
+    answer = h.call('export_mission', Trigger.Request())
+    assert answer.success, answer.message
+    assert mission.read_text().startswith('QGC WPL 110')
+
+    nowhere = Parameter('mission_file', value=str(tmp_path / 'missing' / 'f.waypoints'))
+    errors = h.node.error_count
+    answer = h.call('set_parameters', SetParameters.Request(
+        parameters=[nowhere.to_parameter_msg()]))
+    assert answer.results[0].successful
+    h.published(2)
+    h.errors_after(errors)
+    assert 'mission export failed' in h.node.last_error
+    assert not h.call('export_mission', Trigger.Request()).success
+
+
+def test_mission_file_with_unknown_extension_is_refused(harness, tmp_path):
+    h = harness()
+    h.published(1)
+    answer = h.call('set_parameters', SetParameters.Request(parameters=[
+        Parameter('mission_file', value=str(tmp_path / 'f.txt')).to_parameter_msg()]))
+    assert not answer.results[0].successful
+    assert '.waypoints' in answer.results[0].reason
+
+
+def test_invalid_initial_parameters_raise_the_typed_error(ros_context):
+    with pytest.raises(InfeasibleHorizonError, match='goal unreachable'):
+        PlannerNode(context=ros_context, parameter_overrides=[
+            Parameter('horizon_s', value=5.0)])
+
+
+def test_installed_planner_publishes_to_another_process(ros_context):
+    prefix = FilePath(sys.prefix)
+    executable = prefix / 'lib' / 'uav_comm_planner' / 'planner'
+    assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages'
+            / 'uav_comm_planner').is_file()
+    assert os.access(executable, os.X_OK)
+    slots = 21
+    probe = Node('planner_process_probe', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(probe)
+    paths: list[Path] = []
+    probe.create_subscription(Path, TOPIC_PATH, paths.append, OUTPUT_QOS)
+    process = subprocess.Popen(
+        [str(executable), '--ros-args', '-p', f'num_slots:={slots}'],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + PROCESS_DEADLINE_S
+        while not paths and process.poll() is None and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.1)
+        assert process.poll() is None, process.communicate()[1]
+        assert paths, f'no plan from the planner process within {PROCESS_DEADLINE_S} s'
+        assert len(paths[-1].poses) == slots + 2
+        process.send_signal(signal.SIGINT)
+        _, stderr = process.communicate(timeout=PROCESS_DEADLINE_S)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        executor.shutdown()
+        probe.destroy_node()
+    assert process.returncode == 0, stderr
+    assert 'Traceback' not in stderr
+    assert 'plan: min throughput' in stderr
