@@ -16,14 +16,19 @@ other: the UAV hovers there (the letter's hovering over a node), so one waypoint
 stands for the whole run. Its hold is the time the plan spends inside the run; the leg into it
 ends at the run's first planned time, the leg out of it starts at the run's last.
 
-Timing. Each leg's speed is its length over the time left until the next stop's planned
-arrival, computed from the replayed clock (not from the plan's), so rounding never accumulates:
-a replay of the file (leg length / commanded speed, plus holds) reaches every waypoint at its
-planned time, within ``timing_tolerance_s``. A leg that would be slower than ``min_speed_mps``
-(autopilots do not hold a crawl of a few cm/s) is flown at that speed after holding at its start
-for the remaining time. ArduPilot keeps a waypoint's hold in whole seconds (a uint16), so for
-``firmware='ardupilot'`` holds are rounded down and the next leg is slowed by the fraction.
-The replay is kinematic: acceleration and corner rounding by the autopilot are not modelled.
+Timing. Before each leg the UAV holds until the stop's planned departure; the leg then flies at
+the first of the speed in force, the plan's own speed for the leg, and the speed that lands
+exactly on the next planned arrival, that is on time within 5 % of a slot; so DO_CHANGE_SPEED
+appears only where the speed really changes. Speeds follow the replayed clock, not the plan's,
+so rounding never accumulates: a replay of the file (leg length / commanded speed, plus holds)
+reaches every waypoint at its planned time within that tolerance. Commanded speeds stay within
+[``min_speed_mps``, the plan's V]; a leg slower than ``min_speed_mps`` (autopilots do not hold a
+crawl of a few cm/s) is flown at that speed after holding at its start for the time left over.
+ArduPilot keeps a waypoint's hold in whole seconds (a uint16), so for ``firmware='ardupilot'``
+holds are whole seconds, rounded down unless within the tolerance of the next one, and the next
+leg slows down by the fraction. Holds shorter than the tolerance are dropped: any hold makes the
+vehicle stop at the waypoint. The replay is kinematic: the autopilot's acceleration and corner
+rounding are not modelled.
 """
 
 from __future__ import annotations
@@ -292,6 +297,19 @@ def build_mission_items(result: PlanResult, home: Home, *, end: str = 'land',
                          y=home.longitude_deg, z=home.altitude_m, current=True),
              MissionItem(NAV_TAKEOFF, FRAME_RELATIVE_ALT, (0.0, 0.0, 0.0, yaw),
                          home.latitude_deg, home.longitude_deg, altitude)]
+    items += _stop_items(stops, latitude, longitude, altitude, yaw)
+    if end == 'land':
+        items.append(MissionItem(NAV_LAND, FRAME_RELATIVE_ALT, (0.0, 0.0, 0.0, yaw),
+                                 float(latitude[-1]), float(longitude[-1]), 0.0))
+    else:
+        items.append(MissionItem(NAV_RETURN_TO_LAUNCH, FRAME_MISSION))
+    return items
+
+
+def _stop_items(stops: Sequence[Stop], latitude: np.ndarray, longitude: np.ndarray,
+                altitude_m: float, yaw: float) -> list[MissionItem]:
+    """A waypoint per stop (latitude, longitude: (S,) degrees), each leg's speed before it."""
+    items = []
     speed_in_force = None
     for index, stop in enumerate(stops):
         if index > 0 and stops[index - 1].speed_mps != speed_in_force:
@@ -299,12 +317,7 @@ def build_mission_items(result: PlanResult, home: Home, *, end: str = 'land',
             items.append(MissionItem(DO_CHANGE_SPEED, FRAME_MISSION,
                                      (SPEED_TYPE_GROUND, speed_in_force, THROTTLE_UNCHANGED, 0.0)))
         items.append(MissionItem(NAV_WAYPOINT, FRAME_RELATIVE_ALT, (stop.hold_s, 0.0, 0.0, yaw),
-                                 float(latitude[index]), float(longitude[index]), altitude))
-    if end == 'land':
-        items.append(MissionItem(NAV_LAND, FRAME_RELATIVE_ALT, (0.0, 0.0, 0.0, yaw),
-                                 float(latitude[-1]), float(longitude[-1]), 0.0))
-    else:
-        items.append(MissionItem(NAV_RETURN_TO_LAUNCH, FRAME_MISSION))
+                                 float(latitude[index]), float(longitude[index]), altitude_m))
     return items
 
 
