@@ -15,6 +15,7 @@ from typing import Sequence
 
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import write_text_atomic
+from uav_comm_planner.geodesy import Home
 from uav_comm_planner.optimizer import plan, PlanResult
 from uav_comm_planner.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.serialize import result_to_dict, scenario_from_dict
@@ -49,6 +50,13 @@ def _pair(text: str) -> tuple[float, float]:
 
 def _nodes(text: str) -> list[tuple[float, float]]:
     return [_pair(item) for item in text.split(';') if item.strip()]
+
+
+def _home(text: str) -> Home:
+    try:
+        return Home.parse(text)
+    except PlannerError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
@@ -125,7 +133,12 @@ def _check_output_folders(*paths: Path | None) -> None:
 
 
 def _command_plan(args: argparse.Namespace) -> int:
-    _check_output_folders(args.json, args.figure)
+    _check_output_folders(args.json, args.figure, args.mission)
+    if args.mission is not None:
+        from uav_comm_planner.mission import MISSION_FORMATS
+        if args.mission.suffix.lower() not in MISSION_FORMATS:
+            raise PlannerError(f'unknown mission format for {str(args.mission)!r}: use a '
+                               f'.waypoints or .plan file')
     result = plan(_scenario(args), _settings(args))
     print(format_plan(result))
     if args.json is not None:
@@ -134,6 +147,11 @@ def _command_plan(args: argparse.Namespace) -> int:
     if args.figure is not None:
         from uav_comm_planner.plots import plan_figure
         print(f'wrote {plan_figure(result, args.figure)}')
+    if args.mission is not None:
+        from uav_comm_planner.mission import export_mission
+        written = export_mission(result, args.mission, args.home, end=args.mission_end,
+                                 firmware=args.firmware)
+        print(f'wrote {written}')
     return 0
 
 
@@ -169,6 +187,17 @@ def build_parser() -> argparse.ArgumentParser:
     plan_parser.add_argument('--json', type=Path, metavar='FILE.json', help='write the plan')
     plan_parser.add_argument('--figure', type=Path, metavar='FILE.png',
                              help="draw the letter's Fig. 1 for this plan")
+    plan_parser.add_argument('--mission', type=Path, metavar='FILE.waypoints|FILE.plan',
+                             help='write a MAVLink mission: QGC WPL 110 or QGroundControl .plan')
+    plan_parser.add_argument('--home', type=_home, default='47.397742,8.545594,488',
+                             metavar='LAT,LON,ALT',
+                             help='where x = east, y = north metres start: degrees, degrees, '
+                                  'metres above sea level (default: the PX4 and ArduPilot '
+                                  "simulators' launch point in Zurich; give your own field's)")
+    plan_parser.add_argument('--mission-end', choices=['land', 'rtl'], default='land',
+                             help='land at the goal or return to launch (default land)')
+    plan_parser.add_argument('--firmware', choices=['ardupilot', 'px4'], default='ardupilot',
+                             help='autopilot the mission is for (default ardupilot)')
     plan_parser.set_defaults(handler=_command_plan)
 
     sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')
