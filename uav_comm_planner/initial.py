@@ -21,3 +21,114 @@ def static_point(scenario: Scenario) -> np.ndarray:
     """
     centroid = scenario.nodes.mean(axis=0)
     return np.repeat(centroid[None, :], scenario.num_slots, axis=0)
+
+
+def _path_length(points: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+
+def nearest_neighbour_order(start: np.ndarray, w: np.ndarray) -> list[int]:
+    """Visit order of the nodes w (N, 2): always the closest unvisited node next."""
+    order: list[int] = []
+    here = start
+    left = list(range(len(w)))
+    while left:
+        nearest = min(left, key=lambda i: float(np.linalg.norm(w[i] - here)))
+        order.append(nearest)
+        left.remove(nearest)
+        here = w[nearest]
+    return order
+
+
+def two_opt(start: np.ndarray, goal: np.ndarray, w: np.ndarray,
+            order: list[int]) -> list[int]:
+    """Improve the open path start -> w[order] -> goal by 2-opt moves (endpoints fixed).
+
+    Reversing the stretch i..j replaces the edges (i-1, i) and (j, j+1) by (i-1, j) and
+    (i, j+1); moves are made while one shortens the path by more than round-off.
+    """
+    order = list(order)
+    improved = True
+    while improved:
+        improved = False
+        path = np.vstack([start, w[order], goal]) if order else np.vstack([start, goal])
+        for i in range(1, len(order) + 1):
+            j = np.arange(i + 1, len(order) + 1)
+            if j.size == 0:
+                continue
+            old = (np.linalg.norm(path[i] - path[i - 1])
+                   + np.linalg.norm(path[j + 1] - path[j], axis=1))
+            new = (np.linalg.norm(path[j] - path[i - 1], axis=1)
+                   + np.linalg.norm(path[j + 1] - path[i], axis=1))
+            gain = old - new
+            best = int(np.argmax(gain))
+            if gain[best] > 1e-9 * (1.0 + old[best]):
+                k = int(j[best])
+                order[i - 1:k] = order[i - 1:k][::-1]
+                improved = True
+                break
+    return order
+
+
+def tour_order(scenario: Scenario) -> list[int]:
+    """A short visit order of all nodes from q0 to qF: nearest neighbour, then 2-opt."""
+    start, goal = np.asarray(scenario.start_m), np.asarray(scenario.goal_m)
+    order = nearest_neighbour_order(start, scenario.nodes)
+    return two_opt(start, goal, scenario.nodes, order)
+
+
+def _legs_needed(points: np.ndarray, max_step_m: float) -> np.ndarray:
+    """Legs of at most V delta that each straight stretch of ``points`` needs at speed V."""
+    lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    return np.ceil(lengths / max_step_m).astype(int)
+
+
+def _drop_until_flyable(scenario: Scenario, order: list[int]) -> list[int]:
+    """Leave out the node whose detour costs most, one by one, until the tour fits M + 1 legs."""
+    start, goal = np.asarray(scenario.start_m), np.asarray(scenario.goal_m)
+    w = scenario.nodes
+    order = list(order)
+    while order:
+        points = np.vstack([start, w[order], goal])
+        if _legs_needed(points, scenario.max_step_m).sum() <= scenario.num_slots + 1:
+            break
+        detour = (np.linalg.norm(points[1:-1] - points[:-2], axis=1)
+                  + np.linalg.norm(points[2:] - points[1:-1], axis=1)
+                  - np.linalg.norm(points[2:] - points[:-2], axis=1))
+        del order[int(np.argmax(detour))]
+    return order
+
+
+def even_hovers(spare_legs: int, stops: int) -> np.ndarray:
+    """Split ``spare_legs`` hover slots over ``stops`` nodes as evenly as integers allow."""
+    hovers = np.full(stops, spare_legs // stops)
+    hovers[:spare_legs % stops] += 1
+    return hovers
+
+
+def hover_and_fly(scenario: Scenario) -> np.ndarray:
+    """Fly a short tour of the nodes at speed V and hover over each one: q (M, 2) metres.
+
+    The nodes are visited in :func:`tour_order`. Stretch k of the tour (length L_k) is flown
+    in ceil(L_k / (V delta)) equal legs, so every leg is at most V delta; the M + 1 legs left
+    over become hover slots (zero-length legs) split evenly over the visited nodes. An even
+    split is the max-min choice before any rate is known: with equal bandwidth, each node's
+    rate grows with the time the UAV spends close to it, and no node is favoured a priori;
+    Algorithm 1 then moves time between nodes. If the whole tour does not fit in the horizon,
+    the nodes whose detours cost most are left out until it does; with none left, the start
+    is the straight line.
+    """
+    order = _drop_until_flyable(scenario, tour_order(scenario))
+    if not order:
+        return straight_line(scenario)
+    points = np.vstack([scenario.start_m, scenario.nodes[order], scenario.goal_m])
+    legs = _legs_needed(points, scenario.max_step_m)
+    hovers = even_hovers(scenario.num_slots + 1 - int(legs.sum()), len(order))
+    waypoints = [np.asarray(scenario.start_m, dtype=float)]
+    for k, count in enumerate(legs):
+        fractions = np.arange(1, count + 1) / count
+        waypoints.extend(points[k] + fractions[:, None] * (points[k + 1] - points[k]))
+        if k < len(order):
+            waypoints.extend([points[k + 1]] * int(hovers[k]))
+    # waypoints runs q0, q[1], ..., q[M], qF: M + 2 points joined by M + 1 legs.
+    return np.asarray(waypoints[1:-1])

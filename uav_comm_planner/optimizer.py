@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import logging
+import math
 import time
 from typing import Callable
 
@@ -11,10 +12,11 @@ import numpy as np
 
 from uav_comm_planner import initial
 from uav_comm_planner.errors import SolverError
+from uav_comm_planner.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
 from uav_comm_planner.model import average_rates, snr_per_watt, spectral_efficiency_to_rate
-from uav_comm_planner.power import PowerAllocation, conic_power, waterfilling_power
+from uav_comm_planner.power import conic_power, PowerAllocation, waterfilling_power
 from uav_comm_planner.scenario import Scenario, SolverSettings
-from uav_comm_planner.trajectory import TrajectoryStep, trajectory_step_cvxpy
+from uav_comm_planner.trajectory import trajectory_step_cvxpy, TrajectoryStep
 
 logger = logging.getLogger(__name__)
 
@@ -27,6 +29,16 @@ POWER_SOLVERS: dict[str, PowerSolver] = {
 }
 TRAJECTORY_SOLVERS: dict[str, TrajectorySolver] = {
     'cvxpy': trajectory_step_cvxpy,
+    'clarabel': trajectory_step_clarabel,
+}
+#: Methods whose steps share one solver per plan, built for the scenario and updated in place.
+TRAJECTORY_STEPPERS: dict[str, Callable[[Scenario], TrajectorySolver]] = {
+    'clarabel': ClarabelTrajectoryStep,
+}
+#: Initial trajectories, by the names :attr:`SolverSettings.starts` uses.
+STARTS: dict[str, Callable[[Scenario], np.ndarray]] = {
+    'straight': initial.straight_line,
+    'hover': initial.hover_and_fly,
 }
 
 
@@ -47,6 +59,10 @@ class PlanResult:
     history: the true min rate after every power and trajectory step (never decreasing);
     baselines: min throughput of the straight line ('straight') and the static access point
     ('static'), each with its optimal power, bit/s.
+    start: the initial trajectory of the kept plan ('straight' or 'hover');
+    start_throughputs: the min throughput Algorithm 1 reached from each start tried, bit/s;
+    upper_bound: :func:`throughput_upper_bound`, no plan can exceed it, bit/s;
+    solve_time_s: wall time of the whole plan (every start and the baselines), seconds.
     """
 
     scenario: Scenario
@@ -62,10 +78,17 @@ class PlanResult:
     converged: bool = True
     solve_time_s: float = 0.0
     start: str = 'straight'
+    upper_bound: float = math.inf
+    start_throughputs: dict[str, float] = field(default_factory=dict)
 
     @property
     def status(self) -> str:
         return 'converged' if self.converged else 'iteration limit'
+
+    @property
+    def gap_to_upper_bound(self) -> float:
+        """1 - min_throughput / upper_bound: the share of the bound not (yet) reached."""
+        return 1.0 - self.min_throughput / self.upper_bound
 
 
 def _tolerance(settings: SolverSettings, value: float) -> float:
@@ -140,35 +163,68 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
     return q, p, history, outer, inner_total, converged
 
 
-def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
-         power_method: str = 'waterfilling', trajectory_method: str = 'cvxpy') -> PlanResult:
-    """Jointly optimise the trajectory and the transmit power for ``scenario``.
+def throughput_upper_bound(scenario: Scenario) -> float:
+    """An upper bound of the max-min throughput, bit/s: (B/N) log2(1 + a_max P_T / (N M)).
 
-    Runs the letter's Algorithm 1 from the straight line q0 -> qF at uniform speed and
-    returns a :class:`PlanResult`. Raises :class:`~uav_comm_planner.errors.InvalidScenarioError`
-    for a scenario outside the limits of ``settings`` and
-    :class:`~uav_comm_planner.errors.SolverError` when a convex step fails.
+    a_max = N beta0 / (H^2 B sigma^2) is the SNR per watt right above a node. For any plan,
+    node n's rate is (B/N) mean_m log2(1 + p_n[m] a_n[m]) <= (B/N) mean_m log2(1 + p_n[m] a_max)
+    <= (B/N) log2(1 + a_max P_n / M) by Jensen's inequality, with P_n = sum_m p_n[m]; the node
+    with the least P_n has P_n <= P_T / N, so min_n R_n is at most the bound.
     """
-    settings = settings or SolverSettings()
-    settings.check(scenario)
+    n, m = scenario.num_nodes, scenario.num_slots
+    best_snr_per_watt = n * scenario.reference_gain / (
+        scenario.altitude_m ** 2 * scenario.bandwidth_hz * scenario.noise_psd_w_per_hz)
+    bits = math.log2(1.0 + best_snr_per_watt * scenario.power_budget_w / (n * m))
+    return float(spectral_efficiency_to_rate(np.float64(bits), scenario))
+
+
+def _solvers(scenario: Scenario, power_method: str,
+             trajectory_method: str) -> tuple[PowerSolver, TrajectorySolver]:
     try:
         power_solver = POWER_SOLVERS[power_method]
         trajectory_solver = TRAJECTORY_SOLVERS[trajectory_method]
     except KeyError as exc:
         raise ValueError(f'unknown method {exc.args[0]!r}; power: {sorted(POWER_SOLVERS)}, '
                          f'trajectory: {sorted(TRAJECTORY_SOLVERS)}') from None
+    if trajectory_method in TRAJECTORY_STEPPERS:
+        trajectory_solver = TRAJECTORY_STEPPERS[trajectory_method](scenario)
+    return power_solver, trajectory_solver
+
+
+def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
+         power_method: str = 'waterfilling', trajectory_method: str = 'clarabel') -> PlanResult:
+    """Jointly optimise the trajectory and the transmit power for ``scenario``.
+
+    Runs the letter's Algorithm 1 from every start in ``settings.starts`` (by default the
+    straight line q0 -> qF at uniform speed and :func:`~uav_comm_planner.initial.hover_and_fly`)
+    and returns the best as a :class:`PlanResult`; ties go to the earlier start. The default
+    methods are the exact water-filling power step and the SCA step on one Clarabel solver
+    updated in place; ``power_method='conic', trajectory_method='cvxpy'`` rebuilds cvxpy
+    problems every step (the reference). Raises
+    :class:`~uav_comm_planner.errors.InvalidScenarioError` for a scenario outside the limits of
+    ``settings`` and :class:`~uav_comm_planner.errors.SolverError` when a convex step fails.
+    """
+    settings = settings or SolverSettings()
+    settings.check(scenario)
+    power_solver, trajectory_solver = _solvers(scenario, power_method, trajectory_method)
     began = time.perf_counter()
-    q, p, history, outer, inner, converged = alternate(
-        scenario, initial.straight_line(scenario), settings,
-        power_solver=power_solver, trajectory_solver=trajectory_solver)
+    runs = {}
+    for name in settings.starts:
+        runs[name] = alternate(scenario, STARTS[name](scenario), settings,
+                               power_solver=power_solver, trajectory_solver=trajectory_solver)
+    values = {name: float(average_rates(run[0], run[1], scenario).min())
+              for name, run in runs.items()}
+    best = max(values, key=lambda name: (values[name], -settings.starts.index(name)))
+    q, p, history, outer, inner, converged = runs[best]
     rates = average_rates(q, p, scenario)
     baselines = baseline_rates(scenario, power_solver) if settings.compute_baselines else {}
     return PlanResult(
         scenario=scenario, trajectory=q, times=scenario.times_s, power=p, rates=rates,
         min_throughput=float(rates.min()), history=tuple(history), baselines=baselines,
         outer_iterations=outer, trajectory_steps=inner, converged=converged,
-        solve_time_s=time.perf_counter() - began, start='straight')
+        solve_time_s=time.perf_counter() - began, start=best,
+        upper_bound=throughput_upper_bound(scenario), start_throughputs=values)
 
 
 __all__ = ['PlanResult', 'Step', 'alternate', 'baseline_rates', 'optimal_power', 'plan',
-           'spectral_efficiency_to_rate']
+           'spectral_efficiency_to_rate', 'throughput_upper_bound']

@@ -19,6 +19,9 @@ DUPLICATE_NODE_DISTANCE_M = 1e-3
 
 Point = tuple[float, float]
 
+#: Initial trajectories Algorithm 1 can start from (see :mod:`uav_comm_planner.initial`).
+START_NAMES = ('straight', 'hover')
+
 
 def _point(name: str, value: Sequence[float]) -> Point:
     try:
@@ -151,15 +154,27 @@ class SolverSettings:
 
     The alternation stops when one power step plus its trajectory loop gains at most
     ``tolerance_bps`` (the letter's epsilon, absolute) or ``relative_tolerance`` times the
-    current objective, whichever is larger; each SCA loop uses the same rule.
+    current objective, whichever is larger; each SCA loop uses the same rule. The default
+    rule is relative, because rates in bit/s scale with B and shrink with N: the letter's
+    absolute 0.01 stops early when rates are small. ``starts`` names the initial
+    trajectories Algorithm 1 is run from ('straight', 'hover'); the best plan is kept.
+    :meth:`letter` gives the letter's Algorithm 1 exactly.
     """
 
-    tolerance_bps: float = 0.01
-    relative_tolerance: float = 0.0
+    tolerance_bps: float = 0.0
+    relative_tolerance: float = 1e-4
     max_outer_iterations: int = 50
     max_inner_iterations: int = 50
     max_nodes: int = 100
     compute_baselines: bool = True
+    starts: tuple[str, ...] = START_NAMES
+
+    @classmethod
+    def letter(cls, **changes) -> 'SolverSettings':
+        """The letter's Algorithm 1: the straight-line start only, absolute epsilon 0.01."""
+        fields = dict(tolerance_bps=0.01, relative_tolerance=0.0, starts=('straight',))
+        fields.update(changes)
+        return cls(**fields)
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.tolerance_bps) or self.tolerance_bps < 0:
@@ -174,6 +189,15 @@ class SolverSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise InvalidScenarioError(f'{name} must be an integer >= 1, got {value!r}')
+        self._check_starts()
+
+    def _check_starts(self) -> None:
+        starts = (self.starts,) if isinstance(self.starts, str) else tuple(self.starts)
+        unknown = [name for name in starts if name not in START_NAMES]
+        if not starts or unknown:
+            raise InvalidScenarioError(
+                f'starts must name one or more of {START_NAMES}, got {self.starts!r}')
+        object.__setattr__(self, 'starts', tuple(dict.fromkeys(starts)))
 
     def check(self, scenario: Scenario) -> None:
         """Refuse a scenario with more nodes than ``max_nodes``."""
