@@ -429,3 +429,54 @@ def test_items_need_no_file(case_one, home):
     assert [items[1].command, items[-1].command] == [TAKEOFF, RTL]
     assert all(math.isnan(item.params[3]) for item in items if item.command == WAYPOINT
                and item.frame == 3)
+
+
+# The command line, as a new user runs it.
+
+def test_command_line_writes_a_mission_that_pymavlink_loads(tmp_path, capsys):
+    from uav_comm_planner import cli
+    target = tmp_path / 'm.waypoints'
+    status = cli.main(['plan', '--case', 'I', '--mission', str(target),
+                       '--home', '47.397742,8.545594,488'])
+    out = capsys.readouterr().out
+    assert status == 0 and f'wrote {target}' in out
+    items = load(target)
+    assert [items[0].command, items[1].command, items[-1].command] == [WAYPOINT, TAKEOFF, LAND]
+    result = plan(paper_scenario('I'))
+    check_timing(result, items, Home(*DEFAULT_HOME))
+
+
+def test_command_line_writes_a_px4_plan_that_returns_to_launch(tmp_path, capsys):
+    from uav_comm_planner import cli
+    target = tmp_path / 'm.plan'
+    # A southern latitude starts with '-', so argparse needs it attached with '='.
+    status = cli.main(['plan', '--case', 'II', '--mission', str(target),
+                       '--home=-35.363261,149.165230,584', '--mission-end', 'rtl',
+                       '--firmware', 'px4'])
+    assert status == 0
+    document = json.loads(target.read_text())
+    assert document['mission']['firmwareType'] == 12
+    assert document['mission']['plannedHomePosition'] == [-35.363261, 149.16523, 584.0]
+    assert document['mission']['items'][-1]['command'] == RTL
+
+
+@pytest.mark.parametrize('mission_file, message', [
+    ('m.kml', 'unknown mission format'), ('nowhere/m.waypoints', 'does not exist')])
+def test_command_line_refuses_a_bad_mission_file_before_planning(tmp_path, capsys, monkeypatch,
+                                                                 mission_file, message):
+    from uav_comm_planner import cli
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(['plan', '--case', 'I', '--mission', mission_file]) == 2
+    out, err = capsys.readouterr()
+    assert message in err and 'proposed' not in out
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize('home_text, message', [
+    ('47.3,8.5', 'LAT,LON,ALT'), ('47.3,200,400', 'longitude must be in')])
+def test_command_line_refuses_a_bad_home(tmp_path, capsys, home_text, message):
+    from uav_comm_planner import cli
+    with pytest.raises(SystemExit) as stop:
+        cli.main(['plan', '--mission', str(tmp_path / 'm.waypoints'), '--home', home_text])
+    assert stop.value.code == 2 and message in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
