@@ -222,13 +222,13 @@ def test_rtl_ends_the_mission_when_asked(case_one, home, tmp_path):
 # Plans that are not the letter's: slow crawls, zero-length legs, a start away from home.
 
 def crawl_plan(slot_s: float) -> PlanResult:
-    """Start 40 m east of home, crawl 3 m per slot, hover 4 slots, then fly to the goal."""
+    """Start 40 m east of home, crawl 3 m per slot, hover 3 slots, then fly to the goal."""
     crawl = [(40.0 + 3.0 * k, 0.0) for k in range(1, 6)]
-    hover = [(55.0, 0.0)] * 4
+    hover = [(55.0, 0.0)] * 3
     dash = [(55.0 + 8.0 * k * slot_s, 0.0) for k in range(1, 4)]
     goal = (dash[-1][0] + 8.0 * slot_s, 0.0)
     return synthetic_result(crawl + hover + dash, start=(40.0, 0.0), goal=goal,
-                            horizon_s=slot_s * 12)
+                            horizon_s=slot_s * 11)
 
 
 @pytest.mark.parametrize('slot_s', [10.0, 1.5, 0.5])
