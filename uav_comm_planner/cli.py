@@ -15,7 +15,7 @@ from typing import Sequence
 
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import write_text_atomic
-from uav_comm_planner.geodesy import Home
+from uav_comm_planner.geodesy import DEFAULT_HOME, Home
 from uav_comm_planner.optimizer import plan, PlanResult
 from uav_comm_planner.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.serialize import result_to_dict, scenario_from_dict
@@ -189,11 +189,12 @@ def build_parser() -> argparse.ArgumentParser:
                              help="draw the letter's Fig. 1 for this plan")
     plan_parser.add_argument('--mission', type=Path, metavar='FILE.waypoints|FILE.plan',
                              help='write a MAVLink mission: QGC WPL 110 or QGroundControl .plan')
-    plan_parser.add_argument('--home', type=_home, default='47.397742,8.545594,488',
+    plan_parser.add_argument('--home', type=_home, default=Home(*DEFAULT_HOME),
                              metavar='LAT,LON,ALT',
                              help='where x = east, y = north metres start: degrees, degrees, '
-                                  'metres above sea level (default: the PX4 and ArduPilot '
-                                  "simulators' launch point in Zurich; give your own field's)")
+                                  'metres above sea level (default %s, the PX4 and ArduPilot '
+                                  "simulators' launch point in Zurich; give your own field's)"
+                                  % ','.join(f'{v:g}' for v in DEFAULT_HOME))
     plan_parser.add_argument('--mission-end', choices=['land', 'rtl'], default='land',
                              help='land at the goal or return to launch (default land)')
     plan_parser.add_argument('--firmware', choices=['ardupilot', 'px4'], default='ardupilot',

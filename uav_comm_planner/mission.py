@@ -45,7 +45,7 @@ from pymavlink import mavutil, mavwp
 
 from uav_comm_planner.errors import MissionExportError
 from uav_comm_planner.files import atomic_path
-from uav_comm_planner.geodesy import enu_to_geodetic, Home
+from uav_comm_planner.geodesy import DEFAULT_HOME, enu_to_geodetic, Home
 from uav_comm_planner.optimizer import PlanResult
 
 MAV = mavutil.mavlink
@@ -448,7 +448,7 @@ def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
 
 
 __all__ = [
-    'Home', 'MERGE_RADIUS_M', 'MIN_SPEED_MPS', 'MissionItem', 'Pace', 'Stop',
+    'DEFAULT_HOME', 'Home', 'MERGE_RADIUS_M', 'MIN_SPEED_MPS', 'MissionItem', 'Pace', 'Stop',
     'build_mission_items', 'export_mission', 'group_stops', 'hover_runs', 'plan_document',
     'plan_points', 'plan_stops', 'schedule_stops', 'write_plan', 'write_waypoints',
 ]
