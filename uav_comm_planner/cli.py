@@ -194,7 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
                              help='where x = east, y = north metres start: degrees, degrees, '
                                   'metres above sea level (default %s, the PX4 and ArduPilot '
                                   "simulators' launch point in Zurich; give your own field's)"
-                                  % ','.join(f'{v:g}' for v in DEFAULT_HOME))
+                                  % ','.join(f'{v:.10g}' for v in DEFAULT_HOME))
     plan_parser.add_argument('--mission-end', choices=['land', 'rtl'], default='land',
                              help='land at the goal or return to launch (default land)')
     plan_parser.add_argument('--firmware', choices=['ardupilot', 'px4'], default='ardupilot',
