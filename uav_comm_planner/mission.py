@@ -33,7 +33,7 @@ rounding are not modelled.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import json
 import math
 import os
@@ -77,6 +77,8 @@ FIRMWARE_TYPES = {'ardupilot': MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 'px4': MAV.MAV_A
 MISSION_ENDS = ('land', 'rtl')
 VEHICLE_TYPE_QUADROTOR = MAV.MAV_TYPE_QUADROTOR
 QGC_ALTITUDE_MODE_RELATIVE = 1
+#: QGroundControl's own default, for a mission that never moves (no speed to report).
+QGC_DEFAULT_HOVER_SPEED_MPS = 5.0
 
 
 @dataclass(frozen=True)
@@ -195,7 +197,7 @@ def schedule_stops(stops: Sequence[Stop], pace: Pace) -> list[Stop]:
     for stop, following in zip(stops, list(stops[1:]) + [None]):
         wait = max(0.0, stop.plan_departure_s - clock)
         if following is None:
-            scheduled.append(_with(stop, arrival_s=clock, hold_s=_quantised_hold(wait, pace)))
+            scheduled.append(replace(stop, arrival_s=clock, hold_s=_quantised_hold(wait, pace)))
             break
         length = float(np.linalg.norm(following.position_m - stop.position_m))
         target = following.plan_arrival_s
@@ -203,7 +205,7 @@ def schedule_stops(stops: Sequence[Stop], pace: Pace) -> list[Stop]:
         hold = _quantised_hold(hold, pace)
         nominal = length / max(target - stop.plan_departure_s, 1e-9)
         in_force = _leg_speed(length, clock + hold, target, (in_force, nominal), pace)
-        scheduled.append(_with(stop, arrival_s=clock, hold_s=hold, speed_mps=in_force))
+        scheduled.append(replace(stop, arrival_s=clock, hold_s=hold, speed_mps=in_force))
         clock += hold + length / in_force
     return scheduled
 
@@ -245,12 +247,6 @@ def _quantised_hold(hold_s: float, pace: Pace) -> float:
         return round(hold_s, 2)
     nearest = round(hold_s)
     return float(nearest if abs(hold_s - nearest) <= pace.tolerance_s else math.floor(hold_s))
-
-
-def _with(stop: Stop, **changes) -> Stop:
-    values = {name: getattr(stop, name) for name in stop.__dataclass_fields__}
-    values.update(changes)
-    return Stop(**values)
 
 
 def plan_stops(result: PlanResult, *, firmware: str = 'ardupilot',
@@ -351,7 +347,7 @@ def plan_document(items: Sequence[MissionItem], home: Home, *,
     """The QGroundControl .plan JSON object (file version 1, mission version 2)."""
     _check_firmware(firmware)
     speeds = [item.params[1] for item in items if item.command == DO_CHANGE_SPEED]
-    default_speed = speeds[0] if speeds else 5.0
+    default_speed = speeds[0] if speeds else QGC_DEFAULT_HOVER_SPEED_MPS
     return {
         'fileType': 'Plan',
         'version': 1,
