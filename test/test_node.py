@@ -31,7 +31,8 @@ from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
-from uav_comm_planner import InfeasibleHorizonError, paper_scenario, plan, SolverSettings
+from uav_comm_planner import (InfeasibleHorizonError, paper_scenario, plan, SolverError,
+                              SolverSettings)
 from uav_comm_planner.node import (GROUND_NODES_QOS, NODE_NAME, OUTPUT_QOS, PlannerNode,
                                    TOPIC_GROUND_NODES, TOPIC_MARKERS, TOPIC_MIN_THROUGHPUT,
                                    TOPIC_PATH, TOPIC_POWER, TOPIC_UAV_POSE)
@@ -331,9 +332,9 @@ def test_uav_pose_replans_the_rest_and_refuses_an_unreachable_goal(harness):
 
 
 def test_solver_failure_is_logged_and_the_last_plan_stays(harness):
-    from uav_comm_planner import SolverError
+    calls = []
 
-    def failing_after_first(scenario, settings, calls=[]):
+    def failing_after_first(scenario, settings):
         calls.append(scenario)
         if len(calls) > 1:
             raise SolverError('trajectory step: solver reported NUMERICAL_ERROR')

@@ -3,10 +3,11 @@
 Every field of :class:`~uav_comm_planner.scenario.Scenario`,
 :class:`~uav_comm_planner.scenario.SolverSettings` and :class:`NodeSettings` becomes one ROS
 parameter of the same name (``ground_nodes_m`` is published as ``ground_nodes``), typed from
-the field's annotation: ``float`` -> double, ``int`` -> integer, ``bool``, ``str``, a tuple of
-strings -> a string array, a point ``(x, y)`` -> a double array of two values, a tuple of
-points -> a flat double array ``x1, y1, x2, y2, ...``. A field of any other type is not exposed and keeps its default.
-Defaults are the letter's case I. :func:`config_from_parameters` is the one way back from
+the field's annotation: ``float`` -> double, ``int`` -> integer, ``bool``, ``str``, a tuple
+of strings -> a string array, a point ``(x, y)`` -> a double array of two values, a tuple
+of points -> a flat double array ``x1, y1, x2, y2, ...``. A field of any other type is not
+exposed and keeps its default. Defaults are the letter's case I for the scenario and the
+dataclasses' own for the rest. :func:`config_from_parameters` is the one way back from
 parameter values to validated dataclasses.
 """
 
