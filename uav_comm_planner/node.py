@@ -178,7 +178,8 @@ def summary_line(result: PlanResult) -> str:
     else:
         compared = 'baselines off'
     return (f'plan: min throughput {result.min_throughput:.4g} bit/s ({compared}); '
-            f'{scenario.num_nodes} nodes, {scenario.num_slots} slots of '
+            f'{scenario.num_nodes} node{"" if scenario.num_nodes == 1 else "s"}, '
+            f'{scenario.num_slots} slots of '
             f'{scenario.slot_s:g} s, {result.status}, planned in {result.solve_time_s:.2f} s')
 
 
