@@ -296,12 +296,14 @@ def test_burst_of_updates_coalesces_and_ends_with_the_last(harness):
     runs, requests = h.node.plans_run, h.node.requests_made
     gated.gate.clear()
     updates = [[(300.0 + i, 200.0), (900.0, -150.0 + i), (1500.0, 250.0)] for i in range(50)]
-    for points in updates:
+    for i, points in enumerate(updates):
         h.send_nodes(points)
         flat = [v for point in points for v in point]
         h.spin_until(lambda: list(h.node.get_parameter('ground_nodes').value) == flat,
                      'update taken')
-    assert h.node.requests_made - requests == len(updates)
+        if i == len(updates) // 2:
+            assert h.call('replan', Trigger.Request()).success
+    assert h.node.requests_made - requests == len(updates) + 1
     gated.gate.set()
     h.spin_until(lambda: h.node.current_plan.request.scenario.ground_nodes_m == tuple(
         updates[-1]), 'plan for the last update')

@@ -10,7 +10,9 @@ condition, where they are published and logged.
 Replanning:
 
 - a ``ground_nodes`` message, an accepted parameter change or ``~/replan`` plans the whole
-  mission from ``start_m`` and restarts the mission clock;
+  mission from ``start_m`` and restarts the mission clock. A ``ground_nodes`` message goes
+  through the ``ground_nodes`` parameter, so it is checked like any parameter change and the
+  parameter always holds the node set in use;
 - a ``uav_pose`` message plans the rest of the mission from the UAV's position: the waypoints
   whose planned time has passed (time since the mission clock started, in whole slots) are
   dropped and the remaining ones, with the same slot length, lead to ``goal_m``. It is an
@@ -25,7 +27,7 @@ import math
 from pathlib import Path as FilePath
 import sys
 import threading
-from typing import Callable, Generic, TypeVar
+from typing import Callable, Generic, Sequence, TypeVar
 
 from geometry_msgs.msg import PoseArray, PoseStamped
 from nav_msgs.msg import Path
@@ -177,10 +179,10 @@ def summary_line(result: PlanResult) -> str:
                     f'static point {baselines.get("static", math.nan):.4g}')
     else:
         compared = 'baselines off'
-    return (f'plan: min throughput {result.min_throughput:.4g} bit/s ({compared}); '
-            f'{scenario.num_nodes} node{"" if scenario.num_nodes == 1 else "s"}, '
-            f'{scenario.num_slots} slots of '
-            f'{scenario.slot_s:g} s, {result.status}, planned in {result.solve_time_s:.2f} s')
+    nodes = f'{scenario.num_nodes} node' + ('' if scenario.num_nodes == 1 else 's')
+    return (f'plan: min throughput {result.min_throughput:.4g} bit/s ({compared}); {nodes}, '
+            f'{scenario.num_slots} slots of {scenario.slot_s:g} s, {result.status}, '
+            f'planned in {result.solve_time_s:.2f} s')
 
 
 class PlannerNode(Node):
@@ -191,10 +193,9 @@ class PlannerNode(Node):
     Raises :class:`~uav_comm_planner.errors.PlannerError` when the initial parameters do not
     make a valid scenario.
 
-    For tests and introspection: ``requests_made`` counts plan requests,
-    ``plans_run`` finished plan attempts,
-    ``plans_published`` the successful ones, ``error_count`` and ``last_error`` every
-    error logged.
+    For tests and introspection: ``requests_made`` counts plan requests, ``plans_run``
+    finished plan attempts, ``plans_published`` the successful ones; ``error_count`` and
+    ``last_error`` follow every error logged.
     """
 
     def __init__(self, *, planner: Planner = plan, **node_options) -> None:
@@ -240,7 +241,7 @@ class PlannerNode(Node):
                                      for spec in specs])
         return tuple(spec.name for spec in specs)
 
-    def _parameter_values(self, changes: list[Parameter] = ()) -> dict[str, object]:
+    def _parameter_values(self, changes: Sequence[Parameter] = ()) -> dict[str, object]:
         values = {name: self.get_parameter(name).value for name in self._parameter_names}
         values.update({p.name: p.value for p in changes if p.name in self._parameter_names})
         return values
