@@ -32,8 +32,7 @@ from scipy import sparse
 
 from uav_comm_planner.errors import SolverError
 from uav_comm_planner.scenario import Scenario
-from uav_comm_planner.trajectory import (KM, sca_lower_bound, surrogate_coefficients,
-                                         TrajectoryStep)
+from uav_comm_planner.trajectory import KM, surrogate_coefficients, TrajectoryStep
 
 
 @dataclass(frozen=True)
@@ -65,10 +64,12 @@ class ConeLayout:
         return sparse.csc_matrix((values[self.to_csc], self.indices, self.indptr),
                                  shape=(self.num_rows, self.num_columns))
 
-    def cones(self) -> list:
-        return ([clarabel.NonnegativeConeT(self.num_nodes)]
-                + [clarabel.SecondOrderConeT(3)] * (self.num_slots + 1)
-                + [clarabel.SecondOrderConeT(4)] * self.num_slots)
+    @functools.cached_property
+    def cones(self) -> tuple:
+        """Node rows (N, non-negative), speed limits (M + 1 of dim 3), epigraphs (M of dim 4)."""
+        return ((clarabel.NonnegativeConeT(self.num_nodes),)
+                + (clarabel.SecondOrderConeT(3),) * (self.num_slots + 1)
+                + (clarabel.SecondOrderConeT(4),) * self.num_slots)
 
 
 def _speed_entries(num_nodes: int, num_slots: int) -> tuple[np.ndarray, ...]:
@@ -140,6 +141,22 @@ def clarabel_settings(*, refine: bool) -> clarabel.DefaultSettings:
     return settings
 
 
+@dataclass(frozen=True)
+class NodeRows:
+    """mean_m lbr_{n,m}(z) = constant_n - (1/M) sum_m weight_{n,m} ||z[m] - w_n||^2.
+
+    weight: W (N, M), per km^2; constant: C (N,) bits per use.
+    """
+
+    weight: np.ndarray
+    constant: np.ndarray
+
+    def bound(self, z: np.ndarray, w: np.ndarray) -> float:
+        """min_n mean_m lbr_{n,m} at z (M, 2) km, nodes w (N, 2) km in the same frame."""
+        spread = ((z[None, :, :] - w[:, None, :]) ** 2).sum(axis=-1)
+        return float((self.constant - (self.weight * spread).mean(axis=1)).min())
+
+
 class ClarabelTrajectoryStep:
     """SCA trajectory steps for one scenario, on one Clarabel solver updated in place.
 
@@ -172,27 +189,32 @@ class ClarabelTrajectoryStep:
         epigraph = np.tile([0.5, 0.0, 0.0, -0.5], m)
         return np.concatenate([np.zeros(n), speed.ravel(), epigraph])
 
-    def cone_data(self, q_k: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """A's entries in build order and b, for the bound expanded at q_k with power p."""
+    def node_rows(self, q_k: np.ndarray, p: np.ndarray) -> NodeRows:
+        """The bound's weights and constants, expanded at q_k (M, 2) with power p (N, M)."""
         coef = surrogate_coefficients(q_k, p, self.scenario)
-        m = self.scenario.num_slots
+        # x / d^k is dimensionless, so the slope may be divided by d^k in km^2.
         weight = coef.slope / (coef.d / KM ** 2)
-        constant = ((coef.value + weight * coef.horizontal / KM ** 2).mean(axis=1)
-                    - (self.w ** 2).sum(axis=1) * weight.mean(axis=1))
+        constant = (coef.value + weight * coef.horizontal / KM ** 2).mean(axis=1)
+        return NodeRows(weight=weight, constant=constant)
+
+    def cone_data(self, rows: NodeRows) -> tuple[np.ndarray, np.ndarray]:
+        """A's entries in build order and b for these node rows."""
+        n, m = self.scenario.num_nodes, self.scenario.num_slots
+        weight = rows.weight
         values = self.layout.values.copy()
-        node_block = np.stack([-2.0 * weight * self.w[:, :1], -2.0 * weight * self.w[:, 1:],
-                               weight], axis=-1) / m
-        n = self.scenario.num_nodes
-        values[n:n + node_block.size] = node_block.ravel()
+        node_block = values[n:n + 3 * n * m].reshape(n, m, 3)
+        node_block[:, :, 0] = weight * (-2.0 / m) * self.w[:, :1]
+        node_block[:, :, 1] = weight * (-2.0 / m) * self.w[:, 1:]
+        node_block[:, :, 2] = weight / m
         b = self.b_fixed.copy()
-        b[:n] = constant
+        b[:n] = rows.constant - (self.w ** 2).sum(axis=1) * weight.mean(axis=1)
         return values, b
 
     def _solve(self, values: np.ndarray, b: np.ndarray):
         if self._solver is None:
             self._solver = clarabel.DefaultSolver(
                 sparse.csc_matrix((self.layout.num_columns, self.layout.num_columns)),
-                self.objective, self.layout.matrix(values), b, self.layout.cones(),
+                self.objective, self.layout.matrix(values), b, list(self.layout.cones),
                 clarabel_settings(refine=self.refine))
         else:
             self._solver.update(A=values[self.layout.to_csc], b=b)
@@ -201,7 +223,8 @@ class ClarabelTrajectoryStep:
     def __call__(self, q_k: np.ndarray, p: np.ndarray, scenario: Scenario) -> TrajectoryStep:
         if scenario is not self.scenario and scenario != self.scenario:
             raise ValueError('this trajectory stepper was built for another scenario')
-        values, b = self.cone_data(q_k, p)
+        rows = self.node_rows(q_k, p)
+        values, b = self.cone_data(rows)
         solution = self._solve(values, b)
         if solution.status != clarabel.SolverStatus.Solved and not self.refine:
             self.refine, self._solver = True, None
@@ -214,8 +237,7 @@ class ClarabelTrajectoryStep:
         q = z * KM + self.centre_m
         if not np.all(np.isfinite(q)):
             raise SolverError('trajectory step: Clarabel returned a non-finite trajectory')
-        bound = float(sca_lower_bound(q, q_k, p, scenario).mean(axis=1).min())
-        return TrajectoryStep(q=q, bound=bound)
+        return TrajectoryStep(q=q, bound=rows.bound(z, self.w))
 
 
 def trajectory_step_clarabel(q_k: np.ndarray, p: np.ndarray,

@@ -1,0 +1,165 @@
+"""The SCA step on Clarabel directly against the cvxpy reference step and Algorithm 1."""
+
+import types
+
+import clarabel
+import numpy as np
+import pytest
+
+from uav_comm_planner import paper_scenario, plan, Scenario, SolverError, SolverSettings
+from uav_comm_planner.fast_trajectory import (ClarabelTrajectoryStep, cone_layout,
+                                              trajectory_step_clarabel)
+from uav_comm_planner.initial import straight_line
+from uav_comm_planner.model import leg_lengths, snr_per_watt
+from uav_comm_planner.power import waterfilling_power
+from uav_comm_planner.trajectory import KM, sca_lower_bound, trajectory_step_cvxpy
+
+
+def random_scenario(seed: int) -> Scenario:
+    rng = np.random.default_rng(seed)
+    nodes = int(rng.integers(2, 8))
+    slots = int(rng.integers(20, 60))
+    side = float(rng.uniform(500.0, 3000.0))
+    return Scenario(ground_nodes_m=rng.uniform(0.0, side, size=(nodes, 2)).tolist(),
+                    start_m=(0.0, side), goal_m=(side, 0.0), num_slots=slots,
+                    horizon_s=2.0 * slots, max_speed_mps=60.0,
+                    power_budget_w=float(rng.uniform(0.5, 10.0)),
+                    bandwidth_hz=float(rng.choice([1.0, 1e6])),
+                    reference_gain=float(rng.choice([1e-3, 1e-6])))
+
+
+CASES = {'I': paper_scenario('I'), 'II': paper_scenario('II'),
+         **{f'random-{seed}': random_scenario(seed) for seed in range(4)}}
+
+
+def expansion_point(scenario: Scenario, wiggle: float = 0.0, seed: int = 0):
+    """A feasible q^k (the straight line, optionally shrunk towards a random feasible wiggle)
+    and the optimal power for it."""
+    q = straight_line(scenario)
+    if wiggle:
+        rng = np.random.default_rng(seed)
+        q = q + wiggle * scenario.max_step_m * rng.uniform(-0.2, 0.2, size=q.shape)
+    p = waterfilling_power(snr_per_watt(q, scenario), scenario.power_budget_w).p
+    return q, p
+
+
+@pytest.mark.parametrize('name', sorted(CASES))
+@pytest.mark.parametrize('wiggle', [0.0, 1.0])
+def test_fast_step_equals_the_cvxpy_step(name, wiggle):
+    scenario = CASES[name]
+    q_k, p = expansion_point(scenario, wiggle)
+    reference = trajectory_step_cvxpy(q_k, p, scenario)
+    fast = trajectory_step_clarabel(q_k, p, scenario)
+    assert fast.bound == pytest.approx(reference.bound, rel=1e-6)
+    # The optimum is unique (each node's bound is strictly concave in q), but a 1e-8 gap in t
+    # pins q only through the bound's small curvature, so positions agree to centimetres.
+    np.testing.assert_allclose(fast.q / KM, reference.q / KM, atol=1e-4)
+
+
+@pytest.mark.parametrize('name', sorted(CASES))
+def test_fast_step_meets_every_speed_limit_and_certifies_its_bound(name):
+    scenario = CASES[name]
+    q_k, p = expansion_point(scenario, 1.0, seed=7)
+    step = ClarabelTrajectoryStep(scenario)(q_k, p, scenario)
+    legs = leg_lengths(step.q, scenario)
+    assert legs.shape == (scenario.num_slots + 1,)
+    assert legs.max() <= scenario.max_step_m * (1 + 1e-6)
+    independent = sca_lower_bound(step.q, q_k, p, scenario).mean(axis=1).min()
+    assert step.bound == pytest.approx(independent, rel=1e-12, abs=1e-12)
+
+
+def test_cone_rows_are_the_bound_minus_t_when_u_is_the_squared_norm():
+    # b - A x on the node rows must equal mean_m lbr_{n,m}(q) - t for any q, not only optima.
+    scenario = CASES['random-1']
+    q_k, p = expansion_point(scenario, 1.0, seed=3)
+    stepper = ClarabelTrajectoryStep(scenario)
+    values, b = stepper.cone_data(stepper.node_rows(q_k, p))
+    a = stepper.layout.matrix(values)
+    rng = np.random.default_rng(5)
+    q = q_k + rng.normal(scale=200.0, size=q_k.shape)
+    z = (q - stepper.centre_m) / KM
+    t = 1.7
+    x = np.concatenate([[t], z.ravel(), (z ** 2).sum(axis=1)])
+    slack = (b - a @ x)[:scenario.num_nodes]
+    expected = sca_lower_bound(q, q_k, p, scenario).mean(axis=1) - t
+    np.testing.assert_allclose(slack, expected, rtol=1e-9, atol=1e-9)
+
+
+def test_layout_has_one_entry_per_coefficient_and_is_cached():
+    layout = cone_layout(3, 50)
+    assert layout is cone_layout(3, 50)
+    a = layout.matrix(np.arange(1.0, len(layout.values) + 1.0))
+    assert a.shape == (3 + 3 * 51 + 4 * 50, 1 + 3 * 50)
+    assert a.nnz == 3 + 3 * 3 * 50 + 4 * 50 + 4 * 50
+    assert not layout.values.flags.writeable
+
+
+class _FailingSolver:
+    """Stands in for clarabel.DefaultSolver and reports ``status`` for every solve."""
+
+    built = 0
+
+    def __init__(self, *args, status=clarabel.SolverStatus.NumericalError):
+        type(self).built += 1
+        self.status = status
+
+    def solve(self):
+        return types.SimpleNamespace(status=self.status, x=None)
+
+
+def test_a_failing_solve_raises_a_typed_error(monkeypatch):
+    scenario = CASES['I']
+    q_k, p = expansion_point(scenario)
+    _FailingSolver.built = 0
+    monkeypatch.setattr(clarabel, 'DefaultSolver', _FailingSolver)
+    with pytest.raises(SolverError, match='Clarabel returned status NumericalError'):
+        ClarabelTrajectoryStep(scenario)(q_k, p, scenario)
+    assert _FailingSolver.built == 2   # a second try, with iterative refinement, came first
+
+
+def test_a_step_that_fails_without_refinement_is_solved_again_with_it(monkeypatch):
+    scenario = CASES['II']
+    q_k, p = expansion_point(scenario)
+    real = clarabel.DefaultSolver
+    made = []
+
+    def first_fails(*args):
+        settings = args[-1]
+        made.append(settings.iterative_refinement_enable)
+        if not settings.iterative_refinement_enable:
+            return _FailingSolver(status=clarabel.SolverStatus.AlmostSolved)
+        return real(*args)
+
+    monkeypatch.setattr(clarabel, 'DefaultSolver', first_fails)
+    stepper = ClarabelTrajectoryStep(scenario)
+    step = stepper(q_k, p, scenario)
+    assert made == [False, True] and stepper.refine
+    assert step.bound == pytest.approx(trajectory_step_cvxpy(q_k, p, scenario).bound, rel=1e-6)
+
+
+def test_a_stepper_refuses_another_scenario():
+    stepper = ClarabelTrajectoryStep(CASES['I'])
+    q_k, p = expansion_point(CASES['II'])
+    with pytest.raises(ValueError, match='another scenario'):
+        stepper(q_k, p, CASES['II'])
+
+
+def test_updated_solver_gives_the_same_step_as_a_fresh_one():
+    scenario = CASES['random-2']
+    stepper = ClarabelTrajectoryStep(scenario)
+    q_k, p = expansion_point(scenario)
+    first = stepper(q_k, p, scenario)
+    q_next, p_next = first.q, p * 0.5
+    updated = stepper(q_next, p_next, scenario)
+    fresh = trajectory_step_clarabel(q_next, p_next, scenario)
+    assert updated.bound == pytest.approx(fresh.bound, rel=1e-9)
+    np.testing.assert_allclose(updated.q, fresh.q, atol=0.1)
+
+
+@pytest.mark.parametrize('name', ['I', 'II', 'random-0', 'random-3'])
+def test_both_paths_reach_the_same_plan(name):
+    scenario = CASES[name]
+    settings = SolverSettings.letter(compute_baselines=False)
+    reference = plan(scenario, settings, power_method='conic', trajectory_method='cvxpy')
+    fast = plan(scenario, settings)
+    assert fast.min_throughput == pytest.approx(reference.min_throughput, rel=1e-6)

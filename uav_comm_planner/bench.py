@@ -1,0 +1,272 @@
+"""Benchmark: the reference path against the fast path, and the default plan against the letter's.
+
+* Speed: Algorithm 1 from the straight line (the letter's settings, baselines off) on the
+  reference path (cvxpy + Clarabel for both steps, problems rebuilt every step) and on the fast
+  path (water-filling power step, SCA step on one Clarabel solver updated in place), timed in
+  alternation in one process. Peak memory is the growth of the resident set (ru_maxrss) of a
+  forked process that plans once, so it counts the solvers' native memory too.
+* Scaling: the fast path for N = 20 and a growing number of slots M over the same flight,
+  with the least-squares exponent of M on a log-log scale.
+* Quality: on random scenarios, the default plan (both starts, relative tolerance) against
+  the letter's Algorithm 1, with the upper bound of every plan.
+
+Run ``uav-comm-planner bench`` or ``python -m uav_comm_planner.bench`` (``--quick`` for a
+smaller run).
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+import math
+import os
+import platform
+import resource
+import statistics
+import sys
+import time
+from typing import Callable, Sequence
+
+import numpy as np
+
+from uav_comm_planner.optimizer import plan, PlanResult
+from uav_comm_planner.scenario import paper_scenario, Scenario, SolverSettings
+
+REFERENCE = dict(power_method='conic', trajectory_method='cvxpy')
+FAST = dict(power_method='waterfilling', trajectory_method='clarabel')
+LOW_SNR = dict(bandwidth_hz=1e6, reference_gain=1e-6)
+
+
+@dataclass(frozen=True)
+class SizeCase:
+    """One row of the speed table: a scenario and how many timed pairs to run."""
+
+    label: str
+    scenario: Scenario
+    repeats: int
+
+
+def random_scenario(num_nodes: int, num_slots: int, seed: int, *, side_m: float,
+                    horizon_s: float | None = None, **radio) -> Scenario:
+    """Nodes uniform in a side x side square, flown from (0, 0) to (side, side) at 100 m/s.
+
+    The horizon defaults to M seconds (delta = 1 s, as in the letter), always long enough to
+    reach the goal. ``radio`` overrides the letter's radio settings (B, beta0, ...).
+    """
+    rng = np.random.default_rng(seed)
+    settings = dict(ground_nodes_m=rng.uniform(0.0, side_m, size=(num_nodes, 2)).tolist(),
+                    altitude_m=100.0, max_speed_mps=100.0,
+                    horizon_s=float(num_slots if horizon_s is None else horizon_s),
+                    num_slots=num_slots, start_m=(0.0, 0.0), goal_m=(side_m, side_m),
+                    bandwidth_hz=1.0, noise_psd_dbm_per_hz=-169.0, reference_gain=1e-3,
+                    power_budget_w=5.0)
+    settings.update(radio)
+    return Scenario(**settings)
+
+
+def size_cases(quick: bool) -> list[SizeCase]:
+    """The speed table: the letter's case I and random scenes of 10, 30 and 50 nodes."""
+    cases = [SizeCase('letter case I', paper_scenario('I'), 3 if quick else 9),
+             SizeCase('N=10, M=200', random_scenario(10, 200, 10, side_m=1500.0),
+                      1 if quick else 5)]
+    if not quick:
+        cases += [SizeCase('N=30, M=500', random_scenario(30, 500, 30, side_m=2500.0), 3),
+                  SizeCase('N=50, M=1000', random_scenario(50, 1000, 50, side_m=3000.0), 2)]
+    return cases
+
+
+def timed_plan(scenario: Scenario, settings: SolverSettings,
+               methods: dict[str, str]) -> tuple[float, PlanResult]:
+    began = time.perf_counter()
+    result = plan(scenario, settings, **methods)
+    return time.perf_counter() - began, result
+
+
+def _resident_kib() -> int:
+    with open('/proc/self/statm') as statm:
+        pages = int(statm.read().split()[1])
+    return pages * os.sysconf('SC_PAGE_SIZE') // 1024
+
+
+def peak_memory_mib(run: Callable[[], object]) -> float:
+    """Growth of the peak resident set while ``run()`` executes in a forked child, MiB.
+
+    A fork starts from this process's pages, so the child's ru_maxrss minus its resident
+    size at the fork is what the run added. NaN where fork or /proc is not available.
+    """
+    if not hasattr(os, 'fork') or not os.path.exists('/proc/self/statm'):
+        return math.nan
+    read_end, write_end = os.pipe()
+    child = os.fork()
+    if child == 0:
+        os.close(read_end)
+        try:
+            before = _resident_kib()
+            run()
+            grown = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
+            os.write(write_end, str(grown).encode())
+        finally:
+            os._exit(0)
+    os.close(write_end)
+    with os.fdopen(read_end) as pipe:
+        text = pipe.read()
+    os.waitpid(child, 0)
+    return int(text) / 1024.0 if text else math.nan
+
+
+@dataclass(frozen=True)
+class SpeedRow:
+    label: str
+    repeats: int
+    reference_s: float
+    fast_s: float
+    reference_value: float
+    fast_value: float
+    reference_mib: float
+    fast_mib: float
+
+    @property
+    def ratio(self) -> float:
+        return self.reference_s / self.fast_s
+
+    @property
+    def relative_difference(self) -> float:
+        return abs(self.fast_value - self.reference_value) / abs(self.reference_value)
+
+
+def measure_speed(case: SizeCase, settings: SolverSettings) -> SpeedRow:
+    """Median plan time of both paths, timed in alternation, and their objectives."""
+    times: dict[str, list[float]] = {'reference': [], 'fast': []}
+    values = {}
+    for _ in range(case.repeats):
+        for name, methods in (('reference', REFERENCE), ('fast', FAST)):
+            seconds, result = timed_plan(case.scenario, settings, methods)
+            times[name].append(seconds)
+            values[name] = result.min_throughput
+    memory = {}
+    for name, methods in (('reference', REFERENCE), ('fast', FAST)):
+        memory[name] = peak_memory_mib(
+            lambda methods=methods: plan(case.scenario, settings, **methods))
+    return SpeedRow(case.label, case.repeats, statistics.median(times['reference']),
+                    statistics.median(times['fast']), values['reference'], values['fast'],
+                    memory['reference'], memory['fast'])
+
+
+def format_speed(rows: Sequence[SpeedRow]) -> str:
+    lines = ['case            runs  reference_s    fast_s    ratio  reference_bps    '
+             'fast_bps  rel_diff  ref_MiB  fast_MiB']
+    for r in rows:
+        lines.append(f'{r.label:<15} {r.repeats:>4} {r.reference_s:>12.4f} {r.fast_s:>9.4f} '
+                     f'{r.ratio:>7.1f}x {r.reference_value:>14.8f} {r.fast_value:>11.8f} '
+                     f'{r.relative_difference:>9.1e} {r.reference_mib:>8.1f} {r.fast_mib:>9.1f}')
+    return '\n'.join(lines)
+
+
+def measure_scaling(slot_counts: Sequence[int], settings: SolverSettings,
+                    repeats: int) -> tuple[list[tuple[int, float, int]], float]:
+    """Fast-path median time for N = 20 over one 200 s flight cut into M slots; fitted exponent.
+
+    Returns rows (M, seconds, SCA steps) and the slope of log(time) against log(M).
+    """
+    rows = []
+    for m in slot_counts:
+        scenario = random_scenario(20, m, 20, side_m=2000.0, horizon_s=200.0)
+        runs = [timed_plan(scenario, settings, FAST) for _ in range(repeats)]
+        rows.append((m, statistics.median(s for s, _ in runs), runs[-1][1].trajectory_steps))
+    slope = np.polyfit(np.log([m for m, _, _ in rows]), np.log([s for _, s, _ in rows]), 1)[0]
+    return rows, float(slope)
+
+
+def format_scaling(rows: Sequence[tuple[int, float, int]], exponent: float) -> str:
+    lines = ['    M    fast_s  sca_steps  us_per_slot_and_step']
+    for m, seconds, steps in rows:
+        lines.append(f'{m:>5} {seconds:>9.4f} {steps:>10} {1e6 * seconds / (m * steps):>21.1f}')
+    lines.append(f'fitted exponent of M (least squares, log-log): {exponent:.2f}')
+    return '\n'.join(lines)
+
+
+@dataclass(frozen=True)
+class QualityRow:
+    num_nodes: int
+    letter: PlanResult
+    default: PlanResult
+
+    @property
+    def ratio(self) -> float:
+        return self.default.min_throughput / self.letter.min_throughput
+
+
+def compare_quality(num_cases: int, radio: dict[str, float]) -> list[QualityRow]:
+    """Default plan against the letter's Algorithm 1 on random 2 km x 2 km scenes, M = 120."""
+    rows = []
+    for seed in range(num_cases):
+        n = 4 + seed % 9
+        scenario = random_scenario(n, 120, 1000 + seed, side_m=2000.0, **radio)
+        letter = plan(scenario, SolverSettings.letter(compute_baselines=False))
+        default = plan(scenario, SolverSettings(compute_baselines=False))
+        rows.append(QualityRow(n, letter, default))
+    return rows
+
+
+def format_quality(rows: Sequence[QualityRow]) -> str:
+    lines = [' N   letter_bps   default_bps   ratio  start     letter_gap  default_gap  '
+             'letter_s  default_s']
+    for r in rows:
+        lines.append(
+            f'{r.num_nodes:>2} {r.letter.min_throughput:>12.6g} {r.default.min_throughput:>13.6g} '
+            f'{r.ratio:>7.4f}  {r.default.start:<8} {r.letter.gap_to_upper_bound:>11.1%} '
+            f'{r.default.gap_to_upper_bound:>12.1%} {r.letter.solve_time_s:>9.3f} '
+            f'{r.default.solve_time_s:>10.3f}')
+    ratios = np.array([r.ratio for r in rows])
+    worse = int(np.sum(ratios < 1.0))
+    hover = sum(r.default.start == 'hover' for r in rows)
+    lines.append(f'default / letter: mean {ratios.mean():.4f}, min {ratios.min():.6f}, '
+                 f'max {ratios.max():.4f}; worse in {worse} of {len(rows)} cases; '
+                 f'hover start kept in {hover}')
+    lines.append('mean gap to the upper bound: letter '
+                 f'{np.mean([r.letter.gap_to_upper_bound for r in rows]):.1%}, default '
+                 f'{np.mean([r.default.gap_to_upper_bound for r in rows]):.1%}')
+    return '\n'.join(lines)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog='uav-comm-planner bench',
+        description='time the reference and fast paths; compare the default plan with the '
+                    "letter's Algorithm 1")
+    parser.add_argument('--quick', action='store_true',
+                        help='small sizes and few runs (a smoke test, not the documented run)')
+    return parser
+
+
+def run(quick: bool = False, out=sys.stdout) -> None:
+    """Run every section and print its table to ``out``."""
+    def section(title: str, body: str) -> None:
+        print(f'\n== {title}\n{body}', file=out, flush=True)
+
+    print(f'uav_comm_planner benchmark{" (quick)" if quick else ""}: Python '
+          f'{platform.python_version()}, {os.cpu_count()} CPUs, {platform.machine()}',
+          file=out, flush=True)
+    letter = SolverSettings.letter(compute_baselines=False)
+    speed = [measure_speed(case, letter) for case in size_cases(quick)]
+    section("Speed: Algorithm 1 from the straight line, letter's settings, median of 'runs' "
+            'alternating pairs; memory: peak RSS growth of one forked plan', format_speed(speed))
+    slots = (50, 100, 200) if quick else (100, 200, 500, 1000, 2000)
+    scaling, exponent = measure_scaling(slots, letter, 1 if quick else 3)
+    section('Scaling: fast path, N = 20, one 200 s flight cut into M slots',
+            format_scaling(scaling, exponent))
+    cases = 4 if quick else 20
+    section("Quality: default plan vs the letter's Algorithm 1, random 2 km x 2 km, M = 120, "
+            "letter's radio settings", format_quality(compare_quality(cases, {})))
+    section('Quality, low SNR: B = 1 MHz, beta0 = -60 dB',
+            format_quality(compare_quality(cases, LOW_SNR)))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    run(quick=args.quick)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
