@@ -1,0 +1,173 @@
+"""The hover-and-fly start, the two-start default plan and the throughput upper bound."""
+
+import math
+
+import numpy as np
+import pytest
+
+from uav_comm_planner import (InvalidScenarioError, paper_scenario, plan, Scenario,
+                              SolverSettings)
+from uav_comm_planner.initial import (even_hovers, hover_and_fly, nearest_neighbour_order,
+                                      straight_line, tour_order, two_opt)
+from uav_comm_planner.model import average_rates, leg_lengths
+from uav_comm_planner.optimizer import throughput_upper_bound
+
+
+def random_scenario(seed: int, nodes: int = 6, slots: int = 60, **changes) -> Scenario:
+    rng = np.random.default_rng(seed)
+    fields = dict(ground_nodes_m=rng.uniform(0.0, 2000.0, size=(nodes, 2)).tolist(),
+                  start_m=(0.0, 0.0), goal_m=(2000.0, 2000.0), num_slots=slots,
+                  horizon_s=float(slots), max_speed_mps=100.0)
+    fields.update(changes)
+    return Scenario(**fields)
+
+
+def distance_to_path(q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Distance from each node (N,) to the closest waypoint."""
+    return np.linalg.norm(q[None, :, :] - w[:, None, :], axis=-1).min(axis=1)
+
+
+def assert_flyable(q: np.ndarray, scenario: Scenario) -> None:
+    assert q.shape == (scenario.num_slots, 2)
+    assert np.all(np.isfinite(q))
+    legs = leg_lengths(q, scenario)   # includes q0 -> q[1] and q[M] -> qF
+    assert legs.max() <= scenario.max_step_m * (1 + 1e-9), legs.max() / scenario.max_step_m
+
+
+@pytest.mark.parametrize('scenario', [
+    paper_scenario('I'), paper_scenario('II'),
+    *[random_scenario(s, nodes=3 + s, slots=120) for s in range(6)]])
+def test_hover_and_fly_visits_every_node_within_the_speed_limit(scenario):
+    q = hover_and_fly(scenario)
+    assert_flyable(q, scenario)
+    assert distance_to_path(q, scenario.nodes).max() < 1e-6
+    # The spare legs all became hovers: every leg is either flown or held over a node.
+    legs = leg_lengths(q, scenario)
+    hovering = legs < 1e-9
+    path = np.vstack([scenario.start_m, q, scenario.goal_m])
+    held_at = path[1:][hovering]
+    assert distance_to_path(held_at, scenario.nodes).size == scenario.num_nodes
+    assert np.all(np.linalg.norm(held_at[:, None, :] - scenario.nodes[None], axis=-1)
+                  .min(axis=1) < 1e-9)
+
+
+def test_hovers_are_split_evenly_over_the_nodes():
+    scenario = random_scenario(3, nodes=5, slots=120)
+    q = hover_and_fly(scenario)
+    path = np.vstack([scenario.start_m, q, scenario.goal_m])
+    held = np.linalg.norm(np.diff(path, axis=0), axis=1) < 1e-9
+    counts = [int(np.sum(held & (np.linalg.norm(path[1:] - w, axis=1) < 1e-9)))
+              for w in scenario.nodes]
+    assert max(counts) - min(counts) <= 1 and min(counts) >= 1
+    np.testing.assert_array_equal(even_hovers(11, 4), [3, 3, 3, 2])
+
+
+def test_a_horizon_too_short_for_the_tour_drops_nodes_but_stays_flyable():
+    scenario = random_scenario(4, nodes=10, slots=36)
+    full_tour = np.vstack([scenario.start_m, scenario.nodes[tour_order(scenario)],
+                           scenario.goal_m])
+    assert np.linalg.norm(np.diff(full_tour, axis=0), axis=1).sum() > (
+        scenario.num_slots + 1) * scenario.max_step_m
+    q = hover_and_fly(scenario)
+    assert_flyable(q, scenario)
+    visited = int(np.sum(distance_to_path(q, scenario.nodes) < 1e-6))
+    assert 1 <= visited < scenario.num_nodes
+
+
+def test_a_horizon_that_only_fits_the_straight_line_gives_the_straight_line():
+    # Start to goal is 2828 m; 29 legs of 100 m leave no time for a detour to (2000, 0).
+    scenario = Scenario(ground_nodes_m=[(2000.0, 0.0), (0.0, 2000.0)], goal_m=(2000.0, 2000.0),
+                        num_slots=28, horizon_s=28.0, max_speed_mps=100.0)
+    q = hover_and_fly(scenario)
+    assert_flyable(q, scenario)
+    np.testing.assert_allclose(q, straight_line(scenario))
+
+
+def test_two_opt_never_lengthens_the_nearest_neighbour_order():
+    rng = np.random.default_rng(11)
+    for _ in range(10):
+        w = rng.uniform(0.0, 1000.0, size=(12, 2))
+        start, goal = np.zeros(2), np.array([1000.0, 0.0])
+        greedy = nearest_neighbour_order(start, w)
+        better = two_opt(start, goal, w, greedy)
+        assert sorted(better) == list(range(12))
+
+        def length(order):
+            points = np.vstack([start, w[order], goal])
+            return np.linalg.norm(np.diff(points, axis=0), axis=1).sum()
+
+        assert length(better) <= length(greedy) + 1e-9
+
+
+def test_two_opt_untangles_nodes_on_a_line():
+    w = np.array([[300.0, 0.0], [100.0, 0.0], [400.0, 0.0], [200.0, 0.0]])
+    assert two_opt(np.zeros(2), np.array([500.0, 0.0]), w, [0, 1, 2, 3]) == [1, 3, 0, 2]
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_default_plan_is_never_worse_than_the_letters_algorithm(seed):
+    scenario = random_scenario(100 + seed, nodes=4 + 2 * seed, slots=60)
+    letter = plan(scenario, SolverSettings.letter(compute_baselines=False))
+    default = plan(scenario, SolverSettings(compute_baselines=False))
+    assert letter.start == 'straight'
+    assert default.start in ('straight', 'hover')
+    assert set(default.start_throughputs) == {'straight', 'hover'}
+    assert default.min_throughput == max(default.start_throughputs.values())
+    assert default.min_throughput >= letter.min_throughput
+
+
+def test_each_start_alone_is_what_the_two_start_plan_chooses_from():
+    scenario = random_scenario(7, nodes=5)
+    both = plan(scenario, SolverSettings(compute_baselines=False))
+    for name in ('straight', 'hover'):
+        alone = plan(scenario, SolverSettings(starts=(name,), compute_baselines=False))
+        assert alone.start == name
+        assert alone.min_throughput == pytest.approx(both.start_throughputs[name], rel=1e-9)
+
+
+@pytest.mark.parametrize('scenario', [
+    paper_scenario('I'), paper_scenario('II'), paper_scenario('I', power_budget_w=0.5),
+    random_scenario(1), random_scenario(2, bandwidth_hz=1e6, reference_gain=1e-6),
+    random_scenario(3, nodes=10, slots=40)])
+def test_upper_bound_is_above_every_plan(scenario):
+    result = plan(scenario)
+    letter = plan(scenario, SolverSettings.letter())
+    bound = result.upper_bound
+    assert bound == throughput_upper_bound(scenario)
+    values = [result.min_throughput, letter.min_throughput, *result.baselines.values(),
+              *result.start_throughputs.values()]
+    assert all(value < bound for value in values)
+    assert 0.0 < result.gap_to_upper_bound < 1.0
+
+
+def test_upper_bound_is_reached_by_one_node_served_from_right_above():
+    # N = 1, hovering over the node the whole time with the budget spread evenly: both
+    # inequalities of the bound (best channel, Jensen) hold with equality.
+    node = (500.0, 300.0)
+    scenario = Scenario(ground_nodes_m=[node], start_m=node, goal_m=node, num_slots=20,
+                        horizon_s=20.0, bandwidth_hz=2.0, power_budget_w=3.0)
+    q = np.repeat(np.array([node]), 20, axis=0)
+    p = np.full((1, 20), 3.0 / 20)
+    achieved = average_rates(q, p, scenario)[0]
+    assert throughput_upper_bound(scenario) == pytest.approx(achieved, rel=1e-12)
+    snr = 1 * 1e-3 / (100.0 ** 2 * 2.0 * 10 ** ((-169.0 - 30.0) / 10.0))
+    assert throughput_upper_bound(scenario) == pytest.approx(
+        2.0 * math.log2(1 + snr * 3.0 / 20), rel=1e-12)
+
+
+def test_letter_settings_are_the_letters_algorithm():
+    letter = SolverSettings.letter()
+    assert (letter.tolerance_bps, letter.relative_tolerance, letter.starts) == (
+        0.01, 0.0, ('straight',))
+    assert SolverSettings.letter(max_outer_iterations=3).max_outer_iterations == 3
+    assert SolverSettings().starts == ('straight', 'hover')
+
+
+@pytest.mark.parametrize('starts', [(), ('spiral',), ('straight', 'zigzag')])
+def test_unknown_starts_are_refused(starts):
+    with pytest.raises(InvalidScenarioError, match='starts must name one or more of'):
+        SolverSettings(starts=starts)
+
+
+def test_starts_may_be_given_as_a_list_and_repeats_are_dropped():
+    assert SolverSettings(starts=['hover', 'hover']).starts == ('hover',)
