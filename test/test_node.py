@@ -107,12 +107,13 @@ class Harness:
         self.spin_until(lambda: self.node.plans_published >= plans, f'plan number {plans}')
         outcome = self.node.current_plan
         expected_power = outcome.result.power.T.ravel().tolist()
+        start_ns = outcome.request.start_ns
 
         def arrived() -> bool:
             path, power, rate, markers = (self.latest(t) for t in self.received)
-            return (path is not None and nanoseconds_of(path.header.stamp) == outcome.request
-                    .start_ns and markers is not None and nanoseconds_of(
-                        markers.markers[0].header.stamp) == outcome.request.start_ns
+            return (path is not None and nanoseconds_of(path.header.stamp) == start_ns
+                    and markers is not None
+                    and nanoseconds_of(markers.markers[0].header.stamp) == start_ns
                     and power is not None and list(power.data) == expected_power
                     and rate is not None and rate.data == outcome.result.min_throughput)
         self.spin_until(arrived, 'plan on every output topic')
