@@ -23,8 +23,8 @@ $(STAMP): $(SOURCES)
 	@# `ros2 run uav_comm_planner planner` looks for lib/<package>/<executable>;
 	@# pip puts console scripts in bin/, so link them where ros2 run looks.
 	mkdir -p $(VENV)/lib/uav_comm_planner
-	ln -sf ../../bin/planner $(VENV)/lib/uav_comm_planner/planner
-	ln -sf ../../bin/uav-comm-planner $(VENV)/lib/uav_comm_planner/uav-comm-planner
+	for exe in planner send_ground_nodes uav-comm-planner; do \
+		ln -sf ../../bin/$$exe $(VENV)/lib/uav_comm_planner/$$exe; done
 	touch $(STAMP)
 
 run: $(STAMP)

@@ -44,6 +44,7 @@ setup(
     entry_points={
         'console_scripts': [
             f'planner = {PACKAGE}.node:main',
+            f'send_ground_nodes = {PACKAGE}.send_ground_nodes:main',
             f'uav-comm-planner = {PACKAGE}.cli:main',
         ],
     },
