@@ -229,13 +229,20 @@ def format_quality(rows: Sequence[QualityRow]) -> str:
     return '\n'.join(lines)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog='uav-comm-planner bench',
-        description='time the reference and fast paths; compare the default plan with the '
-                    "letter's Algorithm 1")
+DESCRIPTION = ("time the reference and fast paths; compare the default plan with the letter's "
+               'Algorithm 1')
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The benchmark's options, shared by ``python -m uav_comm_planner.bench`` and the CLI."""
     parser.add_argument('--quick', action='store_true',
                         help='small sizes and few runs (a smoke test, not the documented run)')
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog='python -m uav_comm_planner.bench',
+                                     description=DESCRIPTION)
+    add_arguments(parser)
     return parser
 
 

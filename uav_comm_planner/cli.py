@@ -1,4 +1,4 @@
-"""Command line: ``uav-comm-planner plan`` and ``uav-comm-planner sweep``.
+"""Command line: ``uav-comm-planner plan``, ``sweep`` and ``bench``.
 
 Both take the letter's case (``--case I`` or ``II``) or a scenario file, with flags that
 override single settings; bad input ends with a one-line error and exit status 2.
@@ -13,6 +13,7 @@ from pathlib import Path
 import sys
 from typing import Sequence
 
+from uav_comm_planner import bench
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import write_text_atomic
 from uav_comm_planner.geodesy import DEFAULT_HOME, Home
@@ -176,6 +177,11 @@ def _command_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _command_bench(args: argparse.Namespace) -> int:
+    bench.run(quick=args.quick)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='uav-comm-planner',
@@ -209,6 +215,11 @@ def build_parser() -> argparse.ArgumentParser:
     sweep_parser.add_argument('--figure', type=Path, metavar='FILE.png',
                               help="draw the letter's Fig. 2")
     sweep_parser.set_defaults(handler=_command_sweep)
+
+    bench_parser = commands.add_parser('bench', help=bench.DESCRIPTION,
+                                       description=bench.DESCRIPTION)
+    bench.add_arguments(bench_parser)
+    bench_parser.set_defaults(handler=_command_bench)
     return parser
 
 
