@@ -25,7 +25,7 @@ import resource
 import statistics
 import sys
 import time
-from typing import Callable, Sequence
+from typing import Callable, Sequence, TextIO
 
 import numpy as np
 
@@ -246,8 +246,10 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def run(quick: bool = False, out=sys.stdout) -> None:
-    """Run every section and print its table to ``out``."""
+def run(quick: bool = False, out: TextIO | None = None) -> None:
+    """Run every section and print its table to ``out`` (standard output by default)."""
+    out = out or sys.stdout
+
     def section(title: str, body: str) -> None:
         print(f'\n== {title}\n{body}', file=out, flush=True)
 

@@ -1,0 +1,89 @@
+"""The benchmark's smallest run, through the command line, read back from its printed tables."""
+
+import math
+import re
+
+import pytest
+
+from uav_comm_planner import cli
+from uav_comm_planner.bench import peak_memory_mib, random_scenario
+
+
+@pytest.fixture(scope='module')
+def output():
+    import contextlib
+    import io
+
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer):
+        assert cli.main(['bench', '--quick']) == 0
+    return buffer.getvalue()
+
+
+def section(text: str, title: str) -> list[str]:
+    """The lines of the section whose heading starts with ``title``."""
+    body = text.split(f'\n== {title}', 1)[1]
+    return body.split('\n== ', 1)[0].strip().splitlines()[1:]
+
+
+def test_every_section_is_printed(output):
+    assert output.startswith('uav_comm_planner benchmark (quick): Python 3.')
+    for title in ('Speed:', 'Scaling:', 'Quality:', 'Quality, low SNR:'):
+        assert f'\n== {title}' in output
+
+
+def test_speed_table_shows_both_paths_reaching_the_same_objective(output):
+    header, *rows = section(output, 'Speed:')
+    assert header.split() == ['case', 'runs', 'reference_s', 'fast_s', 'ratio',
+                              'reference_bps', 'fast_bps', 'rel_diff', 'ref_MiB', 'fast_MiB']
+    labels = [row[:15].strip() for row in rows]
+    assert labels == ['letter case I', 'N=10, M=200']
+    for row in rows:
+        runs, reference_s, fast_s, ratio, reference, fast, difference, *memory = (
+            row[15:].split())
+        assert int(runs) >= 1
+        assert float(ratio.rstrip('x')) == pytest.approx(
+            float(reference_s) / float(fast_s), rel=0.1, abs=0.1)
+        assert float(fast) == pytest.approx(float(reference), rel=1e-6)
+        assert float(difference) <= 1e-6
+        assert all(float(mib) >= 0.0 for mib in memory)
+
+
+def test_scaling_table_fits_an_exponent(output):
+    header, *rows = section(output, 'Scaling:')
+    assert header.split() == ['M', 'fast_s', 'sca_steps', 'us_per_slot_and_step']
+    assert [int(row.split()[0]) for row in rows[:-1]] == [50, 100, 200]
+    exponent = float(re.fullmatch(r'fitted exponent of M \(least squares, log-log\): (\S+)',
+                                  rows[-1]).group(1))
+    assert math.isfinite(exponent)
+
+
+@pytest.mark.parametrize('title', ['Quality:', 'Quality, low SNR:'])
+def test_quality_tables_compare_the_default_with_the_letter(output, title):
+    header, *rows = section(output, title)
+    assert header.split()[:5] == ['N', 'letter_bps', 'default_bps', 'ratio', 'start']
+    cases = rows[:-2]
+    assert [int(row.split()[0]) for row in cases] == [4, 5, 6, 7]
+    for row in cases:
+        _, letter, default, ratio, start, *_ = row.split()
+        assert float(ratio) == pytest.approx(float(default) / float(letter), abs=1e-4)
+        assert start in ('straight', 'hover')
+        assert row.count('%') == 2
+    summary = re.match(r'default / letter: mean (\S+), min (\S+), max (\S+); worse in (\d+) '
+                       r'of 4 cases; hover start kept in (\d+)', rows[-2])
+    assert summary is not None
+    if title == 'Quality:':
+        assert summary.group(4) == '0'
+    assert rows[-1].startswith('mean gap to the upper bound: letter ')
+
+
+def test_peak_memory_counts_what_the_child_allocates():
+    grown = peak_memory_mib(lambda: bytearray(64 * 1024 * 1024))
+    assert 60.0 <= grown <= 200.0
+
+
+def test_random_scenarios_are_reproducible_and_reachable():
+    first = random_scenario(10, 200, 3, side_m=1500.0)
+    assert first == random_scenario(10, 200, 3, side_m=1500.0)
+    assert first != random_scenario(10, 200, 4, side_m=1500.0)
+    assert first.slot_s == 1.0 and first.goal_m == (1500.0, 1500.0)
