@@ -30,17 +30,20 @@ def test_every_section_is_printed(output):
     assert output.startswith('uav_comm_planner benchmark (quick): Python 3.')
     for title in ('Speed:', 'Scaling:', 'Quality:', 'Quality, low SNR:'):
         assert f'\n== {title}' in output
+    assert output.count('\n== Scaling:') == 2
 
 
 def test_speed_table_shows_both_paths_reaching_the_same_objective(output):
     header, *rows = section(output, 'Speed:')
     assert header.split() == ['case', 'runs', 'reference_s', 'fast_s', 'ratio',
-                              'reference_bps', 'fast_bps', 'rel_diff', 'ref_MiB', 'fast_MiB']
+                              'reference_bps', 'fast_bps', 'rel_diff', 'ref_MiB', 'fast_MiB',
+                              'outer/sca_steps(ref', 'fast)']
     labels = [row[:15].strip() for row in rows]
     assert labels == ['letter case I', 'N=10, M=200']
     for row in rows:
-        runs, reference_s, fast_s, ratio, reference, fast, difference, *memory = (
-            row[15:].split())
+        runs, reference_s, fast_s, ratio, reference, fast, difference, *memory, steps_reference, \
+            steps_fast = row[15:].split()
+        assert re.fullmatch(r'\d+/\d+', steps_fast) and re.fullmatch(r'\d+/\d+', steps_reference)
         assert int(runs) >= 1
         assert float(ratio.rstrip('x')) == pytest.approx(
             float(reference_s) / float(fast_s), rel=0.1, abs=0.1)
@@ -49,8 +52,9 @@ def test_speed_table_shows_both_paths_reaching_the_same_objective(output):
         assert all(float(mib) >= 0.0 for mib in memory)
 
 
-def test_scaling_table_fits_an_exponent(output):
-    header, *rows = section(output, 'Scaling:')
+@pytest.mark.parametrize('design', ['slots of 1 s', 'one 200 s flight'])
+def test_scaling_tables_fit_an_exponent(output, design):
+    header, *rows = section(output, f"Scaling: fast path, letter's settings, N = 20, {design}")
     assert header.split() == ['M', 'fast_s', 'sca_steps', 'us_per_slot_and_step']
     assert [int(row.split()[0]) for row in rows[:-1]] == [50, 100, 200]
     exponent = float(re.fullmatch(r'fitted exponent of M \(least squares, log-log\): (\S+)',

@@ -124,6 +124,7 @@ class SpeedRow:
     fast_value: float
     reference_mib: float
     fast_mib: float
+    steps: str
 
     @property
     def ratio(self) -> float:
@@ -137,40 +138,45 @@ class SpeedRow:
 def measure_speed(case: SizeCase, settings: SolverSettings) -> SpeedRow:
     """Median plan time of both paths, timed in alternation, and their objectives."""
     times: dict[str, list[float]] = {'reference': [], 'fast': []}
-    values = {}
+    values, steps = {}, {}
     for _ in range(case.repeats):
         for name, methods in (('reference', REFERENCE), ('fast', FAST)):
             seconds, result = timed_plan(case.scenario, settings, methods)
             times[name].append(seconds)
             values[name] = result.min_throughput
+            steps[name] = f'{result.outer_iterations}/{result.trajectory_steps}'
     memory = {}
     for name, methods in (('reference', REFERENCE), ('fast', FAST)):
         memory[name] = peak_memory_mib(
             lambda methods=methods: plan(case.scenario, settings, **methods))
     return SpeedRow(case.label, case.repeats, statistics.median(times['reference']),
                     statistics.median(times['fast']), values['reference'], values['fast'],
-                    memory['reference'], memory['fast'])
+                    memory['reference'], memory['fast'],
+                    f"{steps['reference']} {steps['fast']}")
 
 
 def format_speed(rows: Sequence[SpeedRow]) -> str:
     lines = ['case            runs  reference_s    fast_s    ratio  reference_bps    '
-             'fast_bps  rel_diff  ref_MiB  fast_MiB']
+             'fast_bps  rel_diff  ref_MiB  fast_MiB  outer/sca_steps(ref fast)']
     for r in rows:
         lines.append(f'{r.label:<15} {r.repeats:>4} {r.reference_s:>12.4f} {r.fast_s:>9.4f} '
                      f'{r.ratio:>7.1f}x {r.reference_value:>14.8f} {r.fast_value:>11.8f} '
-                     f'{r.relative_difference:>9.1e} {r.reference_mib:>8.1f} {r.fast_mib:>9.1f}')
+                     f'{r.relative_difference:>9.1e} {r.reference_mib:>8.1f} {r.fast_mib:>9.1f}  '
+                     f'{r.steps}')
     return '\n'.join(lines)
 
 
-def measure_scaling(slot_counts: Sequence[int], settings: SolverSettings,
-                    repeats: int) -> tuple[list[tuple[int, float, int]], float]:
-    """Fast-path median time for N = 20 over one 200 s flight cut into M slots; fitted exponent.
+def measure_scaling(slot_counts: Sequence[int], settings: SolverSettings, repeats: int, *,
+                    horizon_s: float | None) -> tuple[list[tuple[int, float, int]], float]:
+    """Fast-path median plan time for N = 20 nodes in 2 km x 2 km and M slots; fitted exponent.
 
-    Returns rows (M, seconds, SCA steps) and the slope of log(time) against log(M).
+    ``horizon_s`` None gives delta = 1 s (T = M seconds, a longer flight for larger M); a
+    number gives one flight of that length cut into ever finer slots. Returns rows
+    (M, seconds, SCA steps) and the slope of log(time) against log(M).
     """
     rows = []
     for m in slot_counts:
-        scenario = random_scenario(20, m, 20, side_m=2000.0, horizon_s=200.0)
+        scenario = random_scenario(20, m, 20, side_m=2000.0, horizon_s=horizon_s)
         runs = [timed_plan(scenario, settings, FAST) for _ in range(repeats)]
         rows.append((m, statistics.median(s for s, _ in runs), runs[-1][1].trajectory_steps))
     slope = np.polyfit(np.log([m for m, _, _ in rows]), np.log([s for _, s, _ in rows]), 1)[0]
@@ -261,9 +267,12 @@ def run(quick: bool = False, out: TextIO | None = None) -> None:
     section("Speed: Algorithm 1 from the straight line, letter's settings, median of 'runs' "
             'alternating pairs; memory: peak RSS growth of one forked plan', format_speed(speed))
     slots = (50, 100, 200) if quick else (100, 200, 500, 1000, 2000)
-    scaling, exponent = measure_scaling(slots, letter, 1 if quick else 3)
-    section('Scaling: fast path, N = 20, one 200 s flight cut into M slots',
-            format_scaling(scaling, exponent))
+    for horizon_s, title in ((None, 'slots of 1 s (T = M seconds)'),
+                             (200.0, 'one 200 s flight cut into M slots')):
+        scaling, exponent = measure_scaling(slots, letter, 1 if quick else 3,
+                                            horizon_s=horizon_s)
+        section(f"Scaling: fast path, letter's settings, N = 20, {title}",
+                format_scaling(scaling, exponent))
     cases = 4 if quick else 20
     section("Quality: default plan vs the letter's Algorithm 1, random 2 km x 2 km, M = 120, "
             "letter's radio settings", format_quality(compare_quality(cases, {})))

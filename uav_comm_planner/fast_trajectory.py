@@ -59,6 +59,20 @@ class ConeLayout:
     def num_columns(self) -> int:
         return 1 + 3 * self.num_slots
 
+    @functools.cached_property
+    def node_entries(self) -> tuple[np.ndarray, np.ndarray]:
+        """The entries that change between steps (the node rows' z and u coefficients).
+
+        Returns their positions in A's CSC data, ascending, and their build-order indices in
+        the same order.
+        """
+        n = self.num_nodes
+        build_to_csc = np.empty_like(self.to_csc)
+        build_to_csc[self.to_csc] = np.arange(len(self.to_csc))
+        build = np.arange(n, n + 3 * n * self.num_slots)
+        order = np.argsort(build_to_csc[build])
+        return build_to_csc[build][order], build[order]
+
     def matrix(self, values: np.ndarray) -> sparse.csc_matrix:
         """A (rows, columns) from entries in build order."""
         return sparse.csc_matrix((values[self.to_csc], self.indices, self.indptr),
@@ -176,6 +190,7 @@ class ClarabelTrajectoryStep:
         self.objective = np.zeros(self.layout.num_columns)
         self.objective[0] = -1.0
         self.refine = False
+        self._node_index = np.arange(scenario.num_nodes)
         self._solver = None
 
     def _fixed_right_hand_side(self) -> np.ndarray:
@@ -217,7 +232,9 @@ class ClarabelTrajectoryStep:
                 self.objective, self.layout.matrix(values), b, list(self.layout.cones),
                 clarabel_settings(refine=self.refine))
         else:
-            self._solver.update(A=values[self.layout.to_csc], b=b)
+            positions, build = self.layout.node_entries
+            n = self.scenario.num_nodes
+            self._solver.update(A=(positions, values[build]), b=(self._node_index, b[:n]))
         return self._solver.solve()
 
     def __call__(self, q_k: np.ndarray, p: np.ndarray, scenario: Scenario) -> TrajectoryStep:
