@@ -142,7 +142,7 @@ def clarabel_settings(*, refine: bool) -> clarabel.DefaultSettings:
     """Clarabel's default 1e-8 tolerances; presolve off, because it forbids in-place updates.
 
     A 1e-8 gap on t, a spectral efficiency of order 1 to 40 bits, already puts each step's
-    bound within 1e-9 of the reference's; asking for 1e-10 here mostly ends in AlmostSolved.
+    bound within 1e-9 of the reference's; asking for 1e-10 here can end in AlmostSolved.
     Iterative refinement of the KKT solves costs about a quarter of the solve time on small
     problems and is rarely needed here: Clarabel checks its residuals on the iterates, so a
     Solved status holds either way, and a step that fails without it is solved again with it.
@@ -225,7 +225,7 @@ class ClarabelTrajectoryStep:
         b[:n] = rows.constant - (self.w ** 2).sum(axis=1) * weight.mean(axis=1)
         return values, b
 
-    def _solve(self, values: np.ndarray, b: np.ndarray):
+    def _solve(self, values: np.ndarray, b: np.ndarray) -> clarabel.DefaultSolution:
         if self._solver is None:
             self._solver = clarabel.DefaultSolver(
                 sparse.csc_matrix((self.layout.num_columns, self.layout.num_columns)),
@@ -238,6 +238,7 @@ class ClarabelTrajectoryStep:
         return self._solver.solve()
 
     def __call__(self, q_k: np.ndarray, p: np.ndarray, scenario: Scenario) -> TrajectoryStep:
+        """One SCA step expanded at q_k (M, 2) metres with power p (N, M) watts."""
         if scenario is not self.scenario and scenario != self.scenario:
             raise ValueError('this trajectory stepper was built for another scenario')
         rows = self.node_rows(q_k, p)
@@ -249,7 +250,8 @@ class ClarabelTrajectoryStep:
         if solution.status != clarabel.SolverStatus.Solved:
             self._solver = None
             raise SolverError(f'trajectory step: Clarabel returned status {solution.status}; '
-                              'check the scenario for extreme values (positions, powers)')
+                              "retry with trajectory_method='cvxpy' or check the scenario for "
+                              'extreme values (positions, powers)')
         z = np.asarray(solution.x)[1:1 + 2 * scenario.num_slots].reshape(-1, 2)
         q = z * KM + self.centre_m
         if not np.all(np.isfinite(q)):

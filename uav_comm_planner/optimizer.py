@@ -206,8 +206,8 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     """
     settings = settings or SolverSettings()
     settings.check(scenario)
-    power_solver, trajectory_solver = _solvers(scenario, power_method, trajectory_method)
     began = time.perf_counter()
+    power_solver, trajectory_solver = _solvers(scenario, power_method, trajectory_method)
     runs = {}
     for name in settings.starts:
         runs[name] = alternate(scenario, STARTS[name](scenario), settings,
