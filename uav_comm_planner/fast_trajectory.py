@@ -126,13 +126,13 @@ def cone_layout(num_nodes: int, num_slots: int) -> ConeLayout:
                            epigraph[1]])
     values = np.concatenate([np.ones(num_nodes), np.zeros(3 * num_nodes * num_slots),
                              speed[2], epigraph[2]])
-    num_rows = num_nodes + 3 * (num_slots + 1) + 4 * num_slots
-    # Entry k of the build order carries k + 1, so the CSC data spells out the reordering.
-    order = sparse.csc_matrix((np.arange(1.0, len(rows) + 1.0), (rows, cols)),
-                              shape=(num_rows, 1 + 3 * num_slots))
-    layout = ConeLayout(num_nodes=num_nodes, num_slots=num_slots, indices=order.indices,
-                        indptr=order.indptr, to_csc=order.data.astype(np.int64) - 1,
-                        values=values)
+    # CSC order: by column, then by row; no entry repeats, so this is a permutation.
+    to_csc = np.lexsort((rows, cols))
+    counts = np.bincount(cols, minlength=1 + 3 * num_slots)
+    layout = ConeLayout(num_nodes=num_nodes, num_slots=num_slots,
+                        indices=rows[to_csc].astype(np.int32),
+                        indptr=np.concatenate([[0], np.cumsum(counts)]).astype(np.int32),
+                        to_csc=to_csc, values=values)
     for array in (layout.indices, layout.indptr, layout.to_csc, layout.values):
         array.setflags(write=False)
     return layout
