@@ -73,3 +73,12 @@ def test_unreadable_scenario_file_is_reported(tmp_path, capsys):
     assert status == 2 and "unknown scenario field(s) ['altitude']" in err
     status, _, err = run(capsys, 'plan', '--scenario', str(tmp_path / 'missing.json'))
     assert status == 2 and 'cannot read scenario file' in err
+
+
+def test_letter_flag_runs_algorithm_1_from_the_straight_line_only(tmp_path, capsys):
+    letter, default = tmp_path / 'letter.json', tmp_path / 'default.json'
+    assert run(capsys, 'plan', '--letter', '--json', str(letter))[0] == 0
+    assert run(capsys, 'plan', '--json', str(default))[0] == 0
+    letter_plan, default_plan = json.loads(letter.read_text()), json.loads(default.read_text())
+    assert letter_plan['start'] == 'straight'
+    assert default_plan['min_throughput'] >= letter_plan['min_throughput'] * (1 - 1e-9)

@@ -77,6 +77,10 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--tolerance', type=float, default=None,
                         help='convergence tolerance epsilon, bit/s (default 0.01)')
     parser.add_argument('--max-nodes', type=int, default=None, help='largest number of nodes')
+    parser.add_argument('--letter', action='store_true',
+                        help="run the letter's Algorithm 1 exactly: straight-line start only, "
+                             'absolute tolerance 0.01 bit/s (default: best of the straight and '
+                             'hover-and-fly starts, relative tolerance 1e-4)')
 
 
 def _scenario(args: argparse.Namespace) -> Scenario:
@@ -102,6 +106,8 @@ def _settings(args: argparse.Namespace) -> SolverSettings:
         changes['tolerance_bps'] = args.tolerance
     if args.max_nodes is not None:
         changes['max_nodes'] = args.max_nodes
+    if args.letter:
+        return SolverSettings.letter(**changes)
     return SolverSettings(**changes)
 
 
