@@ -42,6 +42,9 @@ figures: $(STAMP)
 	$(BIN)/uav-comm-planner plan --case I --figure docs/fig1_case_I.png
 	$(BIN)/uav-comm-planner plan --case II --figure docs/fig1_case_II.png
 	$(BIN)/uav-comm-planner sweep --case I --budgets 0.5,1,2,5,10,20 --figure docs/fig2_sweep_case_I.png
+	$(BIN)/uav-comm-planner sweep --case II --budgets 0.5,1,2,5,10,20 --figure docs/fig2_sweep_case_II.png
+	$(BIN)/uav-comm-planner plan --case I --bandwidth 1e6 --beta0 1e-6 --budget 0.5 \
+		--figure docs/fig1_case_I_low_snr.png
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -20,6 +20,8 @@ def atomic_path(path: str | os.PathLike, *, suffix: str = '') -> Iterator[Path]:
     folder = target.parent
     if not folder.is_dir():
         raise FileNotFoundError(f'folder {str(folder)!r} does not exist')
+    # mkstemp makes the file private (0600); a replaced file keeps its mode, a new one is 0644.
+    mode = target.stat().st_mode & 0o777 if target.is_file() else 0o644
     handle, temporary = tempfile.mkstemp(dir=folder, prefix=f'.{target.name}.',
                                          suffix=suffix or target.suffix)
     os.close(handle)
@@ -27,6 +29,7 @@ def atomic_path(path: str | os.PathLike, *, suffix: str = '') -> Iterator[Path]:
         yield Path(temporary)
         with open(temporary, 'rb') as written:
             os.fsync(written.fileno())
+        os.chmod(temporary, mode)
         os.replace(temporary, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

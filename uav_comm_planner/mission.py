@@ -431,11 +431,9 @@ def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
         raise MissionExportError(f'cannot write {str(target)!r}: {str(folder)!r} is not a folder')
     if target.is_dir():
         raise MissionExportError(f'cannot write {str(target)!r}: it is a folder')
-    mode = target.stat().st_mode & 0o777 if target.exists() else 0o644
     try:
         with atomic_path(target) as temporary:
             writer(temporary)
-            os.chmod(temporary, mode)
     except MissionExportError:
         raise
     except (OSError, ValueError, TypeError, mavwp.MAVWPError) as exc:
