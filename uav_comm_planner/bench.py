@@ -4,8 +4,8 @@
   reference path (cvxpy + Clarabel for both steps, problems rebuilt every step) and on the fast
   path (water-filling power step, SCA step on one Clarabel solver updated in place), timed in
   alternation in one process; every fast plan builds its cone structure from scratch. Peak
-  memory is the growth of the resident set (ru_maxrss) of a forked process that plans once,
-  so it counts the solvers' native memory too.
+  memory is the growth of the peak resident set (ru_maxrss) of a freshly spawned process that
+  plans once, so it counts the solvers' native memory too.
 * Scaling: the fast path for N = 20 and a growing number of slots M, with slots of 1 s and
   over one 200 s flight, with the least-squares exponent of M on a log-log scale.
 * Quality: on random scenarios, the default plan (both starts, relative tolerance) against
@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass
+import functools
 import math
+import multiprocessing
 import os
 import platform
 import resource
@@ -93,30 +95,25 @@ def _resident_kib() -> int:
     return pages * os.sysconf('SC_PAGE_SIZE') // 1024
 
 
-def peak_memory_mib(run: Callable[[], object]) -> float:
-    """Growth of the peak resident set while ``run()`` executes in a forked child, MiB.
+def _peak_growth_kib(function: Callable[..., object], args: tuple) -> int:
+    """In a fresh process: the peak resident set while ``function(*args)`` ran, over the one
+    before it (after the imports), KiB."""
+    before = _resident_kib()
+    function(*args)
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
 
-    A fork starts from this process's pages, so the child's ru_maxrss minus its resident
-    size at the fork is what the run added. NaN where fork or /proc is not available.
+
+def peak_memory_mib(function: Callable[..., object], *args: object) -> float:
+    """Peak memory ``function(*args)`` adds, MiB, measured in a freshly spawned interpreter.
+
+    A fresh process has no free heap left over from earlier runs, so the growth of its peak
+    resident set (ru_maxrss) is what the call needed, the solvers' native memory included.
+    ``function`` must be picklable. NaN where /proc is not available.
     """
-    if not hasattr(os, 'fork') or not os.path.exists('/proc/self/statm'):
+    if not os.path.exists('/proc/self/statm'):
         return math.nan
-    read_end, write_end = os.pipe()
-    child = os.fork()
-    if child == 0:
-        os.close(read_end)
-        try:
-            before = _resident_kib()
-            run()
-            grown = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
-            os.write(write_end, str(grown).encode())
-        finally:
-            os._exit(0)
-    os.close(write_end)
-    with os.fdopen(read_end) as pipe:
-        text = pipe.read()
-    os.waitpid(child, 0)
-    return int(text) / 1024.0 if text else math.nan
+    with multiprocessing.get_context('spawn').Pool(1) as pool:
+        return pool.apply(_peak_growth_kib, (function, args)) / 1024.0
 
 
 @dataclass(frozen=True)
@@ -152,8 +149,8 @@ def measure_speed(case: SizeCase, settings: SolverSettings) -> SpeedRow:
             steps[name] = f'{result.outer_iterations}/{result.trajectory_steps}'
     memory = {}
     for name, methods in (('reference', REFERENCE), ('fast', FAST)):
-        memory[name] = peak_memory_mib(
-            lambda methods=methods: plan(case.scenario, settings, **methods))
+        memory[name] = peak_memory_mib(functools.partial(plan, **methods), case.scenario,
+                                       settings)
     return SpeedRow(case.label, case.repeats, statistics.median(times['reference']),
                     statistics.median(times['fast']), values['reference'], values['fast'],
                     memory['reference'], memory['fast'],
@@ -270,7 +267,8 @@ def run(quick: bool = False, out: TextIO | None = None) -> None:
     letter = SolverSettings.letter(compute_baselines=False)
     speed = [measure_speed(case, letter) for case in size_cases(quick)]
     section("Speed: Algorithm 1 from the straight line, letter's settings, median of 'runs' "
-            'alternating pairs; memory: peak RSS growth of one forked plan', format_speed(speed))
+            'alternating pairs, every fast plan from a cold start; memory: peak RSS growth of '
+            'one plan in a fresh process', format_speed(speed))
     slots = (50, 100, 200) if quick else (100, 200, 500, 1000, 2000)
     for horizon_s, title in ((None, 'slots of 1 s (T = M seconds)'),
                              (200.0, 'one 200 s flight cut into M slots')):
