@@ -139,12 +139,13 @@ def test_a_failing_solve_raises_a_typed_error(monkeypatch):
     monkeypatch.setattr(clarabel, 'DefaultSolver', _FailingSolver)
     with pytest.raises(SolverError, match='Clarabel returned status NumericalError'):
         ClarabelTrajectoryStep(scenario)(q_k, p, scenario)
-    assert _FailingSolver.built == 2   # a second try, with iterative refinement, came first
+    assert _FailingSolver.built == 3   # every form of ATTEMPTS was tried first
 
 
 def test_a_step_that_fails_without_refinement_is_solved_again_with_it(monkeypatch):
     scenario = CASES['II']
     q_k, p = expansion_point(scenario)
+    reference = trajectory_step_cvxpy(q_k, p, scenario)   # before cvxpy's Clarabel is replaced
     real = clarabel.DefaultSolver
     made = []
 
@@ -159,7 +160,31 @@ def test_a_step_that_fails_without_refinement_is_solved_again_with_it(monkeypatc
     stepper = ClarabelTrajectoryStep(scenario)
     step = stepper(q_k, p, scenario)
     assert made == [False, True] and stepper.refine
-    assert step.bound == pytest.approx(trajectory_step_cvxpy(q_k, p, scenario).bound, rel=1e-6)
+    assert step.bound == pytest.approx(reference.bound, rel=1e-6)
+    stepper(step.q, p, scenario)
+    assert made == [False, True], 'the refined solver serves the rest of the plan'
+
+
+def test_a_step_that_fails_with_partial_sums_is_solved_without_them(monkeypatch):
+    scenario = CASES['I-150-slots']
+    q_k, p = expansion_point(scenario)
+    reference = trajectory_step_cvxpy(q_k, p, scenario)
+    real = clarabel.DefaultSolver
+    columns = []
+
+    def blocks_fail(*args):
+        a = args[2]
+        columns.append(a.shape[1])
+        if a.shape[1] > 1 + 3 * scenario.num_slots:
+            return _FailingSolver(status=clarabel.SolverStatus.AlmostSolved)
+        return real(*args)
+
+    monkeypatch.setattr(clarabel, 'DefaultSolver', blocks_fail)
+    stepper = ClarabelTrajectoryStep(scenario)
+    step = stepper(q_k, p, scenario)
+    assert columns[:2] == [1 + 3 * 150 + 9] * 2 and columns[2] == 1 + 3 * 150
+    assert stepper.layout.num_sums == 0
+    assert step.bound == pytest.approx(reference.bound, rel=1e-6)
 
 
 def test_a_stepper_refuses_another_scenario():

@@ -173,9 +173,10 @@ def _sum_entries(num_nodes: int, num_slots: int,
 
 
 @functools.lru_cache(maxsize=8)
-def cone_layout(num_nodes: int, num_slots: int) -> ConeLayout:
-    """The fixed sparsity pattern for N nodes and M slots (cached; arrays are read-only)."""
-    block = block_slots(num_nodes)
+def cone_layout(num_nodes: int, num_slots: int, block: int | None = None) -> ConeLayout:
+    """The fixed sparsity pattern for N nodes, M slots and blocks of ``block`` slots
+    (:func:`block_slots` by default; M or more for none). Cached; arrays are read-only."""
+    block = block_slots(num_nodes) if block is None else block
     sums = _num_sums(num_nodes, num_slots, block)
     first_speed_row = num_nodes + sums
     parts = (_sum_entries(num_nodes, num_slots, block),
@@ -201,7 +202,8 @@ def clarabel_settings(*, refine: bool) -> clarabel.DefaultSettings:
     bound within 1e-9 of the reference's; asking for 1e-10 here can end in AlmostSolved.
     Iterative refinement of the KKT solves costs about a quarter of the solve time on small
     problems and is rarely needed here: Clarabel checks its residuals on the iterates, so a
-    Solved status holds either way, and a step that fails without it is solved again with it.
+    Solved status holds either way, and a step that fails without it is tried again with it
+    (see :data:`ATTEMPTS`).
     """
     settings = clarabel.DefaultSettings()
     settings.verbose = False
@@ -227,6 +229,13 @@ class NodeRows:
         return float((self.constant - (self.weight * spread).mean(axis=1)).min())
 
 
+#: (partial sums over blocks, iterative refinement) for each try at a step, fastest first.
+#: A step that does not reach Solved is tried again in the next form, which then serves
+#: the rest of the plan: refinement makes the KKT solves more accurate, and the form without
+#: partial sums has no degenerate e_{n,k} (blocks where every weight is zero).
+ATTEMPTS = ((True, False), (True, True), (False, True))
+
+
 class ClarabelTrajectoryStep:
     """SCA trajectory steps for one scenario, on one Clarabel solver updated in place.
 
@@ -237,16 +246,22 @@ class ClarabelTrajectoryStep:
 
     def __init__(self, scenario: Scenario):
         self.scenario = scenario
-        self.layout = cone_layout(scenario.num_nodes, scenario.num_slots)
         corners = np.vstack([scenario.nodes, scenario.start_m, scenario.goal_m])
         # Centred kilometres keep ||z||^2 and ||w_n||^2 of the order of the scene, not its offset.
         self.centre_m = (corners.min(axis=0) + corners.max(axis=0)) / 2.0
         self.w = (scenario.nodes - self.centre_m) / KM
+        self._node_index = np.arange(scenario.num_nodes)
+        self.attempt = 0
+        self._configure()
+
+    def _configure(self) -> None:
+        """Set up the form of :data:`ATTEMPTS` [self.attempt]; the solver is built on use."""
+        blocks, self.refine = ATTEMPTS[self.attempt]
+        n, m = self.scenario.num_nodes, self.scenario.num_slots
+        self.layout = cone_layout(n, m, block_slots(n) if blocks else m)
         self.b_fixed = self._fixed_right_hand_side()
         self.objective = np.zeros(self.layout.num_columns)
         self.objective[0] = -1.0
-        self.refine = False
-        self._node_index = np.arange(scenario.num_nodes)
         self._solver = None
 
     def _fixed_right_hand_side(self) -> np.ndarray:
@@ -300,16 +315,19 @@ class ClarabelTrajectoryStep:
         if scenario is not self.scenario and scenario != self.scenario:
             raise ValueError('this trajectory stepper was built for another scenario')
         rows = self.node_rows(q_k, p)
-        values, b = self.cone_data(rows)
-        solution = self._solve(values, b)
-        if solution.status != clarabel.SolverStatus.Solved and not self.refine:
-            self.refine, self._solver = True, None
+        while True:
+            values, b = self.cone_data(rows)
             solution = self._solve(values, b)
-        if solution.status != clarabel.SolverStatus.Solved:
+            if solution.status == clarabel.SolverStatus.Solved:
+                break
             self._solver = None
-            raise SolverError(f'trajectory step: Clarabel returned status {solution.status}; '
-                              "retry with trajectory_method='cvxpy' or check the scenario for "
-                              'extreme values (positions, powers)')
+            if self.attempt == len(ATTEMPTS) - 1:
+                raise SolverError(
+                    f'trajectory step: Clarabel returned status {solution.status}; retry with '
+                    "trajectory_method='cvxpy' or check the scenario for extreme values "
+                    '(positions, powers)')
+            self.attempt += 1
+            self._configure()
         z = np.asarray(solution.x)[1:1 + 2 * scenario.num_slots].reshape(-1, 2)
         q = z * KM + self.centre_m
         if not np.all(np.isfinite(q)):
