@@ -75,7 +75,8 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
         kind = int if field == 'num_slots' else float
         parser.add_argument(flag, dest=field, type=kind, help=text)
     parser.add_argument('--tolerance', type=float, default=None,
-                        help='convergence tolerance epsilon, bit/s (default 0.01)')
+                        help='absolute convergence tolerance epsilon, bit/s (default 0: the '
+                             'relative tolerance 1e-4 alone; --letter uses 0.01)')
     parser.add_argument('--max-nodes', type=int, default=None, help='largest number of nodes')
     parser.add_argument('--letter', action='store_true',
                         help="run the letter's Algorithm 1 exactly: straight-line start only, "
