@@ -4,7 +4,7 @@
   reference path (cvxpy + Clarabel for both steps, problems rebuilt every step) and on the fast
   path (water-filling power step, SCA step on one Clarabel solver updated in place), timed in
   alternation in one process; every fast plan builds its cone structure from scratch. Peak
-  memory is the growth of the peak resident set (ru_maxrss) of a freshly spawned process that
+  memory is the growth of the peak resident set (VmHWM) of a freshly spawned process that
   plans once, so it counts the solvers' native memory too.
 * Scaling: the fast path for N = 20 and a growing number of slots M, with slots of 1 s and
   over one 200 s flight, with the least-squares exponent of M on a log-log scale.
@@ -24,7 +24,6 @@ import math
 import multiprocessing
 import os
 import platform
-import resource
 import statistics
 import sys
 import time
@@ -89,28 +88,40 @@ def timed_plan(scenario: Scenario, settings: SolverSettings,
     return time.perf_counter() - began, result
 
 
-def _resident_kib() -> int:
-    with open('/proc/self/statm') as statm:
-        pages = int(statm.read().split()[1])
-    return pages * os.sysconf('SC_PAGE_SIZE') // 1024
+def _status_kib(field: str) -> int:
+    """A memory figure of this process from /proc/self/status (VmRSS, VmHWM...), KiB."""
+    with open('/proc/self/status') as status:
+        for line in status:
+            if line.startswith(f'{field}:'):
+                return int(line.split()[1])
+    raise OSError(f'{field} is not in /proc/self/status')
 
 
-def _peak_growth_kib(function: Callable[..., object], args: tuple) -> int:
+def _peak_growth_kib(function: Callable[..., object], args: tuple) -> float:
     """In a fresh process: the peak resident set while ``function(*args)`` ran, over the one
-    before it (after the imports), KiB."""
-    before = _resident_kib()
+    before it (after the imports), KiB; NaN if the peak cannot be reset.
+
+    The high-water mark is reset first (clear_refs 5): a spawned process inherits its
+    parent's peak, so ru_maxrss would report the parent's size.
+    """
+    try:
+        with open('/proc/self/clear_refs', 'w') as clear_refs:
+            clear_refs.write('5')
+        before = _status_kib('VmRSS')
+    except OSError:
+        return math.nan
     function(*args)
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
+    return _status_kib('VmHWM') - before
 
 
 def peak_memory_mib(function: Callable[..., object], *args: object) -> float:
     """Peak memory ``function(*args)`` adds, MiB, measured in a freshly spawned interpreter.
 
     A fresh process has no free heap left over from earlier runs, so the growth of its peak
-    resident set (ru_maxrss) is what the call needed, the solvers' native memory included.
-    ``function`` must be picklable. NaN where /proc is not available.
+    resident set is what the call needed, the solvers' native memory included. ``function``
+    must be picklable. NaN where /proc does not offer the figures (not Linux).
     """
-    if not os.path.exists('/proc/self/statm'):
+    if not os.path.exists('/proc/self/status'):
         return math.nan
     with multiprocessing.get_context('spawn').Pool(1) as pool:
         return pool.apply(_peak_growth_kib, (function, args)) / 1024.0
