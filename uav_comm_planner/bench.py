@@ -69,9 +69,9 @@ def random_scenario(num_nodes: int, num_slots: int, seed: int, *, side_m: float,
 
 def size_cases(quick: bool) -> list[SizeCase]:
     """The speed table: the letter's case I and random scenes of 10, 30 and 50 nodes."""
-    cases = [SizeCase('letter case I', paper_scenario('I'), 3 if quick else 9),
+    cases = [SizeCase('letter case I', paper_scenario('I'), 3 if quick else 21),
              SizeCase('N=10, M=200', random_scenario(10, 200, 10, side_m=1500.0),
-                      1 if quick else 5)]
+                      1 if quick else 7)]
     if not quick:
         cases += [SizeCase('N=30, M=500', random_scenario(30, 500, 30, side_m=2500.0), 3),
                   SizeCase('N=50, M=1000', random_scenario(50, 1000, 50, side_m=3000.0), 2)]
