@@ -170,7 +170,7 @@ class SolverSettings:
     starts: tuple[str, ...] = START_NAMES
 
     @classmethod
-    def letter(cls, **changes) -> 'SolverSettings':
+    def letter(cls, **changes: object) -> 'SolverSettings':
         """The letter's Algorithm 1: the straight-line start only, absolute epsilon 0.01."""
         fields = dict(tolerance_bps=0.01, relative_tolerance=0.0, starts=('straight',))
         fields.update(changes)
