@@ -213,3 +213,39 @@ def test_both_paths_reach_the_same_plan(name):
     reference = plan(scenario, settings, power_method='conic', trajectory_method='cvxpy')
     fast = plan(scenario, settings)
     assert fast.min_throughput == pytest.approx(reference.min_throughput, rel=1e-6)
+
+
+class _AlmostSolver:
+    """Stands in for clarabel.DefaultSolver: AlmostSolved, at a given position vector."""
+
+    def __init__(self, x):
+        self.x = x
+
+    def solve(self):
+        return types.SimpleNamespace(status=clarabel.SolverStatus.AlmostSolved, x=self.x)
+
+
+def test_an_almost_solved_step_is_kept_only_within_the_speed_limits(monkeypatch):
+    scenario = CASES['I']
+    q_k, p = expansion_point(scenario)
+    stepper = ClarabelTrajectoryStep(scenario)
+    centred_km = (q_k - stepper.centre_m) / KM
+    feasible = np.concatenate([[0.0], centred_km.ravel(), np.zeros(scenario.num_slots)])
+    monkeypatch.setattr(clarabel, 'DefaultSolver', lambda *args: _AlmostSolver(feasible))
+    np.testing.assert_allclose(stepper(q_k, p, scenario).q, q_k, atol=1e-9)
+
+    too_fast = feasible.copy()
+    too_fast[1:3] += 1.0   # q[1] one kilometre away from q0: a 100 m leg limit broken
+    monkeypatch.setattr(clarabel, 'DefaultSolver', lambda *args: _AlmostSolver(too_fast))
+    with pytest.raises(SolverError, match='Clarabel returned status AlmostSolved'):
+        ClarabelTrajectoryStep(scenario)(q_k, p, scenario)
+
+
+def test_moderate_snr_plans_succeed_on_the_fast_path_and_match_the_reference():
+    # B = 1 MHz, beta0 = -60 dB, P_T = 0.5 W: Clarabel's gap stalls at AlmostSolved there.
+    scenario = paper_scenario('I', bandwidth_hz=1e6, reference_gain=1e-6, power_budget_w=0.5)
+    for starts in (('straight',), ('hover',)):
+        settings = SolverSettings(starts=starts)
+        fast = plan(scenario, settings)
+        reference = plan(scenario, settings, power_method='conic', trajectory_method='cvxpy')
+        assert fast.min_throughput == pytest.approx(reference.min_throughput, rel=1e-6)
