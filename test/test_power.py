@@ -89,3 +89,19 @@ def test_conic_failure_is_reported(monkeypatch):
     monkeypatch.setattr(cp.Problem, 'solve', fail)
     with pytest.raises(SolverError, match='power step: CLARABEL failed'):
         conic_power(np.ones((2, 3)), 1.0)
+
+
+def test_newton_starts_at_or_above_the_root_and_at_it_when_every_slot_is_active():
+    from uav_comm_planner.power import _WaterLevels
+    rng = np.random.default_rng(9)
+    for _ in range(300):
+        n, m = rng.integers(1, 8), rng.integers(1, 80)
+        a = 10.0 ** rng.uniform(rng.uniform(-3.0, 10.0), 14.0, size=(n, m))
+        budget = 10.0 ** rng.uniform(-3.0, 2.0)
+        water = _WaterLevels(a)
+        _, node_power = water.levels(max(water.start(budget), 0.0))
+        assert node_power.sum() >= budget * (1 - 1e-9)
+    scenario = paper_scenario('I')
+    water = _WaterLevels(snr_per_watt(straight_line(scenario), scenario))
+    _, node_power = water.levels(water.start(scenario.power_budget_w))
+    assert node_power.sum() == pytest.approx(scenario.power_budget_w, rel=1e-12)

@@ -58,20 +58,37 @@ class _WaterLevels:
         mu = np.exp2(log_mu)
         return mu, active * mu - self.inv_sum[rows, idx]
 
+    def start(self, power_budget_w: float) -> float:
+        """A target c at or above the root of P(c) = P_T, and at it when every slot is active.
+
+        Two upper bounds, the smaller is kept. Jensen: no node exceeds
+        log2(1 + P_T max_m a_n[m] / M) even with the whole budget. All slots active: dropping
+        p >= 0 can only lower each node's least power, to M mu_n - sum_m 1/a_n[m] with
+        log2 mu_n = c - mean_m log2 a_n[m]; setting their sum to P_T gives
+        c = log2(P_T + sum_{n,m} 1/a_n[m]) - log2(M sum_n 2^(-mean_m log2 a_n[m])),
+        exact at high SNR, where Newton's method then stops at once.
+        """
+        m = self.num_slots
+        jensen = float(np.min(np.log2(1.0 + power_budget_w * self.a.max(axis=1) / m)))
+        mean_log = self.log_sum[:, -1] / m
+        lowest = mean_log.min()
+        all_active = (math.log2(power_budget_w + self.inv_sum[:, -1].sum()) - math.log2(m)
+                      + lowest - math.log2(np.exp2(lowest - mean_log).sum()))
+        return min(jensen, all_active)
+
 
 def waterfilling_power(a: np.ndarray, power_budget_w: float) -> PowerAllocation:
     """Exact max-min power for SNR per watt ``a`` (N, M) and budget P_T, by water-filling.
 
     Newton's method on P(c) = P_T converges from above, monotonically, because P is convex
-    and increasing; the start c = min_n log2(1 + P_T max_m a_n[m] / M) is above the root
-    (no node can exceed it even with the whole budget, by Jensen's inequality).
+    and increasing, from a start above the root (:meth:`_WaterLevels.start`).
     """
     a = np.asarray(a, dtype=float)
     if a.ndim != 2 or not np.all(np.isfinite(a)) or np.any(a <= 0):
         raise SolverError('water-filling needs a finite, positive SNR-per-watt array (N, M)')
     water = _WaterLevels(a)
     m = a.shape[1]
-    c = float(np.min(np.log2(1.0 + power_budget_w * a.max(axis=1) / m)))
+    c = max(water.start(power_budget_w), 0.0)
     for _ in range(_NEWTON_MAX_STEPS):
         mu, node_power = water.levels(c)
         excess = node_power.sum() - power_budget_w
