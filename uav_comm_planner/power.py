@@ -18,6 +18,7 @@ import math
 import cvxpy as cp
 import numpy as np
 
+from uav_comm_planner.conic import solve_to_optimality
 from uav_comm_planner.errors import SolverError
 
 _NEWTON_MAX_STEPS = 200
@@ -126,12 +127,7 @@ def conic_power(a: np.ndarray, power_budget_w: float, *, solver: str = 'CLARABEL
     problem = cp.Problem(cp.Maximize(t), constraints)
     options = dict(CLARABEL_TIGHT) if solver == 'CLARABEL' else {}
     options.update(solver_options)
-    try:
-        problem.solve(solver=solver, **options)
-    except cp.error.SolverError as exc:
-        raise SolverError(f'power step: {solver} failed ({exc})') from exc
-    if problem.status != cp.OPTIMAL:
-        raise SolverError(f'power step: {solver} returned status {problem.status!r}')
+    solve_to_optimality(problem, 'power step', solver, **options)
     p = power_budget_w * np.maximum(x.value, 0.0)
     total = p.sum()
     if total > power_budget_w:

@@ -20,7 +20,7 @@ import math
 import cvxpy as cp
 import numpy as np
 
-from uav_comm_planner.errors import SolverError
+from uav_comm_planner.conic import solve_to_optimality
 from uav_comm_planner.model import snr_per_watt, squared_distances
 from uav_comm_planner.scenario import Scenario
 
@@ -91,12 +91,7 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
         spread = cp.sum(cp.square(z - w[n][None, :]), axis=1)
         constraints.append(constant[n] - weight[n] @ spread / m >= t)
     problem = cp.Problem(cp.Maximize(t), constraints)
-    try:
-        problem.solve(solver=solver, **solver_options)
-    except cp.error.SolverError as exc:
-        raise SolverError(f'trajectory step: {solver} failed ({exc})') from exc
-    if problem.status != cp.OPTIMAL:
-        raise SolverError(f'trajectory step: {solver} returned status {problem.status!r}')
+    solve_to_optimality(problem, 'trajectory step', solver, **solver_options)
     q = np.asarray(z.value) * KM
     bound = float(sca_lower_bound(q, q_k, p, scenario).mean(axis=1).min())
     return TrajectoryStep(q=q, bound=bound)
