@@ -43,7 +43,7 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from uav_comm_planner.errors import InfeasibleHorizonError, PlannerError
-from uav_comm_planner.mission import export_mission, Home
+from uav_comm_planner.mission import export_mission
 from uav_comm_planner.optimizer import plan, PlanResult
 from uav_comm_planner.ros_messages import (ground_nodes_of, marker_array, path_message,
                                            power_message)
@@ -165,8 +165,7 @@ def remaining_scenario(scenario: Scenario, position: tuple[float, float],
 
 def write_mission(result: PlanResult, output: NodeSettings) -> FilePath:
     """Write ``result`` to ``output.mission_file``; raises MissionExportError on failure."""
-    home = Home(output.home_latitude_deg, output.home_longitude_deg, output.home_altitude_m)
-    return export_mission(result, output.mission_file, home, end=output.mission_end,
+    return export_mission(result, output.mission_file, output.home, end=output.mission_end,
                           firmware=output.mission_firmware)
 
 

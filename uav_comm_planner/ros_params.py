@@ -14,7 +14,6 @@ parameter values to validated dataclasses.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-import math
 from pathlib import PurePath
 import typing
 from typing import Any, Mapping, Sequence
@@ -22,11 +21,11 @@ from typing import Any, Mapping, Sequence
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
 from uav_comm_planner.errors import InvalidScenarioError
-from uav_comm_planner.mission import MISSION_FORMATS
+from uav_comm_planner.geodesy import DEFAULT_HOME, Home
+from uav_comm_planner.mission import FIRMWARE_TYPES, MISSION_ENDS, MISSION_FORMATS
 from uav_comm_planner.scenario import paper_scenario, Point, Scenario, SolverSettings
 
-MISSION_ENDS = ('land', 'rtl')
-MISSION_FIRMWARES = ('ardupilot', 'px4')
+MISSION_FIRMWARES = tuple(FIRMWARE_TYPES)
 
 ParameterValue = typing.Union[bool, int, float, str, list]
 
@@ -42,9 +41,9 @@ class NodeSettings:
 
     frame_id: str = 'map'
     mission_file: str = ''
-    home_latitude_deg: float = 47.397742
-    home_longitude_deg: float = 8.545594
-    home_altitude_m: float = 488.0
+    home_latitude_deg: float = DEFAULT_HOME[0]
+    home_longitude_deg: float = DEFAULT_HOME[1]
+    home_altitude_m: float = DEFAULT_HOME[2]
     mission_end: str = 'land'
     mission_firmware: str = 'ardupilot'
 
@@ -55,15 +54,11 @@ class NodeSettings:
         if self.mission_file and suffix not in MISSION_FORMATS:
             raise InvalidScenarioError(
                 f'mission_file must end in one of {MISSION_FORMATS}, got {self.mission_file!r}')
-        if not (math.isfinite(self.home_latitude_deg) and abs(self.home_latitude_deg) <= 90):
+        try:
+            self.home
+        except InvalidScenarioError as exc:
             raise InvalidScenarioError(
-                f'home_latitude_deg must be in [-90, 90], got {self.home_latitude_deg!r}')
-        if not (math.isfinite(self.home_longitude_deg) and abs(self.home_longitude_deg) <= 180):
-            raise InvalidScenarioError(
-                f'home_longitude_deg must be in [-180, 180], got {self.home_longitude_deg!r}')
-        if not math.isfinite(self.home_altitude_m):
-            raise InvalidScenarioError(
-                f'home_altitude_m must be finite, got {self.home_altitude_m!r}')
+                f'home_latitude_deg, home_longitude_deg, home_altitude_m: {exc}') from None
         if self.mission_end not in MISSION_ENDS:
             raise InvalidScenarioError(
                 f'mission_end must be one of {MISSION_ENDS}, got {self.mission_end!r}')
@@ -71,6 +66,11 @@ class NodeSettings:
             raise InvalidScenarioError(
                 f'mission_firmware must be one of {MISSION_FIRMWARES}, '
                 f'got {self.mission_firmware!r}')
+
+    @property
+    def home(self) -> Home:
+        """The WGS84 anchor of ``frame_id``."""
+        return Home(self.home_latitude_deg, self.home_longitude_deg, self.home_altitude_m)
 
 
 @dataclass(frozen=True)
