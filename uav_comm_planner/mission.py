@@ -46,6 +46,7 @@ from pymavlink import mavutil, mavwp
 from uav_comm_planner.errors import MissionExportError
 from uav_comm_planner.files import atomic_path
 from uav_comm_planner.geodesy import DEFAULT_HOME, enu_to_geodetic, Home
+from uav_comm_planner.model import flown_path
 from uav_comm_planner.optimizer import PlanResult
 
 MAV = mavutil.mavlink
@@ -122,8 +123,7 @@ def plan_points(result: PlanResult) -> tuple[np.ndarray, np.ndarray]:
     if len(times) != len(q) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(times))):
         raise MissionExportError('the plan has no finite trajectory with one time per waypoint')
     end_time = (len(q) + 1) * scenario.slot_s
-    path = np.vstack([scenario.start_m, q, scenario.goal_m])
-    return path, np.concatenate([[0.0], times, [end_time]])
+    return flown_path(q, scenario), np.concatenate([[0.0], times, [end_time]])
 
 
 def hover_runs(points: np.ndarray, merge_radius_m: float) -> list[tuple[int, int]]:

@@ -49,11 +49,15 @@ def min_rate(q: np.ndarray, p: np.ndarray, scenario: Scenario) -> float:
     return float(average_rates(q, p, scenario).min())
 
 
+def flown_path(q: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """q0, q[1], ..., q[M], qF: (M + 2, 2) metres."""
+    return np.vstack([scenario.start_m, np.asarray(q, dtype=float).reshape(-1, 2),
+                      scenario.goal_m])
+
+
 def leg_lengths(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     """||q[1] - q0||, ||q[m] - q[m-1]||, ||qF - q[M]||: (M + 1,) metres."""
-    path = np.vstack([scenario.start_m, np.asarray(q, dtype=float).reshape(-1, 2),
-                      scenario.goal_m])
-    return np.linalg.norm(np.diff(path, axis=0), axis=1)
+    return np.linalg.norm(np.diff(flown_path(q, scenario), axis=0), axis=1)
 
 
 def speeds(q: np.ndarray, scenario: Scenario) -> np.ndarray:

@@ -9,7 +9,7 @@ from typing import Sequence
 import numpy as np
 
 from uav_comm_planner.files import write_with
-from uav_comm_planner.model import speeds
+from uav_comm_planner.model import flown_path, speeds
 from uav_comm_planner.optimizer import PlanResult
 
 METHOD_LABELS = {'proposed': 'proposed (joint power and trajectory)',
@@ -36,7 +36,7 @@ def plan_figure(result: PlanResult, path: str | os.PathLike, *, title: str = '')
     plt = _pyplot()
     scenario = result.scenario
     figure, (ax_path, ax_speed, ax_power) = plt.subplots(1, 3, figsize=(16, 4.6))
-    path_xy = np.vstack([scenario.start_m, result.trajectory, scenario.goal_m])
+    path_xy = flown_path(result.trajectory, scenario)
     ax_path.plot(path_xy[:, 0], path_xy[:, 1], '.-', color='tab:blue', label='UAV path')
     w = scenario.nodes
     ax_path.plot(w[:, 0], w[:, 1], '^', color='tab:red', markersize=10, label='ground nodes')

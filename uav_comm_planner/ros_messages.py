@@ -18,7 +18,7 @@ import numpy as np
 from std_msgs.msg import ColorRGBA, Float64MultiArray, Header, MultiArrayDimension
 from visualization_msgs.msg import Marker, MarkerArray
 
-from uav_comm_planner.model import leg_lengths
+from uav_comm_planner.model import flown_path, leg_lengths
 from uav_comm_planner.optimizer import PlanResult
 
 #: A leg shorter than this fraction of V delta counts as hovering: the heading is kept and
@@ -58,11 +58,7 @@ def yaw_quaternion(yaw_rad: float) -> Quaternion:
 
 def _flight(result: PlanResult) -> tuple[np.ndarray, np.ndarray]:
     """q0, q[1..M], qF as (M + 2, 2) metres and their planned times (M + 2,) seconds."""
-    scenario = result.scenario
-    points = np.vstack([scenario.start_m, result.trajectory, scenario.goal_m])
-    last = (scenario.num_slots + 1) * scenario.slot_s
-    times = np.concatenate([[0.0], result.times, [last]])
-    return points, times
+    return flown_path(result.trajectory, result.scenario), result.scenario.path_times_s
 
 
 def _hovering(result: PlanResult) -> np.ndarray:

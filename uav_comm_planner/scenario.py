@@ -141,6 +141,11 @@ class Scenario:
         """Planned time of waypoint q[m], m = 1..M: (M,) seconds (q0 at 0, qF at (M+1) delta)."""
         return self.slot_s * np.arange(1, self.num_slots + 1)
 
+    @property
+    def path_times_s(self) -> np.ndarray:
+        """Planned time of q0, q[1], ..., q[M], qF: (M + 2,) seconds, 0 to (M + 1) delta."""
+        return self.slot_s * np.arange(self.num_slots + 2)
+
     def replace(self, **changes) -> 'Scenario':
         """A copy with some fields changed (validated again)."""
         fields = {name: getattr(self, name) for name in self.__dataclass_fields__}
