@@ -212,8 +212,8 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     for name in settings.starts:
         runs[name] = alternate(scenario, STARTS[name](scenario), settings,
                                power_solver=power_solver, trajectory_solver=trajectory_solver)
-    values = {name: float(average_rates(run[0], run[1], scenario).min())
-              for name, run in runs.items()}
+    # The last step of each run is the true min rate of the (q, p) it returns.
+    values = {name: run[2][-1].min_throughput for name, run in runs.items()}
     best = max(values, key=lambda name: (values[name], -settings.starts.index(name)))
     q, p, history, outer, inner, converged = runs[best]
     rates = average_rates(q, p, scenario)
