@@ -23,10 +23,6 @@ def static_point(scenario: Scenario) -> np.ndarray:
     return np.repeat(centroid[None, :], scenario.num_slots, axis=0)
 
 
-def _path_length(points: np.ndarray) -> float:
-    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
-
-
 def nearest_neighbour_order(start: np.ndarray, w: np.ndarray) -> list[int]:
     """Visit order of the nodes w (N, 2): always the closest unvisited node next."""
     order: list[int] = []
