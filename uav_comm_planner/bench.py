@@ -58,13 +58,10 @@ def random_scenario(num_nodes: int, num_slots: int, seed: int, *, side_m: float,
     """
     rng = np.random.default_rng(seed)
     settings = dict(ground_nodes_m=rng.uniform(0.0, side_m, size=(num_nodes, 2)).tolist(),
-                    altitude_m=100.0, max_speed_mps=100.0,
                     horizon_s=float(num_slots if horizon_s is None else horizon_s),
-                    num_slots=num_slots, start_m=(0.0, 0.0), goal_m=(side_m, side_m),
-                    bandwidth_hz=1.0, noise_psd_dbm_per_hz=-169.0, reference_gain=1e-3,
-                    power_budget_w=5.0)
+                    num_slots=num_slots, start_m=(0.0, 0.0), goal_m=(side_m, side_m))
     settings.update(radio)
-    return Scenario(**settings)
+    return paper_scenario('I', **settings)
 
 
 def size_cases(quick: bool) -> list[SizeCase]:
