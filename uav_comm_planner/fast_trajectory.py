@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import functools
+import math
 
 import clarabel
 import numpy as np
@@ -251,6 +252,11 @@ class ClarabelTrajectoryStep:
         # Centred kilometres keep ||z||^2 and ||w_n||^2 of the order of the scene, not its offset.
         self.centre_m = (corners.min(axis=0) + corners.max(axis=0)) / 2.0
         self.w = (scenario.nodes - self.centre_m) / KM
+        m = scenario.num_slots
+        # Slot m's (z_x, z_y, u) coefficients in node n's bound are W_{n,m} times these.
+        self._coefficient_factors = np.concatenate(
+            [-2.0 / m * self.w, np.full((scenario.num_nodes, 1), 1.0 / m)], axis=1)[:, None, :]
+        self._w_squared = (self.w ** 2).sum(axis=1)
         self._node_index = np.arange(scenario.num_nodes)
         self.attempt = 0
         self._configure()
@@ -285,30 +291,37 @@ class ClarabelTrajectoryStep:
         constant = (coef.value + weight * coef.horizontal / KM ** 2).mean(axis=1)
         return NodeRows(weight=weight, constant=constant)
 
+    def coefficients(self, rows: NodeRows) -> np.ndarray:
+        """The changing entries of A: (N, M, 3), slot m's (z_x, z_y, u) coefficients in node
+        n's bound, (1/M) W_{n,m} (-2 w_n, 1); their build order is this array's."""
+        return rows.weight[:, :, None] * self._coefficient_factors
+
+    def node_right_hand_side(self, rows: NodeRows) -> np.ndarray:
+        """b of the N node rows: C_n - ||w_n||^2 (1/M) sum_m W_{n,m}."""
+        return rows.constant - self._w_squared * rows.weight.mean(axis=1)
+
     def cone_data(self, rows: NodeRows) -> tuple[np.ndarray, np.ndarray]:
         """A's entries in build order and b for these node rows."""
-        n, m = self.scenario.num_nodes, self.scenario.num_slots
-        weight = rows.weight
         values = self.layout.values.copy()
         first = self.layout.first_coefficient
-        node_block = values[first:first + 3 * n * m].reshape(n, m, 3)
-        node_block[:, :, 0] = weight * (-2.0 / m) * self.w[:, :1]
-        node_block[:, :, 1] = weight * (-2.0 / m) * self.w[:, 1:]
-        node_block[:, :, 2] = weight / m
+        coefficients = self.coefficients(rows).ravel()
+        values[first:first + len(coefficients)] = coefficients
         b = self.b_fixed.copy()
-        b[:n] = rows.constant - (self.w ** 2).sum(axis=1) * weight.mean(axis=1)
+        b[:self.scenario.num_nodes] = self.node_right_hand_side(rows)
         return values, b
 
-    def _solve(self, values: np.ndarray, b: np.ndarray) -> clarabel.DefaultSolution:
+    def _solve(self, rows: NodeRows) -> clarabel.DefaultSolution:
         if self._solver is None:
+            values, b = self.cone_data(rows)
             self._solver = clarabel.DefaultSolver(
                 sparse.csc_matrix((self.layout.num_columns, self.layout.num_columns)),
                 self.objective, self.layout.matrix(values), b, list(self.layout.cones),
                 clarabel_settings(refine=self.refine))
         else:
             positions, build = self.layout.node_entries
-            n = self.scenario.num_nodes
-            self._solver.update(A=(positions, values[build]), b=(self._node_index, b[:n]))
+            changed = self.coefficients(rows).ravel()[build - self.layout.first_coefficient]
+            self._solver.update(A=(positions, changed),
+                                b=(self._node_index, self.node_right_hand_side(rows)))
         return self._solver.solve()
 
     def __call__(self, q_k: np.ndarray, p: np.ndarray, scenario: Scenario) -> TrajectoryStep:
@@ -317,8 +330,7 @@ class ClarabelTrajectoryStep:
             raise ValueError('this trajectory stepper was built for another scenario')
         rows = self.node_rows(q_k, p)
         while True:
-            values, b = self.cone_data(rows)
-            solution = self._solve(values, b)
+            solution = self._solve(rows)
             z = self._positions(solution)
             if solution.status == clarabel.SolverStatus.Solved or (
                     solution.status == clarabel.SolverStatus.AlmostSolved
@@ -333,15 +345,16 @@ class ClarabelTrajectoryStep:
             self.attempt += 1
             self._configure()
         q = z * KM + self.centre_m
-        if not np.all(np.isfinite(q)):
+        if not math.isfinite(q.sum()):     # a NaN or an infinity anywhere makes the sum one
             raise SolverError('trajectory step: Clarabel returned a non-finite trajectory')
-        return TrajectoryStep(q=q, bound=rows.bound(z, self.w))
+        return TrajectoryStep(q=q, bound_of=functools.partial(rows.bound, z, self.w))
 
     def _positions(self, solution: clarabel.DefaultSolution) -> np.ndarray | None:
         """z (M, 2) km, centred, from the solution vector x = (t, z, u); None without one."""
-        if solution.x is None:
+        x = solution.x
+        if x is None:
             return None
-        return np.asarray(solution.x)[1:1 + 2 * self.scenario.num_slots].reshape(-1, 2)
+        return np.array(x[1:1 + 2 * self.scenario.num_slots]).reshape(-1, 2)
 
     def _within_speed_limits(self, z: np.ndarray | None) -> bool:
         """Whether z (M, 2) km, centred, keeps every leg within V delta (1 + 1e-7).

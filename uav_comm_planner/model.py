@@ -14,7 +14,8 @@ def squared_distances(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     """d_n[m] = ||q[m] - w_n||^2 + H^2: (N, M) square metres."""
     q = np.asarray(q, dtype=float).reshape(-1, 2)
     horizontal = ((q[None, :, :] - scenario.nodes[:, None, :]) ** 2).sum(axis=-1)
-    return horizontal + scenario.altitude_m ** 2
+    horizontal += scenario.altitude_m ** 2
+    return horizontal
 
 
 def channel_gains(q: np.ndarray, scenario: Scenario) -> np.ndarray:
@@ -22,10 +23,15 @@ def channel_gains(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     return scenario.reference_gain / squared_distances(q, scenario)
 
 
+def snr_scale(scenario: Scenario) -> float:
+    """N beta0 / (B sigma^2): a_n[m] d_n[m], the SNR per watt at a squared distance of 1 m^2."""
+    return scenario.num_nodes * scenario.reference_gain / (
+        scenario.bandwidth_hz * scenario.noise_psd_w_per_hz)
+
+
 def snr_per_watt(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     """a_n[m] = N g_n[m] / (B sigma^2): (N, M) per watt (OFDMA, B/N per node)."""
-    scale = scenario.num_nodes / (scenario.bandwidth_hz * scenario.noise_psd_w_per_hz)
-    return scale * channel_gains(q, scenario)
+    return snr_scale(scenario) / squared_distances(q, scenario)
 
 
 def spectral_efficiency_to_rate(bits_per_use: np.ndarray, scenario: Scenario) -> np.ndarray:

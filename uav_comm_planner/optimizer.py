@@ -13,7 +13,8 @@ import numpy as np
 from uav_comm_planner import initial
 from uav_comm_planner.errors import SolverError
 from uav_comm_planner.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
-from uav_comm_planner.model import average_rates, snr_per_watt, spectral_efficiency_to_rate
+from uav_comm_planner.model import (average_rates, snr_per_watt, snr_scale,
+                                    spectral_efficiency_to_rate)
 from uav_comm_planner.power import conic_power, PowerAllocation, waterfilling_power
 from uav_comm_planner.scenario import Scenario, SolverSettings
 from uav_comm_planner.trajectory import trajectory_step_cvxpy, TrajectoryStep
@@ -126,19 +127,25 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
     """
     history: list[Step] = []
 
-    def power_step(q_now: np.ndarray) -> tuple[np.ndarray, float]:
-        p_now = power_solver(snr_per_watt(q_now, scenario), scenario.power_budget_w).p
-        value = float(average_rates(q_now, p_now, scenario).min())
-        history.append(Step('power', value))
-        return p_now, value
+    def min_rate(a_now: np.ndarray, p_now: np.ndarray) -> float:
+        bits = np.log2(1.0 + p_now * a_now).mean(axis=1).min()
+        return float(spectral_efficiency_to_rate(bits, scenario))
 
+    def power_step(a_now: np.ndarray) -> tuple[np.ndarray, float]:
+        allocation = power_solver(a_now, scenario.power_budget_w)
+        # The allocation's efficiency is min_n mean_m log2(1 + p a) of its own p.
+        value = float(spectral_efficiency_to_rate(allocation.efficiency, scenario))
+        history.append(Step('power', value))
+        return allocation.p, value
+
+    a = snr_per_watt(q, scenario)
     previous_power_value = -np.inf
     inner_total = 0
     converged = False
     outer = 0
     p = None
     for outer in range(1, settings.max_outer_iterations + 1):
-        p, value = power_step(q)
+        p, value = power_step(a)
         if value - previous_power_value <= _tolerance(settings, value):
             converged = True
             break
@@ -146,18 +153,19 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
         for _ in range(settings.max_inner_iterations):
             step = trajectory_solver(q, p, scenario)
             inner_total += 1
-            new_value = float(average_rates(step.q, p, scenario).min())
+            a_new = snr_per_watt(step.q, scenario)
+            new_value = min_rate(a_new, p)
             if new_value < value:
                 logger.debug('trajectory step lowered the objective by %.3g; kept the old one',
                              value - new_value)
                 break
             history.append(Step('trajectory', new_value))
             gain = new_value - value
-            q, value = step.q, new_value
+            q, a, value = step.q, a_new, new_value
             if gain <= _tolerance(settings, value):
                 break
     else:
-        p, value = power_step(q)
+        p, value = power_step(a)
     if p is None:
         raise SolverError('Algorithm 1 ran no iteration; max_outer_iterations must be >= 1')
     return q, p, history, outer, inner_total, converged
@@ -172,8 +180,7 @@ def throughput_upper_bound(scenario: Scenario) -> float:
     with the least P_n has P_n <= P_T / N, so min_n R_n is at most the bound.
     """
     n, m = scenario.num_nodes, scenario.num_slots
-    best_snr_per_watt = n * scenario.reference_gain / (
-        scenario.altitude_m ** 2 * scenario.bandwidth_hz * scenario.noise_psd_w_per_hz)
+    best_snr_per_watt = snr_scale(scenario) / scenario.altitude_m ** 2
     bits = math.log2(1.0 + best_snr_per_watt * scenario.power_budget_w / (n * m))
     return float(spectral_efficiency_to_rate(np.float64(bits), scenario))
 

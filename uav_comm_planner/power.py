@@ -42,22 +42,21 @@ class _WaterLevels:
     def __init__(self, a: np.ndarray):
         self.a = a
         self.num_slots = a.shape[1]
-        best_first = -np.sort(-a, axis=1)
+        self._rows = np.arange(a.shape[0])
+        best_first = np.sort(a, axis=1)[:, ::-1]
+        self.worst_best = float(best_first[:, 0].min())          # min_n max_m a_n[m]
         log_a = np.log2(best_first)
         self.log_sum = np.cumsum(log_a, axis=1)                   # S_k
         self.inv_sum = np.cumsum(1.0 / best_first, axis=1)        # sum_{i<=k} 1/a_i
-        k = np.arange(1, self.num_slots + 1)
         # k slots are active at target c iff M c >= S_k - k log2 a_k (nondecreasing in k).
-        self.threshold = self.log_sum - k * log_a
+        self.threshold = self.log_sum - np.arange(1, self.num_slots + 1) * log_a
 
     def levels(self, c: float) -> tuple[np.ndarray, np.ndarray]:
         """Water level mu_n (N,) and node power P_n(c) (N,) for target c >= 0."""
         active = np.count_nonzero(self.threshold <= self.num_slots * c, axis=1)
-        rows = np.arange(self.a.shape[0])
         idx = active - 1
-        log_mu = (self.num_slots * c - self.log_sum[rows, idx]) / active
-        mu = np.exp2(log_mu)
-        return mu, active * mu - self.inv_sum[rows, idx]
+        mu = np.exp2((self.num_slots * c - self.log_sum[self._rows, idx]) / active)
+        return mu, active * mu - self.inv_sum[self._rows, idx]
 
     def start(self, power_budget_w: float) -> float:
         """A target c at or above the root of P(c) = P_T, and at it when every slot is active.
@@ -70,7 +69,7 @@ class _WaterLevels:
         exact at high SNR, where Newton's method then stops at once.
         """
         m = self.num_slots
-        jensen = float(np.min(np.log2(1.0 + power_budget_w * self.a.max(axis=1) / m)))
+        jensen = math.log2(1.0 + power_budget_w * self.worst_best / m)
         mean_log = self.log_sum[:, -1] / m
         lowest = mean_log.min()
         all_active = (math.log2(power_budget_w + self.inv_sum[:, -1].sum()) - math.log2(m)
@@ -85,23 +84,25 @@ def waterfilling_power(a: np.ndarray, power_budget_w: float) -> PowerAllocation:
     and increasing, from a start above the root (:meth:`_WaterLevels.start`).
     """
     a = np.asarray(a, dtype=float)
-    if a.ndim != 2 or not np.all(np.isfinite(a)) or np.any(a <= 0):
+    # min > 0 and max < inf fail for NaN too.
+    if a.ndim != 2 or a.size == 0 or not (a.min() > 0.0 and a.max() < math.inf):
         raise SolverError('water-filling needs a finite, positive SNR-per-watt array (N, M)')
     water = _WaterLevels(a)
     m = a.shape[1]
+    newton_scale = m * math.log(2.0)
     c = max(water.start(power_budget_w), 0.0)
     for _ in range(_NEWTON_MAX_STEPS):
         mu, node_power = water.levels(c)
-        excess = node_power.sum() - power_budget_w
-        slope = m * math.log(2.0) * mu.sum()
-        step = excess / slope
+        excess = float(node_power.sum()) - power_budget_w
+        step = excess / (newton_scale * float(mu.sum()))
         if excess <= 1e-13 * power_budget_w or step <= 1e-15 * max(c, 1.0):
             break
         c = max(c - step, 0.0)
     else:
         raise SolverError('water-filling did not converge; check that a (SNR per watt) is sane')
-    p = np.maximum(mu[:, None] - 1.0 / a, 0.0)
-    total = p.sum()
+    p = mu[:, None] - 1.0 / a
+    np.maximum(p, 0.0, out=p)
+    total = float(p.sum())
     if total > power_budget_w:
         p *= power_budget_w / total
     efficiency = float(np.log2(1.0 + p * a).mean(axis=1).min())

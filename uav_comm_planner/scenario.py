@@ -7,6 +7,7 @@ planning frame is east-north metres with the ground at z = 0.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import functools
 import math
 from typing import Sequence
 
@@ -116,10 +117,12 @@ class Scenario:
         """N."""
         return len(self.ground_nodes_m)
 
-    @property
+    @functools.cached_property
     def nodes(self) -> np.ndarray:
-        """w: (N, 2) metres."""
-        return np.asarray(self.ground_nodes_m, dtype=float)
+        """w: (N, 2) metres (read-only; computed once, since the planner reads it every step)."""
+        nodes = np.array(self.ground_nodes_m, dtype=float)
+        nodes.setflags(write=False)
+        return nodes
 
     @property
     def slot_s(self) -> float:

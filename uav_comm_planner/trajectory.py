@@ -14,14 +14,16 @@ speed limits never lowers the true minimum rate.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+import functools
 import math
+from typing import Callable
 
 import cvxpy as cp
 import numpy as np
 
 from uav_comm_planner.conic import solve_to_optimality
-from uav_comm_planner.model import snr_per_watt, squared_distances
+from uav_comm_planner.model import snr_scale, squared_distances
 from uav_comm_planner.scenario import Scenario
 
 #: The conic problems see positions in kilometres: coordinates of order 1, not 1000.
@@ -46,7 +48,7 @@ def surrogate_coefficients(q_k: np.ndarray, p: np.ndarray,
                            scenario: Scenario) -> SurrogateCoefficients:
     """The SCA bound's coefficients at the expansion point q^k (M, 2) for power p (N, M)."""
     d = squared_distances(q_k, scenario)
-    snr = np.asarray(p, dtype=float) * snr_per_watt(q_k, scenario)
+    snr = np.asarray(p, dtype=float) * (snr_scale(scenario) / d)
     return SurrogateCoefficients(value=np.log2(1.0 + snr),
                                  slope=snr / ((1.0 + snr) * math.log(2.0)),
                                  d=d, horizontal=d - scenario.altitude_m ** 2)
@@ -62,10 +64,18 @@ def sca_lower_bound(q: np.ndarray, q_k: np.ndarray, p: np.ndarray,
 
 @dataclass(frozen=True)
 class TrajectoryStep:
-    """q: (M, 2) metres, the maximiser; bound: min_n mean_m lbr_{n,m}(q), bits per use."""
+    """q: (M, 2) metres, the maximiser; bound: min_n mean_m lbr_{n,m}(q), bits per use.
+
+    Algorithm 1 judges a step by the true rates, so the bound is evaluated on first use only
+    (``bound_of`` computes it).
+    """
 
     q: np.ndarray
-    bound: float
+    bound_of: Callable[[], float] = field(repr=False, compare=False)
+
+    @functools.cached_property
+    def bound(self) -> float:
+        return float(self.bound_of())
 
 
 def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
@@ -93,5 +103,5 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
     problem = cp.Problem(cp.Maximize(t), constraints)
     solve_to_optimality(problem, 'trajectory step', solver, **solver_options)
     q = np.asarray(z.value) * KM
-    bound = float(sca_lower_bound(q, q_k, p, scenario).mean(axis=1).min())
-    return TrajectoryStep(q=q, bound=bound)
+    return TrajectoryStep(
+        q=q, bound_of=lambda: sca_lower_bound(q, q_k, p, scenario).mean(axis=1).min())
