@@ -105,3 +105,23 @@ def test_newton_starts_at_or_above_the_root_and_at_it_when_every_slot_is_active(
     water = _WaterLevels(snr_per_watt(straight_line(scenario), scenario))
     _, node_power = water.levels(water.start(scenario.power_budget_w))
     assert node_power.sum() == pytest.approx(scenario.power_budget_w, rel=1e-12)
+
+
+def test_closed_form_levels_are_newtons_when_every_slot_is_active_and_absent_otherwise():
+    from uav_comm_planner.power import _levels_if_all_active, _newton_levels
+    rng = np.random.default_rng(21)
+    seen = {True: 0, False: 0}
+    for _ in range(300):
+        n, m = rng.integers(1, 8), rng.integers(1, 80)
+        a = 10.0 ** rng.uniform(rng.uniform(-3.0, 12.0), 14.0, size=(n, m))
+        budget = 10.0 ** rng.uniform(-3.0, 2.0)
+        newton = _newton_levels(a, budget)
+        all_active = bool(np.all(newton[:, None] >= 1.0 / a * (1 + 1e-9)))
+        closed = _levels_if_all_active(a, 1.0 / a, budget)
+        if all_active:
+            assert closed is not None
+            np.testing.assert_allclose(closed, newton, rtol=1e-9)
+        if closed is None:
+            assert np.any(newton[:, None] <= 1.0 / a * (1 + 1e-9))
+        seen[closed is None] += 1
+    assert seen[True] > 30 and seen[False] > 30

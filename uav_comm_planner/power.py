@@ -6,7 +6,9 @@ rate. Two exact solvers, which must agree:
 * :func:`waterfilling_power`: for a target spectral efficiency c (bits per channel use),
   node n's least power is the water-filling p_n[m] = (mu_n - 1/a_n[m])^+ with mu_n set so
   that mean_m log2(1 + p_n[m] a_n[m]) = c. The total power P(c) is increasing and convex in
-  c, with dP/dc = M ln 2 sum_n mu_n, so Newton's method from above finds P(c) = P_T.
+  c, with dP/dc = M ln 2 sum_n mu_n, so Newton's method from above finds P(c) = P_T. When
+  every slot is active at the optimum (the usual case at high SNR) the levels have a closed
+  form, tried first.
 * :func:`conic_power`: the same problem as an exponential-cone program (cvxpy + Clarabel).
 """
 
@@ -77,30 +79,54 @@ class _WaterLevels:
         return min(jensen, all_active)
 
 
-def waterfilling_power(a: np.ndarray, power_budget_w: float) -> PowerAllocation:
-    """Exact max-min power for SNR per watt ``a`` (N, M) and budget P_T, by water-filling.
+def _levels_if_all_active(a: np.ndarray, inv_a: np.ndarray,
+                          power_budget_w: float) -> np.ndarray | None:
+    """The water levels mu (N,) of the optimum if every slot of every node is active in it.
 
-    Newton's method on P(c) = P_T converges from above, monotonically, because P is convex
-    and increasing, from a start above the root (:meth:`_WaterLevels.start`).
+    With every slot active, node n's power is M mu_n - sum_m 1/a_n[m] and its efficiency
+    log2 mu_n + mean_m log2 a_n[m]; equal efficiencies make mu_n proportional to 1/G_n (G_n the
+    geometric mean of a_n), and the budget fixes the factor:
+    mu_n = (P_T + sum_{n,m} 1/a_n[m]) / M * (1/G_n) / sum_k (1/G_k). That is the optimum exactly
+    when every slot is then active, mu_n >= 1/a_n[m]; otherwise None. The usual case at high
+    SNR, where it spares the sort and Newton's method.
     """
-    a = np.asarray(a, dtype=float)
-    # min > 0 and max < inf fail for NaN too.
-    if a.ndim != 2 or a.size == 0 or not (a.min() > 0.0 and a.max() < math.inf):
-        raise SolverError('water-filling needs a finite, positive SNR-per-watt array (N, M)')
+    mean_log = np.log2(a).mean(axis=1)
+    inverse_g = np.exp2(mean_log.min() - mean_log)        # G_min / G_n, in (0, 1]
+    mu = (power_budget_w + inv_a.sum()) / (a.shape[1] * inverse_g.sum()) * inverse_g
+    return mu if (mu * a.min(axis=1)).min() >= 1.0 else None
+
+
+def _newton_levels(a: np.ndarray, power_budget_w: float) -> np.ndarray:
+    """The water levels mu (N,) of the optimum, by Newton's method on P(c) = P_T.
+
+    It converges from above, monotonically, because P is convex and increasing, from a start
+    above the root (:meth:`_WaterLevels.start`).
+    """
     water = _WaterLevels(a)
-    m = a.shape[1]
-    newton_scale = m * math.log(2.0)
+    newton_scale = a.shape[1] * math.log(2.0)
     c = max(water.start(power_budget_w), 0.0)
     for _ in range(_NEWTON_MAX_STEPS):
         mu, node_power = water.levels(c)
         excess = float(node_power.sum()) - power_budget_w
         step = excess / (newton_scale * float(mu.sum()))
         if excess <= 1e-13 * power_budget_w or step <= 1e-15 * max(c, 1.0):
-            break
+            return mu
         c = max(c - step, 0.0)
-    else:
-        raise SolverError('water-filling did not converge; check that a (SNR per watt) is sane')
-    p = mu[:, None] - 1.0 / a
+    raise SolverError('water-filling did not converge; check that a (SNR per watt) is sane')
+
+
+def waterfilling_power(a: np.ndarray, power_budget_w: float) -> PowerAllocation:
+    """Exact max-min power for SNR per watt ``a`` (N, M) and budget P_T, by water-filling:
+    in closed form when every slot is active, else by Newton's method on the target."""
+    a = np.asarray(a, dtype=float)
+    # min > 0 and max < inf fail for NaN too.
+    if a.ndim != 2 or a.size == 0 or not (a.min() > 0.0 and a.max() < math.inf):
+        raise SolverError('water-filling needs a finite, positive SNR-per-watt array (N, M)')
+    inv_a = 1.0 / a
+    mu = _levels_if_all_active(a, inv_a, power_budget_w)
+    if mu is None:
+        mu = _newton_levels(a, power_budget_w)
+    p = mu[:, None] - inv_a
     np.maximum(p, 0.0, out=p)
     total = float(p.sum())
     if total > power_budget_w:
