@@ -93,18 +93,19 @@ class ConeLayout:
         return 1 + 3 * self.num_slots + self.num_sums
 
     @functools.cached_property
-    def node_entries(self) -> tuple[np.ndarray, np.ndarray]:
+    def node_entries(self) -> tuple[list[int], np.ndarray]:
         """The entries that change between steps (the block rows' z and u coefficients).
 
-        Returns their positions in A's CSC data, ascending, and their build-order indices in
-        the same order.
+        Returns their positions in A's CSC data, ascending, as a list (Clarabel's update
+        reads a list several times faster than an array), and the indices of the same entries
+        in the (N, M, 3) coefficient array, in the same order.
         """
         build_to_csc = np.empty_like(self.to_csc)
         build_to_csc[self.to_csc] = np.arange(len(self.to_csc))
         build = np.arange(self.first_coefficient,
                           self.first_coefficient + 3 * self.num_nodes * self.num_slots)
         order = np.argsort(build_to_csc[build])
-        return build_to_csc[build][order], build[order]
+        return build_to_csc[build][order].tolist(), build[order] - self.first_coefficient
 
     def matrix(self, values: np.ndarray) -> sparse.csc_matrix:
         """A (rows, columns) from entries in build order."""
@@ -257,7 +258,7 @@ class ClarabelTrajectoryStep:
         self._coefficient_factors = np.concatenate(
             [-2.0 / m * self.w, np.full((scenario.num_nodes, 1), 1.0 / m)], axis=1)[:, None, :]
         self._w_squared = (self.w ** 2).sum(axis=1)
-        self._node_index = np.arange(scenario.num_nodes)
+        self._node_index = list(range(scenario.num_nodes))
         self.attempt = 0
         self._configure()
 
@@ -318,10 +319,10 @@ class ClarabelTrajectoryStep:
                 self.objective, self.layout.matrix(values), b, list(self.layout.cones),
                 clarabel_settings(refine=self.refine))
         else:
-            positions, build = self.layout.node_entries
-            changed = self.coefficients(rows).ravel()[build - self.layout.first_coefficient]
-            self._solver.update(A=(positions, changed),
-                                b=(self._node_index, self.node_right_hand_side(rows)))
+            positions, coefficient = self.layout.node_entries
+            changed = self.coefficients(rows).ravel()[coefficient]
+            self._solver.update(A=(positions, changed.tolist()),
+                                b=(self._node_index, self.node_right_hand_side(rows).tolist()))
         return self._solver.solve()
 
     def __call__(self, q_k: np.ndarray, p: np.ndarray, scenario: Scenario) -> TrajectoryStep:
