@@ -24,7 +24,7 @@ setup(
     install_requires=[
         'numpy>=1.26,<3',
         'cvxpy>=1.5,<2',
-        'clarabel>=0.9,<0.12',
+        'clarabel>=0.11,<0.12',
         'scipy>=1.11,<2',
         'pymavlink>=2.4.40,<3',
         'pymap3d>=3.0,<4',
