@@ -5,10 +5,11 @@ import types
 import clarabel
 import numpy as np
 import pytest
+from scipy import sparse
 
 from uav_comm_planner import paper_scenario, plan, Scenario, SolverError, SolverSettings
-from uav_comm_planner.fast_trajectory import (ClarabelTrajectoryStep, cone_layout,
-                                              trajectory_step_clarabel)
+from uav_comm_planner.fast_trajectory import (clarabel_settings, ClarabelTrajectoryStep,
+                                              cone_layout, trajectory_step_clarabel)
 from uav_comm_planner.initial import straight_line
 from uav_comm_planner.model import leg_lengths, snr_per_watt
 from uav_comm_planner.power import waterfilling_power
@@ -109,6 +110,30 @@ def test_layout_has_one_entry_per_coefficient_and_is_cached():
             slots = np.concatenate([(columns[columns <= 300] - 1) // 2,
                                     columns[columns > 300] - 301])
             assert set(slots) == set(range(64 * k, min(64 * k + 64, 150)))
+
+
+@pytest.mark.parametrize('name', ['I', 'I-150-slots'])
+def test_clarabel_reads_the_list_matrices_as_the_scipy_ones(name):
+    scenario = CASES[name]
+    q_k, p = expansion_point(scenario, 1.0, seed=2)
+    stepper = ClarabelTrajectoryStep(scenario)
+    values, b = stepper.cone_data(stepper.node_rows(q_k, p))
+    layout = stepper.layout
+    p_lists, a_lists = layout.clarabel_matrices(values)
+    a = layout.matrix(values)
+    np.testing.assert_array_equal(a_lists.data, a.data)
+    np.testing.assert_array_equal(a_lists.indices, a.indices)
+    np.testing.assert_array_equal(a_lists.indptr, a.indptr)
+    assert a_lists.shape == a.shape and a.has_canonical_format
+    assert p_lists.shape == (layout.num_columns, layout.num_columns) and not p_lists.data
+    settings = clarabel_settings(refine=False)
+    from_lists = clarabel.DefaultSolver(p_lists, stepper.objective.tolist(), a_lists, b.tolist(),
+                                        list(layout.cones), settings).solve()
+    from_scipy = clarabel.DefaultSolver(sparse.csc_matrix((layout.num_columns,) * 2),
+                                        stepper.objective, a, b, list(layout.cones),
+                                        settings).solve()
+    assert from_lists.status == from_scipy.status == clarabel.SolverStatus.Solved
+    assert from_lists.x == from_scipy.x
 
 
 def test_a_single_block_puts_the_coefficients_in_the_node_rows():

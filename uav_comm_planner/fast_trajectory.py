@@ -52,6 +52,21 @@ def block_slots(num_nodes: int) -> int:
 
 
 @dataclass(frozen=True)
+class CscLists:
+    """A sparse matrix in compressed columns, in the attributes Clarabel reads from a
+    ``scipy.sparse.csc_matrix`` (``data``, ``indices``, ``indptr``, ``shape``,
+    ``has_canonical_format``), held as lists: Clarabel converts its input element by element,
+    and reads a list several times faster than an array (about 0.1 ms a solver at N = 3,
+    M = 50, a tenth of a letter-sized SCA step)."""
+
+    data: list[float]
+    indices: list[int]
+    indptr: list[int]
+    shape: tuple[int, int]
+    has_canonical_format: bool = True     # sorted row indices, no duplicates
+
+
+@dataclass(frozen=True)
 class ConeLayout:
     """Sparsity pattern of A for N nodes, M slots and blocks of K slots.
 
@@ -111,6 +126,17 @@ class ConeLayout:
         """A (rows, columns) from entries in build order."""
         return sparse.csc_matrix((values[self.to_csc], self.indices, self.indptr),
                                  shape=(self.num_rows, self.num_columns))
+
+    def clarabel_matrices(self, values: np.ndarray) -> tuple[CscLists, CscLists]:
+        """P = 0 (columns x columns) and A from entries in build order, as Clarabel reads them."""
+        structure = self._structure_lists
+        a = CscLists(values[self.to_csc].tolist(), *structure, (self.num_rows, self.num_columns))
+        p = CscLists([], [], [0] * (self.num_columns + 1), (self.num_columns, self.num_columns))
+        return p, a
+
+    @functools.cached_property
+    def _structure_lists(self) -> tuple[list[int], list[int]]:
+        return self.indices.tolist(), self.indptr.tolist()
 
     @functools.cached_property
     def cones(self) -> tuple:
@@ -314,9 +340,9 @@ class ClarabelTrajectoryStep:
     def _solve(self, rows: NodeRows) -> clarabel.DefaultSolution:
         if self._solver is None:
             values, b = self.cone_data(rows)
+            p, a = self.layout.clarabel_matrices(values)
             self._solver = clarabel.DefaultSolver(
-                sparse.csc_matrix((self.layout.num_columns, self.layout.num_columns)),
-                self.objective, self.layout.matrix(values), b, list(self.layout.cones),
+                p, self.objective.tolist(), a, b.tolist(), list(self.layout.cones),
                 clarabel_settings(refine=self.refine))
         else:
             positions, coefficient = self.layout.node_entries
