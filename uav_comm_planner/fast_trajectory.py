@@ -152,26 +152,19 @@ def _speed_entries(first_row: int, num_slots: int) -> tuple[np.ndarray, ...]:
 
     Clarabel's form is s = b - A x, so z[l + 1] enters leg l with -1 and z[l] with +1.
     """
-    slot = np.arange(num_slots)
-    rows, cols, vals = [], [], []
-    for axis in (0, 1):
-        z_col = 1 + 2 * slot + axis
-        rows += [first_row + 3 * slot + 1 + axis, first_row + 3 * (slot + 1) + 1 + axis]
-        cols += [z_col, z_col]
-        vals += [-np.ones(num_slots), np.ones(num_slots)]
-    return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    z_col = np.arange(1, 1 + 2 * num_slots)              # slot m's z_x, z_y: 1 + 2m, 2 + 2m
+    end_of_leg = first_row + 1 + 3 * ((z_col - 1) // 2) + (z_col - 1) % 2
+    return (np.concatenate([end_of_leg, end_of_leg + 3]), np.concatenate([z_col, z_col]),
+            np.repeat([-1.0, 1.0], 2 * num_slots))
 
 
 def _epigraph_entries(first_row: int, num_slots: int) -> tuple[np.ndarray, ...]:
     """Slot m's cone is s = ((u + 1) / 2, z_x, z_y, (u - 1) / 2)."""
-    slot = np.arange(num_slots)
-    first = first_row + 4 * slot
+    slot = np.arange(num_slots)[:, None]
     u_col = 1 + 2 * num_slots + slot
-    rows = np.concatenate([first, first + 1, first + 2, first + 3])
-    cols = np.concatenate([u_col, 1 + 2 * slot, 2 + 2 * slot, u_col])
-    vals = np.concatenate([np.full(num_slots, -0.5), -np.ones(2 * num_slots),
-                           np.full(num_slots, -0.5)])
-    return rows, cols, vals
+    rows = first_row + 4 * slot + np.arange(4)
+    cols = np.concatenate([u_col, 1 + 2 * slot, 2 + 2 * slot, u_col], axis=1)
+    return rows.ravel(), cols.ravel(), np.tile([-0.5, -1.0, -1.0, -0.5], num_slots)
 
 
 def _num_sums(num_nodes: int, num_slots: int, block: int) -> int:
@@ -188,12 +181,18 @@ def _sum_entries(num_nodes: int, num_slots: int,
     sums = _num_sums(num_nodes, num_slots, block)
     blocks = sums // num_nodes
     e_col = 1 + 3 * num_slots + np.arange(sums)
-    node = np.repeat(np.arange(num_nodes), num_slots)
-    slot = np.tile(np.arange(num_slots), num_nodes)
-    block_row = (num_nodes + node * blocks + slot // block) if sums else node
-    coefficient_cols = np.stack([1 + 2 * slot, 2 + 2 * slot, 1 + 2 * num_slots + slot], axis=1)
-    rows = np.concatenate([np.arange(num_nodes), np.repeat(np.arange(num_nodes), blocks),
-                           np.repeat(block_row, 3), num_nodes + np.arange(sums)])
+    node = np.arange(num_nodes)[:, None]
+    slot = np.arange(num_slots)
+    # (N, M): the row that takes slot m's coefficients of node n.
+    block_row = (num_nodes + node * blocks + slot // block if sums
+                 else np.broadcast_to(node, (num_nodes, num_slots)))
+    # (N, M, 3): slot m's z_x, z_y and u columns in node n's block row.
+    coefficient_cols = np.broadcast_to(np.stack([1 + 2 * slot, 2 + 2 * slot,
+                                                 1 + 2 * num_slots + slot], axis=1),
+                                       (num_nodes, num_slots, 3))
+    first_rows = np.arange(num_nodes)
+    rows = np.concatenate([first_rows, np.repeat(first_rows, blocks),
+                           np.repeat(block_row.ravel(), 3), num_nodes + np.arange(sums)])
     cols = np.concatenate([np.zeros(num_nodes, dtype=int), e_col, coefficient_cols.ravel(),
                            e_col])
     vals = np.concatenate([np.ones(num_nodes + sums), np.zeros(3 * num_nodes * num_slots),
