@@ -370,12 +370,13 @@ class PlannerNode(Node):
                                    f'good plan stays published: {outcome.error}')
                 continue
             self.current_plan = outcome
-            self._publish(outcome)
-            self.plans_published += 1
             line = summary_line(outcome.result)
             if outcome.mission_path is not None:
                 line += f'; mission written to {outcome.mission_path}'
+            # Logged first, so that whoever receives the plan can already read its line.
             self.get_logger().info(line)
+            self._publish(outcome)
+            self.plans_published += 1
             if outcome.mission_error:
                 self._report_error(f'mission export failed, the plan is kept: '
                                    f'{outcome.mission_error}')
