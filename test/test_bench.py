@@ -36,18 +36,20 @@ def test_every_section_is_printed(output):
 
 def test_speed_table_shows_both_paths_reaching_the_same_objective(output):
     header, *rows = section(output, 'Speed:')
-    assert header.split() == ['case', 'runs', 'reference_s', 'fast_s', 'ratio',
-                              'reference_bps', 'fast_bps', 'rel_diff', 'ref_MiB', 'fast_MiB',
-                              'outer/sca_steps(ref', 'fast)']
+    assert header.split() == ['case', 'runs', 'reference_s', 'fast_s', 'ratio', 'fast_cold_s',
+                              'cold_ratio', 'reference_bps', 'fast_bps', 'rel_diff', 'ref_MiB',
+                              'fast_MiB', 'outer/sca_steps(ref', 'fast)']
     labels = [row[:15].strip() for row in rows]
     assert labels == ['letter case I', 'N=10, M=200']
     for row in rows:
-        runs, reference_s, fast_s, ratio, reference, fast, difference, *memory, steps_reference, \
-            steps_fast = row[15:].split()
+        runs, reference_s, fast_s, ratio, cold_s, cold_ratio, reference, fast, difference, \
+            *memory, steps_reference, steps_fast = row[15:].split()
         assert re.fullmatch(r'\d+/\d+', steps_fast) and re.fullmatch(r'\d+/\d+', steps_reference)
         assert int(runs) >= 1
         assert float(ratio.rstrip('x')) == pytest.approx(
             float(reference_s) / float(fast_s), rel=0.1, abs=0.1)
+        assert float(cold_ratio.rstrip('x')) == pytest.approx(
+            float(reference_s) / float(cold_s), rel=0.1, abs=0.1)
         assert float(fast) == pytest.approx(float(reference), rel=1e-6)
         assert float(difference) <= 1e-6
         assert all(float(mib) >= 0.0 for mib in memory)
@@ -92,3 +94,18 @@ def test_random_scenarios_are_reproducible_and_reachable():
     assert first == random_scenario(10, 200, 3, side_m=1500.0)
     assert first != random_scenario(10, 200, 4, side_m=1500.0)
     assert first.slot_s == 1.0 and first.goal_m == (1500.0, 1500.0)
+
+
+def test_a_cold_plan_builds_the_cone_structure_again_and_a_warm_one_reuses_it():
+    from uav_comm_planner.bench import FAST, timed_plan
+    from uav_comm_planner.fast_trajectory import cone_layout
+    from uav_comm_planner.scenario import SolverSettings
+
+    scenario = random_scenario(3, 30, 1, side_m=800.0)
+    settings = SolverSettings.letter(compute_baselines=False)
+    timed_plan(scenario, settings, FAST)
+    misses = cone_layout.cache_info().misses
+    timed_plan(scenario, settings, FAST)
+    assert cone_layout.cache_info().misses == misses
+    timed_plan(scenario, settings, FAST, cold=True)
+    assert cone_layout.cache_info().misses == 1
