@@ -314,7 +314,7 @@ class ClarabelTrajectoryStep:
         coef = surrogate_coefficients(q_k, p, self.scenario)
         # x / d^k is dimensionless, so the slope may be divided by d^k in km^2.
         weight = coef.slope / (coef.d / KM ** 2)
-        constant = (coef.value + weight * coef.horizontal / KM ** 2).mean(axis=1)
+        constant = (coef.value + weight * coef.horizontal / KM ** 2).sum(axis=1) / weight.shape[1]
         return NodeRows(weight=weight, constant=constant)
 
     def coefficients(self, rows: NodeRows) -> np.ndarray:
@@ -324,7 +324,7 @@ class ClarabelTrajectoryStep:
 
     def node_right_hand_side(self, rows: NodeRows) -> np.ndarray:
         """b of the N node rows: C_n - ||w_n||^2 (1/M) sum_m W_{n,m}."""
-        return rows.constant - self._w_squared * rows.weight.mean(axis=1)
+        return rows.constant - self._w_squared * (rows.weight.sum(axis=1) / rows.weight.shape[1])
 
     def cone_data(self, rows: NodeRows) -> tuple[np.ndarray, np.ndarray]:
         """A's entries in build order and b for these node rows."""

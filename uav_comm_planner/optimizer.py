@@ -14,7 +14,7 @@ from uav_comm_planner import initial
 from uav_comm_planner.errors import SolverError
 from uav_comm_planner.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
 from uav_comm_planner.model import (average_rates, snr_per_watt, snr_scale,
-                                    spectral_efficiency_to_rate)
+                                    spectral_efficiencies, spectral_efficiency_to_rate)
 from uav_comm_planner.power import conic_power, PowerAllocation, waterfilling_power
 from uav_comm_planner.scenario import Scenario, SolverSettings
 from uav_comm_planner.trajectory import trajectory_step_cvxpy, TrajectoryStep
@@ -128,7 +128,7 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
     history: list[Step] = []
 
     def min_rate(a_now: np.ndarray, p_now: np.ndarray) -> float:
-        bits = np.log2(1.0 + p_now * a_now).mean(axis=1).min()
+        bits = spectral_efficiencies(a_now, p_now).min()
         return float(spectral_efficiency_to_rate(bits, scenario))
 
     def power_step(a_now: np.ndarray) -> tuple[np.ndarray, float]:

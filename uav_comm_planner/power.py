@@ -22,6 +22,7 @@ import numpy as np
 
 from uav_comm_planner.conic import solve_to_optimality
 from uav_comm_planner.errors import SolverError
+from uav_comm_planner.model import spectral_efficiencies
 
 _NEWTON_MAX_STEPS = 200
 
@@ -90,7 +91,7 @@ def _levels_if_all_active(a: np.ndarray, inv_a: np.ndarray,
     when every slot is then active, mu_n >= 1/a_n[m]; otherwise None. The usual case at high
     SNR, where it spares the sort and Newton's method.
     """
-    mean_log = np.log2(a).mean(axis=1)
+    mean_log = np.log2(a).sum(axis=1) / a.shape[1]
     inverse_g = np.exp2(mean_log.min() - mean_log)        # G_min / G_n, in (0, 1]
     mu = (power_budget_w + inv_a.sum()) / (a.shape[1] * inverse_g.sum()) * inverse_g
     return mu if (mu * a.min(axis=1)).min() >= 1.0 else None
@@ -131,7 +132,7 @@ def waterfilling_power(a: np.ndarray, power_budget_w: float) -> PowerAllocation:
     total = float(p.sum())
     if total > power_budget_w:
         p *= power_budget_w / total
-    efficiency = float(np.log2(1.0 + p * a).mean(axis=1).min())
+    efficiency = float(spectral_efficiencies(a, p).min())
     return PowerAllocation(p=p, efficiency=efficiency)
 
 
@@ -159,5 +160,5 @@ def conic_power(a: np.ndarray, power_budget_w: float, *, solver: str = 'CLARABEL
     total = p.sum()
     if total > power_budget_w:
         p *= power_budget_w / total
-    efficiency = float(np.log2(1.0 + p * a).mean(axis=1).min())
+    efficiency = float(spectral_efficiencies(a, p).min())
     return PowerAllocation(p=p, efficiency=efficiency)
