@@ -108,11 +108,10 @@ class ConeLayout:
         return 1 + 3 * self.num_slots + self.num_sums
 
     @functools.cached_property
-    def node_entries(self) -> tuple[list[int], np.ndarray]:
+    def node_entries(self) -> tuple[np.ndarray, np.ndarray]:
         """The entries that change between steps (the block rows' z and u coefficients).
 
-        Returns their positions in A's CSC data, ascending, as a list (Clarabel's update
-        reads a list several times faster than an array), and the indices of the same entries
+        Returns their positions in A's CSC data, ascending, and the indices of the same entries
         in the (N, M, 3) coefficient array, in the same order.
         """
         build_to_csc = np.empty_like(self.to_csc)
@@ -120,7 +119,7 @@ class ConeLayout:
         build = np.arange(self.first_coefficient,
                           self.first_coefficient + 3 * self.num_nodes * self.num_slots)
         order = np.argsort(build_to_csc[build])
-        return build_to_csc[build][order].tolist(), build[order] - self.first_coefficient
+        return build_to_csc[build][order], build[order] - self.first_coefficient
 
     def matrix(self, values: np.ndarray) -> sparse.csc_matrix:
         """A (rows, columns) from entries in build order."""
@@ -129,14 +128,10 @@ class ConeLayout:
 
     def clarabel_matrices(self, values: np.ndarray) -> tuple[CscLists, CscLists]:
         """P = 0 (columns x columns) and A from entries in build order, as Clarabel reads them."""
-        structure = self._structure_lists
-        a = CscLists(values[self.to_csc].tolist(), *structure, (self.num_rows, self.num_columns))
+        a = CscLists(values[self.to_csc].tolist(), self.indices.tolist(), self.indptr.tolist(),
+                     (self.num_rows, self.num_columns))
         p = CscLists([], [], [0] * (self.num_columns + 1), (self.num_columns, self.num_columns))
         return p, a
-
-    @functools.cached_property
-    def _structure_lists(self) -> tuple[list[int], list[int]]:
-        return self.indices.tolist(), self.indptr.tolist()
 
     @functools.cached_property
     def cones(self) -> tuple:
@@ -296,6 +291,7 @@ class ClarabelTrajectoryStep:
         self.objective = np.zeros(self.layout.num_columns)
         self.objective[0] = -1.0
         self._solver = None
+        self._update_positions = None
 
     def _fixed_right_hand_side(self) -> np.ndarray:
         m = self.scenario.num_slots
@@ -345,8 +341,11 @@ class ClarabelTrajectoryStep:
                 clarabel_settings(refine=self.refine))
         else:
             positions, coefficient = self.layout.node_entries
+            if self._update_positions is None:
+                # A list for this plan only; the cached layout keeps arrays, a fifth the size.
+                self._update_positions = positions.tolist()
             changed = self.coefficients(rows).ravel()[coefficient]
-            self._solver.update(A=(positions, changed.tolist()),
+            self._solver.update(A=(self._update_positions, changed.tolist()),
                                 b=(self._node_index, self.node_right_hand_side(rows).tolist()))
         return self._solver.solve()
 
