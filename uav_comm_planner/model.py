@@ -24,11 +24,6 @@ def squared_distances(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     return dx
 
 
-def channel_gains(q: np.ndarray, scenario: Scenario) -> np.ndarray:
-    """g_n[m] = beta0 / (||q[m] - w_n||^2 + H^2): (N, M), line of sight."""
-    return scenario.reference_gain / squared_distances(q, scenario)
-
-
 def snr_scale(scenario: Scenario) -> float:
     """N beta0 / (B sigma^2): a_n[m] d_n[m], the SNR per watt at a squared distance of 1 m^2."""
     return scenario.num_nodes * scenario.reference_gain / (
@@ -36,7 +31,8 @@ def snr_scale(scenario: Scenario) -> float:
 
 
 def snr_per_watt(q: np.ndarray, scenario: Scenario) -> np.ndarray:
-    """a_n[m] = N g_n[m] / (B sigma^2): (N, M) per watt (OFDMA, B/N per node)."""
+    """a_n[m] = N g_n[m] / (B sigma^2): (N, M) per watt (OFDMA, B/N per node), with the
+    line-of-sight gain g_n[m] = beta0 / d_n[m]."""
     return snr_scale(scenario) / squared_distances(q, scenario)
 
 
