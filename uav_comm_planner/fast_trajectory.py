@@ -35,7 +35,8 @@ from scipy import sparse
 from uav_comm_planner.errors import SolverError
 from uav_comm_planner.model import leg_lengths
 from uav_comm_planner.scenario import Scenario
-from uav_comm_planner.trajectory import KM, surrogate_coefficients, TrajectoryStep
+from uav_comm_planner.trajectory import (kilometre_rows, KM, surrogate_coefficients,
+                                         TrajectoryStep)
 
 
 def block_slots(num_nodes: int) -> int:
@@ -307,10 +308,7 @@ class ClarabelTrajectoryStep:
 
     def node_rows(self, q_k: np.ndarray, p: np.ndarray) -> NodeRows:
         """The bound's weights and constants, expanded at q_k (M, 2) with power p (N, M)."""
-        coef = surrogate_coefficients(q_k, p, self.scenario)
-        # x / d^k is dimensionless, so the slope may be divided by d^k in km^2.
-        weight = coef.slope / (coef.d / KM ** 2)
-        constant = (coef.value + weight * coef.horizontal / KM ** 2).sum(axis=1) / weight.shape[1]
+        weight, constant = kilometre_rows(surrogate_coefficients(q_k, p, self.scenario))
         return NodeRows(weight=weight, constant=constant)
 
     def coefficients(self, rows: NodeRows) -> np.ndarray:

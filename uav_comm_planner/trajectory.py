@@ -54,6 +54,16 @@ def surrogate_coefficients(q_k: np.ndarray, p: np.ndarray,
                                  d=d, horizontal=d - scenario.altitude_m ** 2)
 
 
+def kilometre_rows(coef: SurrogateCoefficients) -> tuple[np.ndarray, np.ndarray]:
+    """The bound in kilometres: mean_m lbr_{n,m}(q) = constant_n - (1/M) sum_m weight_{n,m}
+    ||z[m] - w_n||^2 with z = q / 1000 and w_n / 1000. Returns weight (N, M), per km^2, and
+    constant (N,), bits per use."""
+    # x / d^k is dimensionless, so the slope may be divided by d^k in km^2.
+    weight = coef.slope / (coef.d / KM ** 2)
+    constant = (coef.value + weight * coef.horizontal / KM ** 2).sum(axis=1) / weight.shape[1]
+    return weight, constant
+
+
 def sca_lower_bound(q: np.ndarray, q_k: np.ndarray, p: np.ndarray,
                     scenario: Scenario) -> np.ndarray:
     """lbr_{n,m}(q) expanded at q^k: (N, M) bits per use, a lower bound of log2(1 + p a(q))."""
@@ -85,12 +95,9 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
     Variables are z = q / 1000 (kilometres) and t (bits per use): maximise t subject to
     mean_m lbr_{n,m}(z) >= t for every node and every leg at most V delta.
     """
-    coef = surrogate_coefficients(q_k, p, scenario)
+    weight, constant = kilometre_rows(surrogate_coefficients(q_k, p, scenario))
     m = scenario.num_slots
     w = scenario.nodes / KM
-    # x / d^k is dimensionless, so the slope may be divided by d^k in km^2.
-    weight = coef.slope / (coef.d / KM ** 2)
-    constant = (coef.value + weight * coef.horizontal / KM ** 2).mean(axis=1)
 
     z = cp.Variable((m, 2))
     t = cp.Variable()
