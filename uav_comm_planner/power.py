@@ -39,6 +39,15 @@ class PowerAllocation:
     efficiency: float
 
 
+def _within_budget(p: np.ndarray, a: np.ndarray, power_budget_w: float) -> PowerAllocation:
+    """p >= 0 (N, M), scaled down in place if round-off put its total above the budget, with
+    the efficiency it reaches for SNR per watt a."""
+    total = float(p.sum())
+    if total > power_budget_w:
+        p *= power_budget_w / total
+    return PowerAllocation(p=p, efficiency=float(spectral_efficiencies(a, p).min()))
+
+
 class _WaterLevels:
     """Per-node minimum power as a function of the common target c, for fixed a (N, M)."""
 
@@ -129,11 +138,7 @@ def waterfilling_power(a: np.ndarray, power_budget_w: float) -> PowerAllocation:
         mu = _newton_levels(a, power_budget_w)
     p = mu[:, None] - inv_a
     np.maximum(p, 0.0, out=p)
-    total = float(p.sum())
-    if total > power_budget_w:
-        p *= power_budget_w / total
-    efficiency = float(spectral_efficiencies(a, p).min())
-    return PowerAllocation(p=p, efficiency=efficiency)
+    return _within_budget(p, a, power_budget_w)
 
 
 def conic_power(a: np.ndarray, power_budget_w: float, *, solver: str = 'CLARABEL',
@@ -156,9 +161,4 @@ def conic_power(a: np.ndarray, power_budget_w: float, *, solver: str = 'CLARABEL
     options = dict(CLARABEL_TIGHT) if solver == 'CLARABEL' else {}
     options.update(solver_options)
     solve_to_optimality(problem, 'power step', solver, **options)
-    p = power_budget_w * np.maximum(x.value, 0.0)
-    total = p.sum()
-    if total > power_budget_w:
-        p *= power_budget_w / total
-    efficiency = float(spectral_efficiencies(a, p).min())
-    return PowerAllocation(p=p, efficiency=efficiency)
+    return _within_budget(power_budget_w * np.maximum(x.value, 0.0), a, power_budget_w)
