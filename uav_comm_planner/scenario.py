@@ -6,6 +6,7 @@ planning frame is east-north metres with the ground at z = 0.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 import functools
 import math
@@ -151,9 +152,7 @@ class Scenario:
 
     def replace(self, **changes) -> 'Scenario':
         """A copy with some fields changed (validated again)."""
-        fields = {name: getattr(self, name) for name in self.__dataclass_fields__}
-        fields.update(changes)
-        return Scenario(**fields)
+        return dataclasses.replace(self, **changes)
 
 
 @dataclass(frozen=True)
