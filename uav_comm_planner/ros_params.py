@@ -26,6 +26,8 @@ from uav_comm_planner.mission import FIRMWARE_TYPES, MISSION_ENDS, MISSION_FORMA
 from uav_comm_planner.scenario import paper_scenario, Point, Scenario, SolverSettings
 
 MISSION_FIRMWARES = tuple(FIRMWARE_TYPES)
+#: Node settings that take one of a few names, and the names.
+CHOICES = {'mission_end': MISSION_ENDS, 'mission_firmware': MISSION_FIRMWARES}
 
 ParameterValue = typing.Union[bool, int, float, str, list]
 
@@ -59,13 +61,10 @@ class NodeSettings:
         except InvalidScenarioError as exc:
             raise InvalidScenarioError(
                 f'home_latitude_deg, home_longitude_deg, home_altitude_m: {exc}') from None
-        if self.mission_end not in MISSION_ENDS:
-            raise InvalidScenarioError(
-                f'mission_end must be one of {MISSION_ENDS}, got {self.mission_end!r}')
-        if self.mission_firmware not in MISSION_FIRMWARES:
-            raise InvalidScenarioError(
-                f'mission_firmware must be one of {MISSION_FIRMWARES}, '
-                f'got {self.mission_firmware!r}')
+        for name, allowed in CHOICES.items():
+            value = getattr(self, name)
+            if value not in allowed:
+                raise InvalidScenarioError(f'{name} must be one of {allowed}, got {value!r}')
 
     @property
     def home(self) -> Home:
@@ -165,10 +164,8 @@ class ParameterSpec:
         descriptor = ParameterDescriptor(
             name=self.name,
             description=DESCRIPTIONS.get(self.field, f'{self.owner.__name__}.{self.field}'))
-        if self.field == 'mission_end':
-            descriptor.additional_constraints = f'one of {", ".join(MISSION_ENDS)}'
-        elif self.field == 'mission_firmware':
-            descriptor.additional_constraints = f'one of {", ".join(MISSION_FIRMWARES)}'
+        if self.field in CHOICES:
+            descriptor.additional_constraints = f'one of {", ".join(CHOICES[self.field])}'
         elif self.kind == 'pair':
             descriptor.additional_constraints = 'exactly two values: x, y'
         elif self.kind == 'pairs':
