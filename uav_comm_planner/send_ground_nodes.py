@@ -26,8 +26,7 @@ from visualization_msgs.msg import MarkerArray
 from uav_comm_planner.node import (GROUND_NODES_QOS, OUTPUT_QOS, TOPIC_GROUND_NODES,
                                    TOPIC_MARKERS, TOPIC_PATH)
 from uav_comm_planner.ros_messages import nanoseconds_of, pose_array
-
-Point = tuple[float, float]
+from uav_comm_planner.scenario import Point
 
 
 def parse_point(text: str) -> Point:
