@@ -34,3 +34,13 @@ def test_a_failed_write_keeps_the_old_file_and_leaves_no_temporary(tmp_path):
 def test_missing_folder_is_a_clear_error(tmp_path):
     with pytest.raises(FileNotFoundError, match='does not exist'):
         write_text_atomic(tmp_path / 'no' / 'plan.json', 'x')
+
+
+def test_a_folder_in_the_way_is_a_clear_error_and_nothing_is_written(tmp_path):
+    (tmp_path / 'plan.json').mkdir()
+    with pytest.raises(IsADirectoryError, match='it is a folder'):
+        write_text_atomic(tmp_path / 'plan.json', 'x')
+    (tmp_path / 'file').write_text('x')
+    with pytest.raises(NotADirectoryError, match='is not a folder'):
+        write_text_atomic(tmp_path / 'file' / 'plan.json', 'x')
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['file', 'plan.json']

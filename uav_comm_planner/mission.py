@@ -44,7 +44,7 @@ import numpy as np
 from pymavlink import mavutil, mavwp
 
 from uav_comm_planner.errors import MissionExportError
-from uav_comm_planner.files import atomic_path
+from uav_comm_planner.files import write_with
 from uav_comm_planner.geodesy import DEFAULT_HOME, enu_to_geodetic, Home
 from uav_comm_planner.model import flown_path
 from uav_comm_planner.optimizer import PlanResult
@@ -423,17 +423,8 @@ def export_mission(result: PlanResult, path: str | os.PathLike, home: Home, *,
 
 
 def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
-    folder = target.parent
-    if not folder.exists():
-        raise MissionExportError(f'cannot write {str(target)!r}: folder {str(folder)!r} '
-                                 f'does not exist')
-    if not folder.is_dir():
-        raise MissionExportError(f'cannot write {str(target)!r}: {str(folder)!r} is not a folder')
-    if target.is_dir():
-        raise MissionExportError(f'cannot write {str(target)!r}: it is a folder')
     try:
-        with atomic_path(target) as temporary:
-            writer(temporary)
+        write_with(target, writer)
     except MissionExportError:
         raise
     except (OSError, ValueError, TypeError, mavwp.MAVWPError) as exc:
