@@ -6,8 +6,6 @@ import os
 from pathlib import Path
 from typing import Sequence
 
-import numpy as np
-
 from uav_comm_planner.files import write_with
 from uav_comm_planner.model import flown_path, speeds
 from uav_comm_planner.optimizer import PlanResult
@@ -48,7 +46,7 @@ def plan_figure(result: PlanResult, path: str | os.PathLike, *, title: str = '')
     ax_path.set_aspect('equal', adjustable='datalim')
     ax_path.legend(loc='best', fontsize=8)
 
-    leg_end_times = scenario.slot_s * np.arange(1, scenario.num_slots + 2)
+    leg_end_times = scenario.path_times_s[1:]
     ax_speed.step(leg_end_times, speeds(result.trajectory, scenario), where='pre')
     ax_speed.axhline(scenario.max_speed_mps, color='grey', linestyle=':', label='V')
     ax_speed.set(xlabel='time (s)', ylabel='speed (m/s)', title='speed')
