@@ -18,6 +18,7 @@ from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import write_text_atomic
 from uav_comm_planner.geodesy import DEFAULT_HOME, Home
 from uav_comm_planner.optimizer import plan, PlanResult
+from uav_comm_planner.plots import METHOD_LABELS
 from uav_comm_planner.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.serialize import result_to_dict, scenario_from_dict
 
@@ -115,13 +116,10 @@ def _settings(args: argparse.Namespace) -> SolverSettings:
 def format_plan(result: PlanResult) -> str:
     """The short table of one plan: the proposed method against both baselines."""
     scenario = result.scenario
-    rows = [('proposed (joint power and trajectory)', result.min_throughput)]
-    rows += [(label, result.baselines[key]) for key, label in
-             (('straight', 'straight line, optimal power'),
-              ('static', 'static access point, optimal power')) if key in result.baselines]
-    upper_bound = getattr(result, 'upper_bound', None)
-    if upper_bound is not None:
-        rows.append(('upper bound (every channel at its best)', upper_bound))
+    rows = [(METHOD_LABELS['proposed'], result.min_throughput)]
+    rows += [(METHOD_LABELS[key], result.baselines[key]) for key in ('straight', 'static')
+             if key in result.baselines]
+    rows.append(('upper bound (every channel at its best)', result.upper_bound))
     lines = [f'N = {scenario.num_nodes} nodes, M = {scenario.num_slots} slots of '
              f'{scenario.slot_s:g} s, P_T = {scenario.power_budget_w:g} W, '
              f'H = {scenario.altitude_m:g} m, V = {scenario.max_speed_mps:g} m/s',

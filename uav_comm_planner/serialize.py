@@ -41,7 +41,7 @@ def scenario_from_dict(data: Mapping[str, Any], base: Scenario | None = None) ->
 def result_to_dict(result: PlanResult) -> dict[str, Any]:
     """The plan with the keys trajectory, times, power, rates, min_throughput, baselines,
     history and scenario (units: metres, seconds, watts, bit/s), plus how it was solved."""
-    data: dict[str, Any] = {
+    return {
         'trajectory': result.trajectory.tolist(),
         'times': result.times.tolist(),
         'power': result.power.tolist(),
@@ -56,8 +56,5 @@ def result_to_dict(result: PlanResult) -> dict[str, Any]:
         'outer_iterations': result.outer_iterations,
         'trajectory_steps': result.trajectory_steps,
         'start': result.start,
+        'upper_bound': result.upper_bound,
     }
-    upper_bound = getattr(result, 'upper_bound', None)
-    if upper_bound is not None:
-        data['upper_bound'] = upper_bound
-    return data
