@@ -6,7 +6,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml) \
-           $(wildcard uav_comm_planner/*.py) resource/uav_comm_planner
+           $(wildcard uav_comm_planner/*.py uav_comm_planner/*/*.py) resource/uav_comm_planner
 
 # One DDS domain per run, discovery on this machine only, so that test runs
 # and planners on a shared machine do not hear each other.

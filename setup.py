@@ -43,9 +43,9 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            f'planner = {PACKAGE}.node:main',
-            f'send_ground_nodes = {PACKAGE}.send_ground_nodes:main',
-            f'uav-comm-planner = {PACKAGE}.cli:main',
+            f'planner = {PACKAGE}.ros.node:main',
+            f'send_ground_nodes = {PACKAGE}.ros.send_ground_nodes:main',
+            f'uav-comm-planner = {PACKAGE}.tools.cli:main',
         ],
     },
 )

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from uav_comm_planner import cli
+from uav_comm_planner.tools import cli
 
 
 def run(capsys, *argv):

@@ -8,12 +8,12 @@ import pytest
 from scipy import sparse
 
 from uav_comm_planner import paper_scenario, plan, Scenario, SolverError, SolverSettings
-from uav_comm_planner.fast_trajectory import (clarabel_settings, ClarabelTrajectoryStep,
+from uav_comm_planner.core.fast_trajectory import (clarabel_settings, ClarabelTrajectoryStep,
                                               cone_layout, trajectory_step_clarabel)
-from uav_comm_planner.initial import straight_line
-from uav_comm_planner.model import leg_lengths, snr_per_watt
-from uav_comm_planner.power import waterfilling_power
-from uav_comm_planner.trajectory import KM, sca_lower_bound, trajectory_step_cvxpy
+from uav_comm_planner.core.initial import straight_line
+from uav_comm_planner.core.model import leg_lengths, snr_per_watt
+from uav_comm_planner.core.power import waterfilling_power
+from uav_comm_planner.core.trajectory import KM, sca_lower_bound, trajectory_step_cvxpy
 
 
 def random_scenario(seed: int) -> Scenario:

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import paper_scenario, plan
-from uav_comm_planner.model import speeds
+from uav_comm_planner.core.model import speeds
 
 SWEEP_BUDGETS_W = (0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
 

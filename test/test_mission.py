@@ -15,11 +15,11 @@ from pymavlink import mavwp
 import pytest
 
 from uav_comm_planner import InvalidScenarioError, MissionExportError, paper_scenario, plan
-from uav_comm_planner import mission
-from uav_comm_planner.geodesy import DEFAULT_HOME, enu_to_geodetic, geodetic_to_enu, Home
-from uav_comm_planner.mission import build_mission_items, export_mission
-from uav_comm_planner.optimizer import PlanResult
-from uav_comm_planner.scenario import Scenario
+from uav_comm_planner.vehicle import mission
+from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, geodetic_to_enu, Home
+from uav_comm_planner.vehicle.mission import build_mission_items, export_mission
+from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.scenario import Scenario
 
 WAYPOINT, TAKEOFF, LAND, RTL, CHANGE_SPEED = 16, 22, 21, 20, 178
 POSITION_TOLERANCE_M = 0.5
@@ -434,7 +434,7 @@ def test_items_need_no_file(case_one, home):
 # The command line, as a new user runs it.
 
 def test_command_line_writes_a_mission_that_pymavlink_loads(tmp_path, capsys):
-    from uav_comm_planner import cli
+    from uav_comm_planner.tools import cli
     target = tmp_path / 'm.waypoints'
     status = cli.main(['plan', '--case', 'I', '--mission', str(target),
                        '--home', '47.397742,8.545594,488'])
@@ -447,7 +447,7 @@ def test_command_line_writes_a_mission_that_pymavlink_loads(tmp_path, capsys):
 
 
 def test_command_line_writes_a_px4_plan_that_returns_to_launch(tmp_path, capsys):
-    from uav_comm_planner import cli
+    from uav_comm_planner.tools import cli
     target = tmp_path / 'm.plan'
     # A southern latitude starts with '-', so argparse needs it attached with '='.
     status = cli.main(['plan', '--case', 'II', '--mission', str(target),
@@ -464,7 +464,7 @@ def test_command_line_writes_a_px4_plan_that_returns_to_launch(tmp_path, capsys)
     ('m.kml', 'unknown mission format'), ('nowhere/m.waypoints', 'does not exist')])
 def test_command_line_refuses_a_bad_mission_file_before_planning(tmp_path, capsys, monkeypatch,
                                                                  mission_file, message):
-    from uav_comm_planner import cli
+    from uav_comm_planner.tools import cli
     monkeypatch.chdir(tmp_path)
     assert cli.main(['plan', '--case', 'I', '--mission', mission_file]) == 2
     out, err = capsys.readouterr()
@@ -475,7 +475,7 @@ def test_command_line_refuses_a_bad_mission_file_before_planning(tmp_path, capsy
 @pytest.mark.parametrize('home_text, message', [
     ('47.3,8.5', 'LAT,LON,ALT'), ('47.3,200,400', 'longitude must be in')])
 def test_command_line_refuses_a_bad_home(tmp_path, capsys, home_text, message):
-    from uav_comm_planner import cli
+    from uav_comm_planner.tools import cli
     with pytest.raises(SystemExit) as stop:
         cli.main(['plan', '--mission', str(tmp_path / 'm.waypoints'), '--home', home_text])
     assert stop.value.code == 2 and message in capsys.readouterr().err

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import paper_scenario
-from uav_comm_planner.initial import straight_line
-from uav_comm_planner.model import average_rates, leg_lengths, min_rate, snr_per_watt, speeds
+from uav_comm_planner.core.initial import straight_line
+from uav_comm_planner.core.model import average_rates, leg_lengths, min_rate, snr_per_watt, speeds
 
 
 def rates_by_the_letter(q, p, scenario):

@@ -33,11 +33,12 @@ from visualization_msgs.msg import MarkerArray
 
 from uav_comm_planner import (InfeasibleHorizonError, paper_scenario, plan, SolverError,
                               SolverSettings)
-from uav_comm_planner.node import (GROUND_NODES_QOS, NODE_NAME, OUTPUT_QOS, PlannerNode,
-                                   TOPIC_GROUND_NODES, TOPIC_MARKERS, TOPIC_MIN_THROUGHPUT,
-                                   TOPIC_PATH, TOPIC_POWER, TOPIC_UAV_POSE)
-from uav_comm_planner.ros_messages import nanoseconds_of, pose_array
-from uav_comm_planner.send_ground_nodes import describe, GroundNodesSender
+from uav_comm_planner.ros.messages import nanoseconds_of, pose_array
+from uav_comm_planner.ros.node import (GROUND_NODES_QOS, NODE_NAME, PlannerNode,
+                                       TOPIC_GROUND_NODES, TOPIC_UAV_POSE)
+from uav_comm_planner.ros.publishing import (OUTPUT_QOS, TOPIC_MARKERS, TOPIC_MIN_THROUGHPUT,
+                                             TOPIC_PATH, TOPIC_POWER)
+from uav_comm_planner.ros.send_ground_nodes import describe, GroundNodesSender
 
 DEADLINE_S = 30.0
 PROCESS_DEADLINE_S = 90.0

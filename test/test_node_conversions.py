@@ -13,12 +13,13 @@ import yaml
 
 from uav_comm_planner import (InfeasibleHorizonError, InvalidScenarioError, paper_scenario,
                               plan, Scenario, SolverSettings)
-from uav_comm_planner.node import LatestOnlyWorker, remaining_scenario, summary_line
-from uav_comm_planner.optimizer import PlanResult
-from uav_comm_planner.ros_messages import (ground_nodes_of, headings, marker_array,
+from uav_comm_planner.ros.publishing import summary_line
+from uav_comm_planner.ros.worker import LatestOnlyWorker, remaining_scenario
+from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.ros.messages import (ground_nodes_of, headings, marker_array,
                                            nanoseconds_of, path_message, pose_array,
                                            power_message)
-from uav_comm_planner.ros_params import (config_from_parameters, NodeSettings, PARAMETER_NAMES,
+from uav_comm_planner.ros.params import (config_from_parameters, NodeSettings, PARAMETER_NAMES,
                                          parameter_specs)
 
 CONFIG = Path(__file__).resolve().parent.parent / 'config' / 'planner.yaml'

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import paper_scenario, plan, Scenario, SolverError, SolverSettings
-from uav_comm_planner.initial import straight_line
-from uav_comm_planner.model import average_rates, leg_lengths
-from uav_comm_planner.optimizer import alternate, baseline_rates
+from uav_comm_planner.core.initial import straight_line
+from uav_comm_planner.core.model import average_rates, leg_lengths
+from uav_comm_planner.core.optimizer import alternate, baseline_rates
 
 
 def random_scenario(seed: int, nodes: int = 5, slots: int = 40) -> Scenario:

@@ -5,9 +5,9 @@ import pytest
 
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.errors import SolverError
-from uav_comm_planner.initial import static_point, straight_line
-from uav_comm_planner.model import snr_per_watt
-from uav_comm_planner.power import conic_power, waterfilling_power
+from uav_comm_planner.core.initial import static_point, straight_line
+from uav_comm_planner.core.model import snr_per_watt
+from uav_comm_planner.core.power import conic_power, waterfilling_power
 
 
 def letter_cases():
@@ -92,7 +92,7 @@ def test_conic_failure_is_reported(monkeypatch):
 
 
 def test_newton_starts_at_or_above_the_root_and_at_it_when_every_slot_is_active():
-    from uav_comm_planner.power import _WaterLevels
+    from uav_comm_planner.core.power import _WaterLevels
     rng = np.random.default_rng(9)
     for _ in range(300):
         n, m = rng.integers(1, 8), rng.integers(1, 80)
@@ -108,7 +108,7 @@ def test_newton_starts_at_or_above_the_root_and_at_it_when_every_slot_is_active(
 
 
 def test_closed_form_levels_are_newtons_when_every_slot_is_active_and_absent_otherwise():
-    from uav_comm_planner.power import _levels_if_all_active, _newton_levels
+    from uav_comm_planner.core.power import _levels_if_all_active, _newton_levels
     rng = np.random.default_rng(21)
     seen = {True: 0, False: 0}
     for _ in range(300):

@@ -7,10 +7,10 @@ import pytest
 
 from uav_comm_planner import (InvalidScenarioError, paper_scenario, plan, Scenario,
                               SolverSettings)
-from uav_comm_planner.initial import (even_hovers, hover_and_fly, nearest_neighbour_order,
+from uav_comm_planner.core.initial import (even_hovers, hover_and_fly, nearest_neighbour_order,
                                       straight_line, tour_order, two_opt)
-from uav_comm_planner.model import average_rates, leg_lengths
-from uav_comm_planner.optimizer import throughput_upper_bound
+from uav_comm_planner.core.model import average_rates, leg_lengths
+from uav_comm_planner.core.optimizer import throughput_upper_bound
 
 
 def random_scenario(seed: int, nodes: int = 6, slots: int = 60, **changes) -> Scenario:

@@ -9,8 +9,8 @@ The numerical core (scenario, model, power, trajectory, optimizer) has no ROS in
 
 from uav_comm_planner.errors import (InfeasibleHorizonError, InvalidScenarioError,
                                      MissionExportError, PlannerError, SolverError)
-from uav_comm_planner.optimizer import plan, PlanResult
-from uav_comm_planner.scenario import paper_scenario, Scenario, SolverSettings
+from uav_comm_planner.core.optimizer import plan, PlanResult
+from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 
 __all__ = [
     'InfeasibleHorizonError', 'InvalidScenarioError', 'MissionExportError', 'PlanResult',

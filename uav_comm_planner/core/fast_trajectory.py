@@ -1,6 +1,6 @@
 """The SCA trajectory step on Clarabel directly: a sparse cone program built once per plan.
 
-Same problem as :func:`uav_comm_planner.trajectory.trajectory_step_cvxpy` (letter, problem (11)):
+Same problem as :func:`uav_comm_planner.core.trajectory.trajectory_step_cvxpy` (letter, problem (11)):
 maximise t subject to mean_m lbr_{n,m}(q) >= t for every node n and every leg at most V delta.
 With z[m] = (q[m] - c) / 1000 (kilometres, about a centre c of the scene), the bound's weight
 W_{n,m} = slope_{n,m} / d^k_{n,m} (d^k in km^2) and an epigraph variable u[m] >= ||z[m]||^2,
@@ -33,9 +33,9 @@ import numpy as np
 from scipy import sparse
 
 from uav_comm_planner.errors import SolverError
-from uav_comm_planner.model import leg_lengths
-from uav_comm_planner.scenario import Scenario
-from uav_comm_planner.trajectory import (kilometre_rows, KM, surrogate_coefficients,
+from uav_comm_planner.core.model import leg_lengths
+from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.core.trajectory import (kilometre_rows, KM, surrogate_coefficients,
                                          TrajectoryStep)
 
 
@@ -263,7 +263,7 @@ ATTEMPTS = ((True, False), (True, True), (False, True))
 class ClarabelTrajectoryStep:
     """SCA trajectory steps for one scenario, on one Clarabel solver updated in place.
 
-    Call it like :func:`~uav_comm_planner.trajectory.trajectory_step_cvxpy`:
+    Call it like :func:`~uav_comm_planner.core.trajectory.trajectory_step_cvxpy`:
     ``step = stepper(q_k, p, scenario)`` with q_k (M, 2) metres and p (N, M) watts. One
     instance serves one plan on one thread (the solver inside is mutable).
     """

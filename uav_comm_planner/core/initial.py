@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uav_comm_planner.scenario import Scenario
+from uav_comm_planner.core.scenario import Scenario
 
 
 def straight_line(scenario: Scenario) -> np.ndarray:

@@ -10,14 +10,14 @@ from typing import Callable
 
 import numpy as np
 
-from uav_comm_planner import initial
+from uav_comm_planner.core import initial
 from uav_comm_planner.errors import SolverError
-from uav_comm_planner.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
-from uav_comm_planner.model import (average_rates, snr_per_watt, snr_scale,
+from uav_comm_planner.core.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
+from uav_comm_planner.core.model import (average_rates, snr_per_watt, snr_scale,
                                     spectral_efficiencies, spectral_efficiency_to_rate)
-from uav_comm_planner.power import conic_power, PowerAllocation, waterfilling_power
-from uav_comm_planner.scenario import Scenario, SolverSettings
-from uav_comm_planner.trajectory import trajectory_step_cvxpy, TrajectoryStep
+from uav_comm_planner.core.power import conic_power, PowerAllocation, waterfilling_power
+from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.core.trajectory import trajectory_step_cvxpy, TrajectoryStep
 
 logger = logging.getLogger(__name__)
 
@@ -203,7 +203,7 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     """Jointly optimise the trajectory and the transmit power for ``scenario``.
 
     Runs the letter's Algorithm 1 from every start in ``settings.starts`` (by default the
-    straight line q0 -> qF at uniform speed and :func:`~uav_comm_planner.initial.hover_and_fly`)
+    straight line q0 -> qF at uniform speed and :func:`~uav_comm_planner.core.initial.hover_and_fly`)
     and returns the best as a :class:`PlanResult`; ties go to the earlier start. The default
     methods are the exact water-filling power step and the SCA step on one Clarabel solver
     updated in place; ``power_method='conic', trajectory_method='cvxpy'`` rebuilds cvxpy

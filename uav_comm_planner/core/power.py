@@ -20,9 +20,9 @@ import math
 import cvxpy as cp
 import numpy as np
 
-from uav_comm_planner.conic import solve_to_optimality
+from uav_comm_planner.core.conic import solve_to_optimality
 from uav_comm_planner.errors import SolverError
-from uav_comm_planner.model import spectral_efficiencies
+from uav_comm_planner.core.model import spectral_efficiencies
 
 _NEWTON_MAX_STEPS = 200
 

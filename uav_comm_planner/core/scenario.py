@@ -21,7 +21,7 @@ DUPLICATE_NODE_DISTANCE_M = 1e-3
 
 Point = tuple[float, float]
 
-#: Initial trajectories Algorithm 1 can start from (see :mod:`uav_comm_planner.initial`).
+#: Initial trajectories Algorithm 1 can start from (see :mod:`uav_comm_planner.core.initial`).
 START_NAMES = ('straight', 'hover')
 
 

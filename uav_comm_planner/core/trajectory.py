@@ -22,9 +22,9 @@ from typing import Callable
 import cvxpy as cp
 import numpy as np
 
-from uav_comm_planner.conic import solve_to_optimality
-from uav_comm_planner.model import snr_scale, squared_distances
-from uav_comm_planner.scenario import Scenario
+from uav_comm_planner.core.conic import solve_to_optimality
+from uav_comm_planner.core.model import snr_scale, squared_distances
+from uav_comm_planner.core.scenario import Scenario
 
 #: The conic problems see positions in kilometres: coordinates of order 1, not 1000.
 KM = 1000.0

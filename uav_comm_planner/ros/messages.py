@@ -18,8 +18,8 @@ import numpy as np
 from std_msgs.msg import ColorRGBA, Float64MultiArray, Header, MultiArrayDimension
 from visualization_msgs.msg import Marker, MarkerArray
 
-from uav_comm_planner.model import flown_path, leg_lengths
-from uav_comm_planner.optimizer import PlanResult
+from uav_comm_planner.core.model import flown_path, leg_lengths
+from uav_comm_planner.core.optimizer import PlanResult
 
 #: A leg shorter than this fraction of V delta counts as hovering: the heading is kept and
 #: the waypoint is drawn as a hover point.

@@ -1,8 +1,8 @@
 """The ROS 2 node ``uav_comm_planner``: parameters and topics in, plans out.
 
 An adapter over :func:`uav_comm_planner.plan`: ROS parameters become the settings
-dataclasses (:mod:`uav_comm_planner.ros_params`), messages become arrays and results become
-messages (:mod:`uav_comm_planner.ros_messages`). Planning runs on one worker thread; a request
+dataclasses (:mod:`uav_comm_planner.ros.params`), messages become arrays and results become
+messages (:mod:`uav_comm_planner.ros.messages`). Planning runs on one worker thread; a request
 made while a plan runs replaces any request still waiting, so the newest input wins and the
 executor's callbacks stay responsive. Results come back to the executor through a guard
 condition, where they are published and logged.
@@ -22,166 +22,41 @@ Replanning:
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
-import math
-from pathlib import Path as FilePath
 import sys
 import threading
-from typing import Callable, Generic, Sequence, TypeVar
 
 from geometry_msgs.msg import PoseArray, PoseStamped
-from nav_msgs.msg import Path
-from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
-from visualization_msgs.msg import MarkerArray
 
-from uav_comm_planner.errors import InfeasibleHorizonError, PlannerError
-from uav_comm_planner.mission import export_mission
-from uav_comm_planner.optimizer import plan, PlanResult
-from uav_comm_planner.ros_messages import (ground_nodes_of, marker_array, path_message,
-                                           power_message)
-from uav_comm_planner.ros_params import (config_from_parameters, flat_pairs, NodeSettings,
-                                         parameter_specs, PlannerConfig)
-from uav_comm_planner.scenario import Scenario, SolverSettings
+from uav_comm_planner.core.optimizer import plan
+from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.ros.binding import ParameterBinding
+from uav_comm_planner.ros.messages import ground_nodes_of
+from uav_comm_planner.ros.params import flat_pairs, PlannerConfig
+from uav_comm_planner.ros.publishing import PlanPublisher, summary_line, TOPIC_PATH
+from uav_comm_planner.ros.worker import (attempt, LatestOnlyWorker, Planner, PlanOutcome,
+                                         PlanRequest, remaining_scenario, write_mission)
 
 NODE_NAME = 'uav_comm_planner'
 
 TOPIC_GROUND_NODES = 'ground_nodes'
 TOPIC_UAV_POSE = 'uav_pose'
-TOPIC_PATH = 'planned_path'
-TOPIC_POWER = 'power_schedule'
-TOPIC_MIN_THROUGHPUT = 'min_throughput'
-TOPIC_MARKERS = 'plan_markers'
 SERVICE_REPLAN = '~/replan'
 SERVICE_EXPORT_MISSION = '~/export_mission'
 
-#: Outputs keep the latest plan for subscribers that join later.
-OUTPUT_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Volatile so that both volatile and transient-local publishers can send node sets.
 GROUND_NODES_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                               durability=DurabilityPolicy.VOLATILE)
 #: Best effort accepts pose streams of either reliability; only the latest pose matters.
 UAV_POSE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
                           durability=DurabilityPolicy.VOLATILE)
-
-#: How long shutting down waits for a plan in progress before leaving it to its daemon thread.
-WORKER_STOP_TIMEOUT_S = 5.0
-
-Planner = Callable[[Scenario, SolverSettings], PlanResult]
-Request = TypeVar('Request')
-
-
-class LatestOnlyWorker(Generic[Request]):
-    """Runs ``job`` on one thread, one request at a time; newer requests replace waiting ones.
-
-    Nothing queues up: at most one request waits while a job runs, and it is the newest.
-    ``job`` must not raise.
-    """
-
-    def __init__(self, job: Callable[[Request], None], *, name: str) -> None:
-        self._job = job
-        self._condition = threading.Condition()
-        self._waiting: Request | None = None
-        self._stopping = False
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-        self._thread.start()
-
-    def submit(self, request: Request) -> bool:
-        """Queue ``request`` in place of any waiting one; True if one was replaced."""
-        with self._condition:
-            replaced = self._waiting is not None
-            self._waiting = request
-            self._condition.notify()
-        return replaced
-
-    def stop(self, timeout_s: float = WORKER_STOP_TIMEOUT_S) -> None:
-        """Drop any waiting request and wait up to ``timeout_s`` for the running job."""
-        with self._condition:
-            self._stopping = True
-            self._waiting = None
-            self._condition.notify()
-        self._thread.join(timeout_s)
-
-    def _next(self) -> Request | None:
-        with self._condition:
-            while self._waiting is None and not self._stopping:
-                self._condition.wait()
-            request, self._waiting = self._waiting, None
-            return None if self._stopping else request
-
-    def _run(self) -> None:
-        while (request := self._next()) is not None:
-            self._job(request)
-
-
-@dataclass(frozen=True)
-class PlanRequest:
-    """What to plan, the settings to publish it with, and when the planned flight starts."""
-
-    scenario: Scenario
-    settings: SolverSettings
-    output: NodeSettings
-    start_ns: int
-    reason: str
-
-
-@dataclass(frozen=True)
-class PlanOutcome:
-    """A finished request: its plan, or the reason it failed, and the mission file written."""
-
-    request: PlanRequest
-    result: PlanResult | None = None
-    error: str = ''
-    mission_path: FilePath | None = None
-    mission_error: str = ''
-
-
-def remaining_scenario(scenario: Scenario, position: tuple[float, float],
-                       elapsed_s: float) -> Scenario:
-    """The rest of ``scenario`` flown from ``position`` after ``elapsed_s`` seconds.
-
-    Keeps the slot length; drops the slots whose waypoint time has passed. Raises
-    :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when none remains or the goal
-    is out of reach from ``position``.
-    """
-    passed = max(0, math.floor(elapsed_s / scenario.slot_s))
-    remaining = scenario.num_slots - passed
-    if remaining < 1:
-        raise InfeasibleHorizonError(
-            f'the mission horizon is over ({elapsed_s:.1f} s since the mission started, '
-            f'{scenario.num_slots} slots of {scenario.slot_s:g} s): call ~/replan to start '
-            f'a new mission')
-    return scenario.replace(start_m=position, num_slots=remaining,
-                            horizon_s=remaining * scenario.slot_s)
-
-
-def write_mission(result: PlanResult, output: NodeSettings) -> FilePath:
-    """Write ``result`` to ``output.mission_file``; raises MissionExportError on failure."""
-    return export_mission(result, output.mission_file, output.home, end=output.mission_end,
-                          firmware=output.mission_firmware)
-
-
-def summary_line(result: PlanResult) -> str:
-    """The one log line per plan: objective, both baselines, size and plan time."""
-    scenario = result.scenario
-    baselines = result.baselines
-    if baselines:
-        compared = (f'straight line {baselines.get("straight", math.nan):.4g}, '
-                    f'static point {baselines.get("static", math.nan):.4g}')
-    else:
-        compared = 'baselines off'
-    nodes = f'{scenario.num_nodes} node' + ('' if scenario.num_nodes == 1 else 's')
-    return (f'plan: min throughput {result.min_throughput:.4g} bit/s ({compared}); {nodes}, '
-            f'{scenario.num_slots} slots of {scenario.slot_s:g} s, {result.status}, '
-            f'planned in {result.solve_time_s:.2f} s')
 
 
 class PlannerNode(Node):
@@ -200,10 +75,8 @@ class PlannerNode(Node):
     def __init__(self, *, planner: Planner = plan, **node_options) -> None:
         super().__init__(NODE_NAME, **node_options)
         self._planner = planner
-        self._parameter_names = self._declare_parameters()
-        self._config: PlannerConfig = config_from_parameters(self._parameter_values())
-        self.add_on_set_parameters_callback(self._check_parameters)
-        self.add_post_set_parameters_callback(self._parameters_changed)
+        self._binding = ParameterBinding(
+            self, lambda names: self.request_plan('parameters ' + ', '.join(names)))
 
         self.requests_made = 0
         self.plans_run = 0
@@ -218,10 +91,7 @@ class PlannerNode(Node):
         self._closing = False
         self._delivery = self.create_guard_condition(self._deliver)
 
-        self._path_pub = self.create_publisher(Path, TOPIC_PATH, OUTPUT_QOS)
-        self._power_pub = self.create_publisher(Float64MultiArray, TOPIC_POWER, OUTPUT_QOS)
-        self._throughput_pub = self.create_publisher(Float64, TOPIC_MIN_THROUGHPUT, OUTPUT_QOS)
-        self._markers_pub = self.create_publisher(MarkerArray, TOPIC_MARKERS, OUTPUT_QOS)
+        self._publisher = PlanPublisher(self)
         self.create_subscription(PoseArray, TOPIC_GROUND_NODES, self._on_ground_nodes,
                                  GROUND_NODES_QOS)
         self.create_subscription(PoseStamped, TOPIC_UAV_POSE, self._on_uav_pose, UAV_POSE_QOS)
@@ -232,35 +102,11 @@ class PlannerNode(Node):
             self._plan_and_export, name='uav_comm_planner.worker')
         self.request_plan('start')
 
-    # Parameters.
-
-    def _declare_parameters(self) -> tuple[str, ...]:
-        specs = parameter_specs()
-        self.declare_parameters('', [(spec.name, spec.default, spec.descriptor())
-                                     for spec in specs])
-        return tuple(spec.name for spec in specs)
-
-    def _parameter_values(self, changes: Sequence[Parameter] = ()) -> dict[str, object]:
-        values = {name: self.get_parameter(name).value for name in self._parameter_names}
-        values.update({p.name: p.value for p in changes if p.name in self._parameter_names})
-        return values
-
-    def _check_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        """Refuse a change that does not make a valid configuration, saying why."""
-        try:
-            config_from_parameters(self._parameter_values(changes))
-        except PlannerError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
-
-    def _parameters_changed(self, changes: list[Parameter]) -> None:
-        names = [p.name for p in changes if p.name in self._parameter_names]
-        if names:
-            self._config = config_from_parameters(self._parameter_values())
-            self.request_plan('parameters ' + ', '.join(names))
+    @property
+    def _config(self) -> PlannerConfig:
+        return self._binding.config
 
     # Inputs.
-
     def _frame_accepted(self, frame_id: str, topic: str) -> bool:
         expected = self._config.node.frame_id
         if frame_id and frame_id != expected:
@@ -336,27 +182,12 @@ class PlannerNode(Node):
 
     def _plan_and_export(self, request: PlanRequest) -> None:
         """Worker thread: plan, write the mission if asked, hand the outcome back."""
-        outcome = self._attempt(request)
+        outcome = attempt(self._planner, request)
         with self._outcomes_lock:
             if self._closing:
                 return
             self._outcomes.append(outcome)
             self._delivery.trigger()
-
-    def _attempt(self, request: PlanRequest) -> PlanOutcome:
-        try:
-            result = self._planner(request.scenario, request.settings)
-        except PlannerError as exc:
-            return PlanOutcome(request, error=str(exc))
-        except Exception as exc:  # noqa: B902 - a failed plan must not end the worker thread
-            return PlanOutcome(request, error=f'unexpected {type(exc).__name__}: {exc}')
-        if not request.output.mission_file:
-            return PlanOutcome(request, result)
-        try:
-            return PlanOutcome(request, result, mission_path=write_mission(result,
-                                                                           request.output))
-        except PlannerError as exc:
-            return PlanOutcome(request, result, mission_error=str(exc))
 
     def _deliver(self) -> None:
         """Executor thread: publish and log every outcome the worker handed back."""
@@ -375,19 +206,11 @@ class PlannerNode(Node):
                 line += f'; mission written to {outcome.mission_path}'
             # Logged first, so that whoever receives the plan can already read its line.
             self.get_logger().info(line)
-            self._publish(outcome)
+            self._publisher.publish(outcome)
             self.plans_published += 1
             if outcome.mission_error:
                 self._report_error(f'mission export failed, the plan is kept: '
                                    f'{outcome.mission_error}')
-
-    def _publish(self, outcome: PlanOutcome) -> None:
-        result, request = outcome.result, outcome.request
-        frame_id = request.output.frame_id
-        self._path_pub.publish(path_message(result, frame_id, request.start_ns))
-        self._power_pub.publish(power_message(result))
-        self._throughput_pub.publish(Float64(data=float(result.min_throughput)))
-        self._markers_pub.publish(marker_array(result, frame_id, request.start_ns))
 
     def _report_error(self, message: str) -> None:
         self.error_count += 1

@@ -1,7 +1,7 @@
 """ROS parameters <-> the planner's settings dataclasses.
 
-Every field of :class:`~uav_comm_planner.scenario.Scenario`,
-:class:`~uav_comm_planner.scenario.SolverSettings` and :class:`NodeSettings` becomes one ROS
+Every field of :class:`~uav_comm_planner.core.scenario.Scenario`,
+:class:`~uav_comm_planner.core.scenario.SolverSettings` and :class:`NodeSettings` becomes one ROS
 parameter of the same name (``ground_nodes_m`` is published as ``ground_nodes``), typed from
 the field's annotation: ``float`` -> double, ``int`` -> integer, ``bool``, ``str``, a tuple
 of strings -> a string array, a point ``(x, y)`` -> a double array of two values, a tuple
@@ -21,9 +21,9 @@ from typing import Any, Mapping, Sequence
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
 from uav_comm_planner.errors import InvalidScenarioError
-from uav_comm_planner.geodesy import DEFAULT_HOME, Home
-from uav_comm_planner.mission import FIRMWARE_TYPES, MISSION_ENDS, MISSION_FORMATS
-from uav_comm_planner.scenario import paper_scenario, Point, Scenario, SolverSettings
+from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
+from uav_comm_planner.vehicle.mission import FIRMWARE_TYPES, MISSION_ENDS, MISSION_FORMATS
+from uav_comm_planner.core.scenario import paper_scenario, Point, Scenario, SolverSettings
 
 MISSION_FIRMWARES = tuple(FIRMWARE_TYPES)
 #: Node settings that take one of a few names, and the names.

@@ -2,7 +2,7 @@
 
 For a terminal without the ros2 command line::
 
-    python -m uav_comm_planner.send_ground_nodes 300,200 900,-150 1500,250
+    python -m uav_comm_planner.ros.send_ground_nodes 300,200 900,-150 1500,250
 
 publishes the nodes (x, y in metres, in ``--frame-id``) on ``ground_nodes`` and waits until
 the planner publishes a plan for exactly these nodes; it prints that plan's path and exits 0,
@@ -23,10 +23,10 @@ from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 from visualization_msgs.msg import MarkerArray
 
-from uav_comm_planner.node import (GROUND_NODES_QOS, OUTPUT_QOS, TOPIC_GROUND_NODES,
-                                   TOPIC_MARKERS, TOPIC_PATH)
-from uav_comm_planner.ros_messages import nanoseconds_of, pose_array
-from uav_comm_planner.scenario import Point
+from uav_comm_planner.core.scenario import Point
+from uav_comm_planner.ros.messages import nanoseconds_of, pose_array
+from uav_comm_planner.ros.node import GROUND_NODES_QOS, TOPIC_GROUND_NODES
+from uav_comm_planner.ros.publishing import OUTPUT_QOS, TOPIC_MARKERS, TOPIC_PATH
 
 
 def parse_point(text: str) -> Point:

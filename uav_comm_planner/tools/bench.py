@@ -14,7 +14,7 @@
 * Quality: on random scenarios, the default plan (both starts, relative tolerance) against
   the letter's Algorithm 1, with the upper bound of every plan.
 
-Run ``uav-comm-planner bench`` or ``python -m uav_comm_planner.bench`` (``--quick`` for a
+Run ``uav-comm-planner bench`` or ``python -m uav_comm_planner.tools.bench`` (``--quick`` for a
 smaller run).
 """
 
@@ -34,9 +34,9 @@ from typing import Callable, Sequence, TextIO
 
 import numpy as np
 
-from uav_comm_planner.fast_trajectory import cone_layout
-from uav_comm_planner.optimizer import plan, PlanResult
-from uav_comm_planner.scenario import paper_scenario, Scenario, SolverSettings
+from uav_comm_planner.core.fast_trajectory import cone_layout
+from uav_comm_planner.core.optimizer import plan, PlanResult
+from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 
 REFERENCE = dict(power_method='conic', trajectory_method='cvxpy')
 FAST = dict(power_method='waterfilling', trajectory_method='clarabel')
@@ -264,13 +264,13 @@ DESCRIPTION = ("time the reference and fast paths; compare the default plan with
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The benchmark's options, shared by ``python -m uav_comm_planner.bench`` and the CLI."""
+    """The benchmark's options, shared by ``python -m uav_comm_planner.tools.bench`` and the CLI."""
     parser.add_argument('--quick', action='store_true',
                         help='small sizes and few runs (a smoke test, not the documented run)')
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='python -m uav_comm_planner.bench',
+    parser = argparse.ArgumentParser(prog='python -m uav_comm_planner.tools.bench',
                                      description=DESCRIPTION)
     add_arguments(parser)
     return parser

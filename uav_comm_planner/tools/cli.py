@@ -13,14 +13,14 @@ from pathlib import Path
 import sys
 from typing import Sequence
 
-from uav_comm_planner import bench
+from uav_comm_planner.tools import bench
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import write_text_atomic
-from uav_comm_planner.geodesy import DEFAULT_HOME, Home
-from uav_comm_planner.optimizer import plan, PlanResult
-from uav_comm_planner.plots import METHOD_LABELS
-from uav_comm_planner.scenario import paper_scenario, Scenario, SolverSettings
-from uav_comm_planner.serialize import result_to_dict, scenario_from_dict
+from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
+from uav_comm_planner.core.optimizer import plan, PlanResult
+from uav_comm_planner.tools.plots import METHOD_LABELS
+from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
+from uav_comm_planner.tools.serialize import result_to_dict, scenario_from_dict
 
 # Scenario field -> (flag, help) for the single-value overrides.
 _SCALAR_FLAGS = {
@@ -141,7 +141,7 @@ def _check_output_folders(*paths: Path | None) -> None:
 def _command_plan(args: argparse.Namespace) -> int:
     _check_output_folders(args.json, args.figure, args.mission)
     if args.mission is not None:
-        from uav_comm_planner.mission import MISSION_FORMATS
+        from uav_comm_planner.vehicle.mission import MISSION_FORMATS
         if args.mission.suffix.lower() not in MISSION_FORMATS:
             raise PlannerError(f'unknown mission format for {str(args.mission)!r}: use a '
                                f'.waypoints or .plan file')
@@ -151,10 +151,10 @@ def _command_plan(args: argparse.Namespace) -> int:
         text = json.dumps(result_to_dict(result), indent=1)
         print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
     if args.figure is not None:
-        from uav_comm_planner.plots import plan_figure
+        from uav_comm_planner.tools.plots import plan_figure
         print(f'wrote {plan_figure(result, args.figure)}')
     if args.mission is not None:
-        from uav_comm_planner.mission import export_mission
+        from uav_comm_planner.vehicle.mission import export_mission
         written = export_mission(result, args.mission, args.home, end=args.mission_end,
                                  firmware=args.firmware)
         print(f'wrote {written}')
@@ -177,7 +177,7 @@ def _command_sweep(args: argparse.Namespace) -> int:
         text = json.dumps({'budgets_w': args.budgets, 'min_throughput': rows}, indent=1)
         print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
     if args.figure is not None:
-        from uav_comm_planner.plots import sweep_figure
+        from uav_comm_planner.tools.plots import sweep_figure
         print(f'wrote {sweep_figure(args.budgets, rows, args.figure)}')
     return 0
 

@@ -7,8 +7,8 @@ from pathlib import Path
 from typing import Sequence
 
 from uav_comm_planner.files import write_with
-from uav_comm_planner.model import flown_path, speeds
-from uav_comm_planner.optimizer import PlanResult
+from uav_comm_planner.core.model import flown_path, speeds
+from uav_comm_planner.core.optimizer import PlanResult
 
 METHOD_LABELS = {'proposed': 'proposed (joint power and trajectory)',
                  'straight': 'straight line, optimal power',

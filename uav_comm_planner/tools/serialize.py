@@ -6,8 +6,8 @@ import dataclasses
 from typing import Any, Mapping
 
 from uav_comm_planner.errors import InvalidScenarioError
-from uav_comm_planner.optimizer import PlanResult
-from uav_comm_planner.scenario import Scenario
+from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.scenario import Scenario
 
 
 def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:

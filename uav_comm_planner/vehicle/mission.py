@@ -45,9 +45,9 @@ from pymavlink import mavutil, mavwp
 
 from uav_comm_planner.errors import MissionExportError
 from uav_comm_planner.files import write_with
-from uav_comm_planner.geodesy import DEFAULT_HOME, enu_to_geodetic, Home
-from uav_comm_planner.model import flown_path
-from uav_comm_planner.optimizer import PlanResult
+from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, Home
+from uav_comm_planner.core.model import flown_path
+from uav_comm_planner.core.optimizer import PlanResult
 
 MAV = mavutil.mavlink
 FRAME_GLOBAL = MAV.MAV_FRAME_GLOBAL                       # 0: absolute altitude (home row)

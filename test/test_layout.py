@@ -1,0 +1,121 @@
+"""The package's layering, read from each module's imports with ``ast``.
+
+| folder    | may import (besides the standard library and errors/files)              |
+| --------- | ----------------------------------------------------------------------- |
+| core/     | numpy, scipy, cvxpy, clarabel                                           |
+| vehicle/  | core, pymavlink, pymap3d                                                |
+| ros/      | core, vehicle, rclpy and ROS messages                                   |
+| tools/    | core, vehicle, matplotlib; never rclpy                                  |
+| top level | errors and files import nothing of the package; ``__init__`` re-exports |
+|           | the public API from core                                                |
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+import sys
+
+import pytest
+
+PACKAGE = 'uav_comm_planner'
+ROOT = Path(__file__).resolve().parents[1] / PACKAGE
+FOLDERS = ('core', 'vehicle', 'ros', 'tools')
+
+#: For each folder, the package's own folders it may import.
+ALLOWED_INSIDE = {
+    'core': {'core'},
+    'vehicle': {'core', 'vehicle'},
+    'ros': {'core', 'vehicle', 'ros'},
+    'tools': {'core', 'vehicle', 'tools'},
+}
+#: Third-party top-level modules each folder may import.
+THIRD_PARTY = {
+    'core': {'numpy', 'scipy', 'cvxpy', 'clarabel'},
+    'vehicle': {'numpy', 'pymavlink', 'pymap3d'},
+    'ros': {'numpy', 'rclpy', 'builtin_interfaces', 'geometry_msgs', 'nav_msgs', 'std_msgs',
+            'std_srvs', 'visualization_msgs', 'rcl_interfaces', 'diagnostic_msgs'},
+    'tools': {'numpy', 'matplotlib', 'dask', 'distributed', 'pyarrow'},
+}
+#: The top-level modules of the package that every folder may use.
+SHARED = {'errors', 'files'}
+ROS_MODULES = THIRD_PARTY['ros'] - {'numpy'}
+
+
+def imported_modules(path: Path) -> set[str]:
+    """Every module named by an import statement of ``path``, at any depth (lazy ones too)."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            assert node.level == 0, f'{path}: relative import; use absolute imports'
+            names.add(node.module)
+            if node.module == PACKAGE:
+                names.update(f'{PACKAGE}.{alias.name}' for alias in node.names)
+    return names
+
+
+def modules_of(folder: str) -> list[Path]:
+    return sorted((ROOT / folder).glob('*.py'))
+
+
+def package_part(name: str) -> str | None:
+    """``core`` for ``uav_comm_planner.core.model``; ``errors`` for ``uav_comm_planner.errors``."""
+    parts = name.split('.')
+    return parts[1] if parts[0] == PACKAGE and len(parts) > 1 else None
+
+
+def test_the_tree_has_the_four_folders_and_a_small_top_level():
+    assert all((ROOT / folder / '__init__.py').is_file() for folder in FOLDERS)
+    assert {p.stem for p in ROOT.glob('*.py')} == {'__init__', 'errors', 'files'}
+    assert not [p for p in ROOT.glob('*/') if p.is_dir() and p.name not in FOLDERS
+                and p.name != '__pycache__']
+
+
+@pytest.mark.parametrize('folder', FOLDERS)
+def test_each_folder_imports_only_what_its_layer_allows(folder):
+    allowed_parts = ALLOWED_INSIDE[folder] | SHARED
+    allowed_external = THIRD_PARTY[folder] | set(sys.stdlib_module_names) | {'__future__'}
+    wrong = []
+    for path in modules_of(folder):
+        for name in imported_modules(path):
+            top = name.split('.')[0]
+            if top == PACKAGE:
+                if package_part(name) not in allowed_parts:
+                    wrong.append(f'{path.relative_to(ROOT)} imports {name}')
+            elif top not in allowed_external:
+                wrong.append(f'{path.relative_to(ROOT)} imports {name}')
+    assert wrong == []
+
+
+def test_only_ros_imports_rclpy_or_ros_messages():
+    offenders = [f'{path.relative_to(ROOT)} imports {name}'
+                 for folder in ('core', 'vehicle', 'tools') for path in modules_of(folder)
+                 for name in imported_modules(path) if name.split('.')[0] in ROS_MODULES]
+    assert offenders == []
+
+
+def test_errors_and_files_import_nothing_of_the_package():
+    for stem in SHARED:
+        names = imported_modules(ROOT / f'{stem}.py')
+        assert not [n for n in names if n.split('.')[0] == PACKAGE], stem
+
+
+def test_the_public_api_comes_from_core_and_errors():
+    names = imported_modules(ROOT / '__init__.py')
+    assert {package_part(n) for n in names if n.split('.')[0] == PACKAGE} <= {'core', 'errors'}
+    import uav_comm_planner
+    for name in ('plan', 'paper_scenario', 'Scenario', 'SolverSettings', 'PlanResult',
+                 'PlannerError', 'InvalidScenarioError', 'InfeasibleHorizonError',
+                 'SolverError', 'MissionExportError'):
+        assert hasattr(uav_comm_planner, name), name
+
+
+def test_the_rule_reader_sees_a_violation(tmp_path):
+    """The checker itself: a core module importing rclpy or vehicle is caught."""
+    bad = tmp_path / 'bad.py'
+    bad.write_text('import rclpy\nfrom uav_comm_planner.vehicle import mission\n'
+                   'def f():\n    from uav_comm_planner.ros import node\n')
+    assert imported_modules(bad) == {'rclpy', 'uav_comm_planner.vehicle',
+                                     'uav_comm_planner.ros'}

@@ -1,0 +1,52 @@
+"""The node's parameters: declared from the specs, validated as a whole, applied on change."""
+
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.ros.params import config_from_parameters, parameter_specs, PlannerConfig
+
+
+class ParameterBinding:
+    """Keeps a node's :class:`PlannerConfig` in step with its ROS parameters.
+
+    Declares every parameter of :func:`parameter_specs` on ``node`` with its descriptor,
+    refuses a change that does not make a valid configuration (with the reason), and after an
+    accepted change rebuilds :attr:`config` and calls ``on_change`` with the changed names.
+    Raises :class:`~uav_comm_planner.errors.PlannerError` when the initial values are invalid.
+    """
+
+    def __init__(self, node: Node, on_change: Callable[[list[str]], None]) -> None:
+        self._node = node
+        self._on_change = on_change
+        specs = parameter_specs()
+        node.declare_parameters('', [(spec.name, spec.default, spec.descriptor())
+                                     for spec in specs])
+        self._names = tuple(spec.name for spec in specs)
+        self.config: PlannerConfig = config_from_parameters(self._values())
+        node.add_on_set_parameters_callback(self._check)
+        node.add_post_set_parameters_callback(self._changed)
+
+    def _values(self, changes: Sequence[Parameter] = ()) -> dict[str, object]:
+        values = {name: self._node.get_parameter(name).value for name in self._names}
+        values.update({p.name: p.value for p in changes if p.name in self._names})
+        return values
+
+    def _check(self, changes: list[Parameter]) -> SetParametersResult:
+        """Refuse a change that does not make a valid configuration, saying why."""
+        try:
+            config_from_parameters(self._values(changes))
+        except PlannerError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _changed(self, changes: list[Parameter]) -> None:
+        names = [p.name for p in changes if p.name in self._names]
+        if names:
+            self.config = config_from_parameters(self._values())
+            self._on_change(names)

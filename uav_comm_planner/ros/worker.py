@@ -1,0 +1,131 @@
+"""Plan requests and the one worker thread that plans them, newest request first.
+
+No ROS here: the node hands :class:`PlanRequest` objects to a :class:`LatestOnlyWorker`,
+which runs :func:`attempt` on its own thread and hands back a :class:`PlanOutcome`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from pathlib import Path as FilePath
+import threading
+from typing import Callable, Generic, TypeVar
+
+from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.errors import InfeasibleHorizonError, PlannerError
+from uav_comm_planner.ros.params import NodeSettings
+from uav_comm_planner.vehicle.mission import export_mission
+
+#: How long shutting down waits for a plan in progress before leaving it to its daemon thread.
+WORKER_STOP_TIMEOUT_S = 5.0
+
+Planner = Callable[[Scenario, SolverSettings], PlanResult]
+Request = TypeVar('Request')
+
+
+class LatestOnlyWorker(Generic[Request]):
+    """Runs ``job`` on one thread, one request at a time; newer requests replace waiting ones.
+
+    Nothing queues up: at most one request waits while a job runs, and it is the newest.
+    ``job`` must not raise.
+    """
+
+    def __init__(self, job: Callable[[Request], None], *, name: str) -> None:
+        self._job = job
+        self._condition = threading.Condition()
+        self._waiting: Request | None = None
+        self._stopping = False
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._thread.start()
+
+    def submit(self, request: Request) -> bool:
+        """Queue ``request`` in place of any waiting one; True if one was replaced."""
+        with self._condition:
+            replaced = self._waiting is not None
+            self._waiting = request
+            self._condition.notify()
+        return replaced
+
+    def stop(self, timeout_s: float = WORKER_STOP_TIMEOUT_S) -> None:
+        """Drop any waiting request and wait up to ``timeout_s`` for the running job."""
+        with self._condition:
+            self._stopping = True
+            self._waiting = None
+            self._condition.notify()
+        self._thread.join(timeout_s)
+
+    def _next(self) -> Request | None:
+        with self._condition:
+            while self._waiting is None and not self._stopping:
+                self._condition.wait()
+            request, self._waiting = self._waiting, None
+            return None if self._stopping else request
+
+    def _run(self) -> None:
+        while (request := self._next()) is not None:
+            self._job(request)
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """What to plan, the settings to publish it with, and when the planned flight starts."""
+
+    scenario: Scenario
+    settings: SolverSettings
+    output: NodeSettings
+    start_ns: int
+    reason: str
+
+
+@dataclass(frozen=True)
+class PlanOutcome:
+    """A finished request: its plan, or the reason it failed, and the mission file written."""
+
+    request: PlanRequest
+    result: PlanResult | None = None
+    error: str = ''
+    mission_path: FilePath | None = None
+    mission_error: str = ''
+
+
+def remaining_scenario(scenario: Scenario, position: tuple[float, float],
+                       elapsed_s: float) -> Scenario:
+    """The rest of ``scenario`` flown from ``position`` after ``elapsed_s`` seconds.
+
+    Keeps the slot length; drops the slots whose waypoint time has passed. Raises
+    :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when none remains or the goal
+    is out of reach from ``position``.
+    """
+    passed = max(0, math.floor(elapsed_s / scenario.slot_s))
+    remaining = scenario.num_slots - passed
+    if remaining < 1:
+        raise InfeasibleHorizonError(
+            f'the mission horizon is over ({elapsed_s:.1f} s since the mission started, '
+            f'{scenario.num_slots} slots of {scenario.slot_s:g} s): call ~/replan to start '
+            f'a new mission')
+    return scenario.replace(start_m=position, num_slots=remaining,
+                            horizon_s=remaining * scenario.slot_s)
+
+
+def write_mission(result: PlanResult, output: NodeSettings) -> FilePath:
+    """Write ``result`` to ``output.mission_file``; raises MissionExportError on failure."""
+    return export_mission(result, output.mission_file, output.home, end=output.mission_end,
+                          firmware=output.mission_firmware)
+
+
+def attempt(planner: Planner, request: PlanRequest) -> PlanOutcome:
+    """Plan ``request`` and write its mission if asked; every failure becomes the outcome."""
+    try:
+        result = planner(request.scenario, request.settings)
+    except PlannerError as exc:
+        return PlanOutcome(request, error=str(exc))
+    except Exception as exc:  # noqa: B902 - a failed plan must not end the worker thread
+        return PlanOutcome(request, error=f'unexpected {type(exc).__name__}: {exc}')
+    if not request.output.mission_file:
+        return PlanOutcome(request, result)
+    try:
+        return PlanOutcome(request, result, mission_path=write_mission(result, request.output))
+    except PlannerError as exc:
+        return PlanOutcome(request, result, mission_error=str(exc))
