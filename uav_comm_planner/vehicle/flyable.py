@@ -175,7 +175,7 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     runs = [run for index, run in enumerate(hover_runs(points, merge_radius_m))
             if run[1] > run[0] or run[0] == 0 or run[1] == len(points) - 1]
     cruise = limits.cruise_speed_mps
-    accel, jerk = limits.max_accel_mpss, limits.max_jerk_mpsss
+    accel, jerk = limits.max_accel_mpss, limits.ramp_jerk_mpsss
     resolution = HOLD_RESOLUTION_S[firmware]
 
     stops = []
@@ -215,8 +215,8 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     if schedule.arrival_s > end + GOAL_TOLERANCE_SLOTS * scenario.slot_s:
         raise InfeasibleHorizonError(
             f'the vehicle cannot fly this plan on time: with cruise speed '
-            f'{limits.describe_cruise()}, acceleration {accel:g} m/s/s and jerk {jerk:g} '
-            f'm/s/s/s it reaches the goal at {schedule.arrival_s:.1f} s, the horizon ends at '
+            f'{limits.describe_cruise()}, acceleration {accel:g} m/s/s and jerk '
+            f'{limits.max_jerk_mpsss:g} m/s/s/s it reaches the goal at {schedule.arrival_s:.1f} s, the horizon ends at '
             f'{end:g} s ({len(legs)} legs, {len(stops) - 2} hovers): lengthen horizon_s by '
             f'{schedule.arrival_s - end:.0f} s or more, or plan with a lower max_speed_mps')
     return schedule

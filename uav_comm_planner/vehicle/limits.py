@@ -21,7 +21,8 @@ from uav_comm_planner.errors import InvalidScenarioError
 FIRMWARE_PARAMETERS = {
     'ardupilot': {'WPNAV_SPEED': ('max_speed_mps', 0.01),
                   'WPNAV_ACCEL': ('max_accel_mpss', 0.01),
-                  'WPNAV_JERK': ('max_jerk_mpsss', 1.0)},
+                  'WPNAV_JERK': ('max_jerk_mpsss', 1.0),
+                  'ATC_INPUT_TC': ('jerk_time_s', 2.0)},
     'px4': {'MPC_XY_CRUISE': ('max_speed_mps', 1.0),
             'MPC_ACC_HOR': ('max_accel_mpss', 1.0),
             'MPC_JERK_AUTO': ('max_jerk_mpsss', 1.0)},
@@ -37,13 +38,16 @@ class VehicleLimits:
     max_jerk_mpsss: the waypoint jerk (WPNAV_JERK, 1 m/s/s/s; MPC_JERK_AUTO);
     airframe_speed_mps: the fastest the airframe flies level at its lean limit, if known
     (an ArduCopter quad reaches about 10.3 m/s at the default 30 degree ANGLE_MAX); the
-    vehicle cruises at the lesser of it and ``max_speed_mps``.
+    vehicle cruises at the lesser of it and ``max_speed_mps``;
+    jerk_time_s: how long ArduCopter takes to build up the jerk, tj = 2 max(ATC_INPUT_TC, 0.1)
+    (0.3 s by default): the jerk rises and falls as a raised cosine over tj.
     """
 
     max_speed_mps: float = 10.0
     max_accel_mpss: float = 2.5
     max_jerk_mpsss: float = 1.0
     airframe_speed_mps: float = math.inf
+    jerk_time_s: float = 0.3
 
     def __post_init__(self) -> None:
         for name in ('max_speed_mps', 'max_accel_mpss', 'max_jerk_mpsss'):
@@ -52,6 +56,10 @@ class VehicleLimits:
                     or not math.isfinite(value) or value <= 0):
                 raise InvalidScenarioError(f'vehicle {name} must be a positive finite number, '
                                            f'got {value!r}')
+        if (isinstance(self.jerk_time_s, bool) or not isinstance(self.jerk_time_s, (int, float))
+                or not 0 <= self.jerk_time_s < 10):
+            raise InvalidScenarioError(f'vehicle jerk_time_s must be in [0, 10) s, got '
+                                       f'{self.jerk_time_s!r}')
         speed = self.airframe_speed_mps
         if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not speed > 0:
             raise InvalidScenarioError(f'vehicle airframe_speed_mps must be positive (inf: '
@@ -61,6 +69,12 @@ class VehicleLimits:
     def cruise_speed_mps(self) -> float:
         """The fastest the vehicle flies a waypoint leg: min(max_speed, airframe_speed)."""
         return min(self.max_speed_mps, self.airframe_speed_mps)
+
+    @property
+    def ramp_jerk_mpsss(self) -> float:
+        """The constant jerk whose ramps take as long as the autopilot's: reaching speed V
+        takes V / A + A / J + tj (ArduPilot's SCurve), that is V / A + A / J' with this J'."""
+        return 1.0 / (1.0 / self.max_jerk_mpsss + self.jerk_time_s / self.max_accel_mpss)
 
     def describe_cruise(self) -> str:
         if self.airframe_speed_mps < self.max_speed_mps:

@@ -1,19 +1,23 @@
 """How long the autopilot takes to fly a leg, and where it is meanwhile.
 
 ArduCopter and PX4 fly a waypoint leg from rest to rest with a jerk-limited speed profile: the
-acceleration rises at the jerk limit J to the acceleration limit A, stays there, falls at J as
-the speed reaches the cruise speed V; the stop mirrors the start. Reaching V from rest takes
-V / A + A / J seconds over V (V / A + A / J) / 2 metres (when V >= A^2 / J; else 2 sqrt(V / J)
-seconds), so a leg of length L reaches at most the speed V with L = V (V / A + A / J), and a
-leg flown at V takes L / V + V / A + A / J seconds: the start and the stop each cost half of
-V / A + A / J over flying at V throughout.
+acceleration rises to the acceleration limit A, stays there, falls as the speed reaches the
+cruise speed V; the stop mirrors the start. ArduPilot's SCurve shapes the jerk as a raised
+cosine over a jerk time tj (2 ATC_INPUT_TC = 0.3 s by default), so reaching V from rest takes
+V / A + A / J + tj seconds. The functions here take the constant jerk J' that gives the same
+ramp time, 1 / J' = 1 / J + tj / A (:attr:`VehicleLimits.ramp_jerk_mpsss`): a ramp to V takes
+V / A + A / J' seconds over V (V / A + A / J') / 2 metres (when V >= A^2 / J'; else
+2 sqrt(V / J')), a leg of length L reaches at most the speed V with L = V (V / A + A / J'), and a
+leg flown at V takes L / V + V / A + A / J' seconds: the start and the stop each cost half of
+V / A + A / J' over flying at V throughout.
 
 A point where the flight turns by a few degrees is flown through without slowing; a hover is a
 stop. So a flight is a chain of stops (:class:`Dwell`) joined by legs (:class:`Leg`), each leg a
 polyline flown at one cruise speed from rest to rest; :class:`Flight` gives the position at any
 time. ``LEG_LATENCY_S`` is what ArduCopter adds to each leg between the end of one hold and the
-start of the next (settling onto the waypoint and starting the next leg), measured on
-ArduCopter 4.7 software-in-the-loop: 0.7 to 1.3 s over legs of 99 to 400 m.
+start of the next (the vehicle settling into the waypoint radius behind its target, and
+the mission starting the next leg), measured on ArduCopter 4.7 software-in-the-loop: 0.4 to
+1.0 s over legs of 99 to 400 m.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ from typing import Sequence
 import numpy as np
 
 #: Seconds ArduCopter adds to a rest-to-rest leg beyond its S-curve (see the module docstring).
-LEG_LATENCY_S = 1.0
+LEG_LATENCY_S = 0.7
 
 
 def ramp_time(speed_mps: float, accel_mpss: float, jerk_mpsss: float) -> float:
