@@ -181,9 +181,8 @@ def _stop_runs(points: np.ndarray, slot_s: float, merge_radius_m: float,
                min_hover_s: float) -> list[tuple[int, int]]:
     """Index runs [i, j] of the points where the vehicle stops: q0, every hover that lasts at
     least ``min_hover_s`` (and a slot), every turn sharper than ``MAX_TURN_DEG``, and qF."""
-    shortest = math.ceil(min_hover_s / slot_s - 1e-9)
     runs = [run for run in hover_runs(points, merge_radius_m)
-            if run[1] - run[0] >= shortest or run[0] == 0 or run[1] == len(points) - 1]
+            if (run[1] - run[0]) * slot_s >= min_hover_s - 1e-9 or run[0] == 0 or run[1] == len(points) - 1]
     stops = []
     for run, following in zip(runs, runs[1:] + [None]):
         stops.append(run)
@@ -203,10 +202,12 @@ def _quantise(hold_s: float, resolution_s: float) -> float:
 
 def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str = 'ardupilot',
                     merge_radius_m: float = MERGE_RADIUS_M,
-                    path_tolerance_m: float = PATH_TOLERANCE_M) -> Schedule:
+                    path_tolerance_m: float = PATH_TOLERANCE_M,
+                    stop_at_hovers: bool = True) -> Schedule:
     """The timed mission that flies ``result`` with the vehicle's ``limits`` (see the module
-    docstring). Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when the
-    vehicle cannot reach qF by the end of the horizon."""
+    docstring); with ``stop_at_hovers`` False it stops only at q0, qF and sharp turns.
+    Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when the vehicle cannot
+    reach qF by the end of the horizon."""
     scenario = result.scenario
     points = flown_path(np.asarray(result.trajectory, dtype=float), scenario)
     times = scenario.slot_s * np.arange(len(points), dtype=float)
@@ -214,7 +215,8 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     accel, jerk = limits.max_accel_mpss, limits.ramp_jerk_mpsss
     runs = _stop_runs(points, scenario.slot_s, merge_radius_m, path_tolerance_m,
                       2.0 * ramp_distance(cruise, accel, jerk),
-                      max(scenario.slot_s, ramp_time(cruise, accel, jerk) + LEG_LATENCY_S))
+                      max(scenario.slot_s, ramp_time(cruise, accel, jerk) + LEG_LATENCY_S)
+                      if stop_at_hovers else math.inf)
     resolution = HOLD_RESOLUTION_S[firmware]
 
     positions = [_stop_position(points, first, last) for first, last in runs]
@@ -256,8 +258,10 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
         legs.append(leg)
         parts.append(leg)
         clock = leg.end_s + LEG_LATENCY_S / 2
-    stops.append(Stop(positions[-1], 0.0))
-    parts.append(Dwell(positions[-1], clock, clock))
+    # A plan that never leaves its first stop holds there for the whole horizon.
+    final_hold = 0.0 if shapes else _quantise(times[-1], resolution)
+    stops.append(Stop(positions[-1], final_hold))
+    parts.append(Dwell(positions[-1], clock, clock + final_hold))
     schedule = Schedule(tuple(stops), tuple(legs), Flight(tuple(parts)), firmware)
     end = times[-1]
     if schedule.arrival_s > end + GOAL_TOLERANCE_SLOTS * scenario.slot_s:
@@ -305,8 +309,9 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
     """Plan ``scenario`` for a vehicle with ``limits``: the mission and what it delivers.
 
     When the vehicle cannot fly the plan by the end of the horizon (too little hovering to
-    absorb its starts and stops), plans again at 90, 80 and 70 % of ``max_speed_mps``; the
-    ideal plan returned then carries the slower scenario. Raises
+    absorb its starts and stops), it flies through the hovers instead of stopping; if that
+    is still too slow, plans again at 90, 80 and 70 % of ``max_speed_mps`` (the ideal plan
+    returned then carries the slower scenario). Raises
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
     speed exceeds the vehicle's, and when no attempt can keep the horizon.
     """
@@ -314,18 +319,20 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
         raise InvalidScenarioError(f'unknown firmware {firmware!r}: choose one of '
                                    f'{", ".join(HOLD_RESOLUTION_S)}')
     check_speed(scenario, limits)
-    ideal = plan(scenario, settings)
-    try:
-        schedule = schedule_flight(ideal, limits, firmware=firmware)
-    except InfeasibleHorizonError as first_error:
-        for share in SLOWER_PLANNING:
-            slower = scenario.replace(max_speed_mps=share * scenario.max_speed_mps)
+    first_error = None
+    for share in (1.0,) + SLOWER_PLANNING:
+        try:
+            slower = scenario if share == 1.0 else scenario.replace(
+                max_speed_mps=share * scenario.max_speed_mps)
+            ideal = plan(slower, settings)
+        except InfeasibleHorizonError:
+            continue
+        for stop_at_hovers in (True, False):
             try:
-                ideal = plan(slower, settings)
-                schedule = schedule_flight(ideal, limits, firmware=firmware)
-            except InfeasibleHorizonError:
+                schedule = schedule_flight(ideal, limits, firmware=firmware,
+                                           stop_at_hovers=stop_at_hovers)
+            except InfeasibleHorizonError as exc:
+                first_error = first_error or exc
                 continue
-            break
-        else:
-            raise first_error
-    return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
+            return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
+    raise first_error
