@@ -157,7 +157,7 @@ class PlannerNode(Node):
             response.message = 'no plan yet'
         else:
             try:
-                written = write_mission(self.current_plan.result, output)
+                written = write_mission(self.current_plan, output)
             except PlannerError as exc:
                 self._report_error(f'mission export failed: {exc}')
                 response.message = str(exc)
@@ -175,7 +175,8 @@ class PlannerNode(Node):
 
     def _submit(self, scenario: Scenario, start_ns: int, reason: str) -> None:
         config = self._config
-        request = PlanRequest(scenario, config.settings, config.node, start_ns, reason)
+        request = PlanRequest(scenario, config.settings, config.node, start_ns, reason,
+                              config.vehicle)
         self.requests_made += 1
         if self._worker.submit(request):
             self.get_logger().debug(f'{reason}: replaces a request still waiting')

@@ -6,7 +6,7 @@ which runs :func:`attempt` on its own thread and hands back a :class:`PlanOutcom
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from pathlib import Path as FilePath
 import threading
@@ -16,6 +16,8 @@ from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, PlannerError
 from uav_comm_planner.ros.params import NodeSettings
+from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
+from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mission import export_mission
 
 #: How long shutting down waits for a plan in progress before leaving it to its daemon thread.
@@ -77,14 +79,20 @@ class PlanRequest:
     output: NodeSettings
     start_ns: int
     reason: str
+    vehicle: VehicleLimits = VehicleLimits()
 
 
 @dataclass(frozen=True)
 class PlanOutcome:
-    """A finished request: its plan, or the reason it failed, and the mission file written."""
+    """A finished request: its plan, or the reason it failed, and the mission file written.
+
+    ``result`` is the plan to publish: as the vehicle flies it when the request is
+    vehicle-aware (``vehicle_plan`` then holds the optimiser's plan and the mission's timing).
+    """
 
     request: PlanRequest
     result: PlanResult | None = None
+    vehicle_plan: VehiclePlan | None = None
     error: str = ''
     mission_path: FilePath | None = None
     mission_error: str = ''
@@ -109,23 +117,32 @@ def remaining_scenario(scenario: Scenario, position: tuple[float, float],
                             horizon_s=remaining * scenario.slot_s)
 
 
-def write_mission(result: PlanResult, output: NodeSettings) -> FilePath:
-    """Write ``result`` to ``output.mission_file``; raises MissionExportError on failure."""
-    return export_mission(result, output.mission_file, output.home, end=output.mission_end,
-                          firmware=output.mission_firmware)
+def write_mission(outcome: PlanOutcome, output: NodeSettings) -> FilePath:
+    """Write an outcome's plan to ``output.mission_file``; raises MissionExportError."""
+    return export_mission(outcome.vehicle_plan or outcome.result, output.mission_file,
+                          output.home, end=output.mission_end,
+                          firmware=output.mission_firmware, limits=outcome.request.vehicle)
 
 
 def attempt(planner: Planner, request: PlanRequest) -> PlanOutcome:
     """Plan ``request`` and write its mission if asked; every failure becomes the outcome."""
+    vehicle_plan = None
     try:
-        result = planner(request.scenario, request.settings)
+        if request.output.vehicle_aware:
+            vehicle_plan = plan_for_vehicle(request.scenario, request.vehicle, request.settings,
+                                            firmware=request.output.mission_firmware,
+                                            planner=planner)
+            result = vehicle_plan.flown
+        else:
+            result = planner(request.scenario, request.settings)
     except PlannerError as exc:
         return PlanOutcome(request, error=str(exc))
     except Exception as exc:  # noqa: B902 - a failed plan must not end the worker thread
         return PlanOutcome(request, error=f'unexpected {type(exc).__name__}: {exc}')
+    outcome = PlanOutcome(request, result, vehicle_plan)
     if not request.output.mission_file:
-        return PlanOutcome(request, result)
+        return outcome
     try:
-        return PlanOutcome(request, result, mission_path=write_mission(result, request.output))
+        return replace(outcome, mission_path=write_mission(outcome, request.output))
     except PlannerError as exc:
-        return PlanOutcome(request, result, mission_error=str(exc))
+        return replace(outcome, mission_error=str(exc))

@@ -89,7 +89,9 @@ def _schedule(plan: PlanResult | VehiclePlan, firmware: str,
         return plan.schedule
     if not isinstance(plan, PlanResult):
         raise MissionExportError(f'a mission is made from a plan, got {type(plan).__name__}')
-    limits = limits or VehicleLimits()
+    limits = VehicleLimits() if limits is None else limits
+    if not isinstance(limits, VehicleLimits):
+        raise MissionExportError(f'limits must be VehicleLimits, got {limits!r}')
     try:
         check_speed(plan.scenario, limits)
         return schedule_flight(plan, limits, firmware=firmware)
