@@ -56,8 +56,9 @@ def rate_unit(value_bps: float) -> tuple[float, str]:
 
 def format_rate(value_bps: float) -> str:
     """A rate with four significant digits in its unit: 841201.683 -> '841.2 kbit/s'."""
-    factor, unit = rate_unit(value_bps)
-    return f'{value_bps / factor:.4g} {unit}'
+    rounded = float(f'{value_bps:.4g}')   # 999.95 is shown as 1 kbit/s, not 1000 bit/s
+    factor, unit = rate_unit(rounded)
+    return f'{rounded / factor:.4g} {unit}'
 
 
 def _frequency(value_hz: float) -> str:
@@ -137,7 +138,7 @@ def save_figure(figure, path: str | os.PathLike) -> Path:
 
 
 def _legend_below(ax, columns: int = 1) -> None:
-    ax.legend(loc='upper center', bbox_to_anchor=(0.5, -0.2), ncol=columns, fontsize=8,
+    ax.legend(loc='upper center', bbox_to_anchor=(0.5, -0.13), ncol=columns, fontsize=8,
               frameon=False)
 
 

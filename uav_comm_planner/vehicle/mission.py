@@ -69,7 +69,10 @@ MERGE_RADIUS_M = 2.0
 MIN_SPEED_MPS = 0.5
 #: Speeds are written to 1 cm/s; the replayed clock absorbs the rounding.
 SPEED_DECIMALS = 2
-#: Latitude and longitude to 1e-8 degree (about 1 mm).
+#: Latitude and longitude are rounded to 1e-8 degree (about 1 mm), as the .plan file keeps
+#: them. The .waypoints file holds 6 decimals, because pymavlink's mavwp writes every field
+#: with %f: steps of 1e-6 degree (0.11 m of latitude), so a point moves by at most 6 cm, far
+#: inside the 2 m waypoint radius.
 DEGREE_DECIMALS = 8
 #: Keep the speed in force when it reaches the next stop within this fraction of a slot.
 TIMING_TOLERANCE_SLOTS = 0.05
