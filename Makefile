@@ -15,7 +15,7 @@ SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml launch/*.py r
 # and planners on a shared machine do not hear each other.
 ROS_ENV := ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST AMENT_PREFIX_PATH=$(abspath $(VENV))
 
-.PHONY: install dev run test bench figures clean
+.PHONY: install dev run test bench figures docs clean
 
 install: $(STAMP)
 
@@ -62,6 +62,10 @@ figures: $(STAMP)
 	$(BIN)/uav-comm-planner sweep --case II --budgets 0.5,1,2,5,10,20 --figure docs/fig2_sweep_case_II.png
 	$(BIN)/uav-comm-planner plan --case I --bandwidth 1e6 --beta0 1e-6 --budget 0.5 \
 		--figure docs/fig1_case_I_low_snr.png
+
+# The parameter tables of docs/node.md, from the node's own parameter descriptors.
+docs: $(STAMP)
+	$(BIN)/python -m uav_comm_planner.ros.docgen docs/node.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info

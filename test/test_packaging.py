@@ -337,3 +337,42 @@ def test_rviz_marker_namespaces_are_the_ones_the_node_publishes():
     published = {marker.ns for marker in marker_array(result, 'map', 0).markers}
     (markers,) = [d for d in _displays() if d['Class'] == 'rviz_default_plugins/MarkerArray']
     assert set(markers['Namespaces']) == published
+
+
+# --- license, citation, changelog ------------------------------------------------------------
+
+def test_license_is_the_apache_text_package_xml_names():
+    text = (ROOT / 'LICENSE').read_text(encoding='utf-8')
+    assert ElementTree.parse(PACKAGE_XML).getroot().findtext('license') == 'Apache-2.0'
+    assert 'Apache License' in text and 'Version 2.0, January 2004' in text
+    assert 'END OF TERMS AND CONDITIONS' in text and 'APPENDIX' in text
+    assert text.count('\n') > 190
+
+
+def test_citation_names_the_software_version_and_the_letter():
+    citation = yaml.safe_load((ROOT / 'CITATION.cff').read_text(encoding='utf-8'))
+    version = ElementTree.parse(PACKAGE_XML).getroot().findtext('version')
+    assert citation['cff-version'] == '1.2.0' and citation['type'] == 'software'
+    assert str(citation['version']) == version and citation['license'] == 'Apache-2.0'
+    (letter,) = citation['references']
+    assert letter['type'] == 'article' and letter['year'] == 2018
+    assert letter['journal'] == 'IEEE Wireless Communications Letters'
+    assert [a['family-names'] for a in letter['authors']] == ['Wang', 'Ren', 'Chen', 'Ding',
+                                                              'Yang']
+
+
+def test_changelog_has_the_ros_layout():
+    """catkin_generate_changelog's layout: the title between caret lines, then sections
+    'Forthcoming' or 'X.Y.Z (YYYY-MM-DD)', each underlined with dashes, of '* ' items."""
+    lines = (ROOT / 'CHANGELOG.rst').read_text(encoding='utf-8').splitlines()
+    title = f'Changelog for package {PACKAGE}'
+    assert lines[:3] == ['^' * len(title), title, '^' * len(title)]
+    sections = [(i, line) for i, line in enumerate(lines[3:], start=3)
+                if line and set(line) == {'-'}]
+    assert sections
+    for i, underline in sections:
+        heading = lines[i - 1]
+        assert len(underline) == len(heading), heading
+        assert heading == 'Forthcoming' or re.fullmatch(
+            r'\d+\.\d+\.\d+ \(\d{4}-\d{2}-\d{2}\)', heading), heading
+        assert lines[i + 1].startswith('* '), heading
