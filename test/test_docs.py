@@ -44,7 +44,8 @@ def test_a_stale_table_is_found_and_rewritten(tmp_path, capsys):
     copy = tmp_path / 'node.md'
     shutil.copy(NODE_DOC, copy)
     text = copy.read_text()
-    copy.write_text(text.replace('| `num_slots` | integer | `50` |', '| `num_slots` | integer | `60` |'))
+    copy.write_text(text.replace('| `num_slots` | integer | `50` |',
+                                 '| `num_slots` | integer | `60` |'))
     assert docgen.main(['--check', str(copy)]) == 1
     assert 'differ from the code' in capsys.readouterr().err
     assert docgen.main([str(copy)]) == 0

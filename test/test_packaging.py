@@ -16,6 +16,7 @@ import ast
 import os
 from pathlib import Path
 import re
+import shutil
 import subprocess
 import sys
 import xml.etree.ElementTree as ElementTree
@@ -376,3 +377,30 @@ def test_changelog_has_the_ros_layout():
         assert heading == 'Forthcoming' or re.fullmatch(
             r'\d+\.\d+\.\d+ \(\d{4}-\d{2}-\d{2}\)', heading), heading
         assert lines[i + 1].startswith('* '), heading
+
+
+# --- make dev --------------------------------------------------------------------------------
+
+def _make_install_commands(venv: Path) -> str:
+    done = subprocess.run(['make', '--dry-run', '--always-make', 'install', f'VENV={venv}'],
+                          cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+def test_make_dev_makes_every_later_install_editable(tmp_path):
+    """What ``make install`` would run, for a virtual environment with and without the mark
+    ``make dev`` leaves (make's dry run: nothing is installed)."""
+    if shutil.which('make') is None:
+        pytest.skip('make is not installed')
+    venv = tmp_path / 'venv'
+    (venv / 'bin').mkdir(parents=True)
+    (venv / 'bin' / 'python').touch(mode=0o755)
+    normal = _make_install_commands(venv)
+    assert "-m pip install --quiet '.[ros,plots,test]'" in normal
+    assert '--editable' not in normal
+    (venv / '.editable').touch()
+    editable = _make_install_commands(venv)
+    assert "-m pip install --quiet --editable '.[ros,plots,test]'" in editable
+    # An editable install leaves out data_files; the recipe copies what ros2 run/launch need.
+    assert 'cp -r package.xml config launch rviz' in editable

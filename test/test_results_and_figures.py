@@ -98,9 +98,9 @@ def test_a_file_with_unknown_settings_ends_with_one_line(tmp_path, capsys):
 
 # --- figures ---------------------------------------------------------------------------------
 
-@pytest.mark.parametrize('value, text', [(841201.683, '841.2 kbit/s'), (11.5712, '11.57 bit/s'),
-                                         (2.5e6, '2.5 Mbit/s'), (0.25, '0.25 bit/s'),
-                                         (999.95, '1 kbit/s'), (999.94, '999.9 bit/s'), (3.2e9, '3.2 Gbit/s')])
+@pytest.mark.parametrize('value, text', [
+    (841201.683, '841.2 kbit/s'), (11.5712, '11.57 bit/s'), (2.5e6, '2.5 Mbit/s'),
+    (0.25, '0.25 bit/s'), (999.95, '1 kbit/s'), (999.94, '999.9 bit/s'), (3.2e9, '3.2 Gbit/s')])
 def test_rates_are_shown_in_scaled_units(value, text):
     assert plots.format_rate(value) == text
 

@@ -105,8 +105,8 @@ def scenario_label(scenario: Scenario) -> str:
     if best is None:
         return f'{scenario.num_nodes} ground nodes, M = {scenario.num_slots}'
     case, changed = best
-    return ', '.join([f'case {case}'] + [_SETTING_TEXT[name](getattr(scenario, name))
-                                        for name in changed])
+    named = [_SETTING_TEXT[name](getattr(scenario, name)) for name in changed]
+    return ', '.join([f'case {case}', *named])
 
 
 def check_figure_path(path: str | os.PathLike) -> str:
