@@ -256,6 +256,19 @@ def test_launch_file_declares_its_arguments_and_starts_the_planner():
     assert constants['NODE_NAME'] == NODE_NAME
 
 
+def test_launch_passes_mavlink_url_only_when_given():
+    (planner,) = [node for node in _launch_tree().body
+                  if isinstance(node, ast.FunctionDef) and node.name == '_planner']
+    guarded = [node for node in ast.walk(planner) if isinstance(node, ast.If)
+               and isinstance(node.test, ast.Name) and node.test.id == 'mavlink_url']
+    assert len(guarded) == 1
+    (append,) = guarded[0].body
+    assert ast.unparse(append) == "parameters.append({'mavlink_url': mavlink_url})"
+    uses = [node for node in ast.walk(planner)
+            if isinstance(node, ast.Constant) and node.value == 'mavlink_url']
+    assert len(uses) == 2   # the launch configuration read, and the guarded parameter
+
+
 def _launch_function(name: str):
     """One plain function of the launch file, compiled on its own (no launch import needed)."""
     tree = _launch_tree()

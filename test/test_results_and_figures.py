@@ -40,6 +40,16 @@ def test_version_is_the_installed_packages(capsys):
     assert package_version() == expected
 
 
+def test_version_of_a_checkout_that_is_not_installed_is_package_xml_s(monkeypatch):
+    def not_installed(name):
+        raise importlib.metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(importlib.metadata, 'version', not_installed)
+    xml = (Path(__file__).resolve().parents[1] / 'package.xml').read_text()
+    assert f'<version>{package_version()}</version>' in xml
+    assert package_version() != 'unknown'
+
+
 def test_settings_round_trip_and_unknown_settings_are_refused():
     settings = SolverSettings.letter(max_nodes=7)
     assert settings_from_dict(json.loads(json.dumps(settings_to_dict(settings)))) == settings
