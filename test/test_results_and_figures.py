@@ -97,6 +97,23 @@ def test_a_sweep_file_records_scenario_settings_and_version(tmp_path, capsys):
         data['min_throughput']['proposed'][1], rel=1e-9)
 
 
+def test_a_sweep_file_runs_again_with_its_budgets(tmp_path, capsys):
+    first, again = tmp_path / 'first.json', tmp_path / 'again.json'
+    status, _, _ = run(capsys, 'sweep', '--case', 'I', '--slots', '12', '--horizon', '36',
+                       '--letter', '--budgets', '0.5,3', '--json', str(first))
+    assert status == 0
+    status, out, _ = run(capsys, 'sweep', '--scenario', str(first), '--json', str(again))
+    assert status == 0 and len(out.splitlines()) == 4   # header, two budgets, 'wrote'
+    recorded, rerun = json.loads(first.read_text()), json.loads(again.read_text())
+    assert rerun['budgets_w'] == [0.5, 3.0] and rerun['settings'] == recorded['settings']
+    for method, values in recorded['min_throughput'].items():
+        assert rerun['min_throughput'][method] == pytest.approx(values, rel=1e-9), method
+    bad = tmp_path / 'bad.json'
+    bad.write_text(json.dumps({**recorded, 'budgets_w': ['a lot']}))
+    status, _, err = run(capsys, 'sweep', '--scenario', str(bad))
+    assert status == 2 and err.count('\n') == 1 and 'must be a list of numbers' in err
+
+
 def test_a_file_with_unknown_settings_ends_with_one_line(tmp_path, capsys):
     bad = tmp_path / 'bad.json'
     bad.write_text(json.dumps({'scenario': {'ground_nodes_m': [[0, 100]]},

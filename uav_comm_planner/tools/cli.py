@@ -24,6 +24,9 @@ from uav_comm_planner.tools.serialize import (package_version, result_to_dict, r
                                               scenario_from_dict, scenario_to_dict,
                                               settings_from_dict)
 
+#: The budgets of the letter's Fig. 2, watts.
+SWEEP_BUDGETS_W = (0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
+
 # Scenario field -> (flag, help) for the single-value overrides.
 _SCALAR_FLAGS = {
     'altitude_m': ('--altitude', 'UAV altitude H, metres'),
@@ -180,13 +183,29 @@ def _command_plan(args: argparse.Namespace) -> int:
     return 0
 
 
+def _sweep_budgets(args: argparse.Namespace) -> list[float]:
+    """--budgets, else the budgets of a sweep file given as --scenario, else the letter's."""
+    if args.budgets is not None:
+        return args.budgets
+    if args.scenario is not None:
+        recorded = _scenario_file(args.scenario).get('budgets_w')
+        if recorded is not None:
+            try:
+                return [float(v) for v in recorded]
+            except (TypeError, ValueError):
+                raise PlannerError(f'budgets_w in {str(args.scenario)!r} must be a list of '
+                                   f'numbers, got {recorded!r}') from None
+    return list(SWEEP_BUDGETS_W)
+
+
 def _command_sweep(args: argparse.Namespace) -> int:
     _check_output_folders(args.json, args.figure)
     _check_figure(args.figure)
     scenario, settings = _scenario(args), _settings(args)
     rows: dict[str, list[float]] = {'proposed': [], 'straight': [], 'static': []}
     print(f'{"P_T (W)":>8}{"proposed":>12}{"straight":>12}{"static":>12}{"time (s)":>10}')
-    for budget in args.budgets:
+    budgets = _sweep_budgets(args)
+    for budget in budgets:
         result = plan(scenario.replace(power_budget_w=budget), settings)
         values = [result.min_throughput, result.baselines['straight'], result.baselines['static']]
         for key, value in zip(rows, values):
@@ -194,13 +213,13 @@ def _command_sweep(args: argparse.Namespace) -> int:
         print(f'{budget:>8g}' + ''.join(f'{v:>12.4f}' for v in values)
               + f'{result.solve_time_s:>10.2f}')
     if args.json is not None:
-        record = {'budgets_w': args.budgets, 'min_throughput': rows,
+        record = {'budgets_w': budgets, 'min_throughput': rows,
                   'scenario': scenario_to_dict(scenario), **run_record(settings)}
         text = json.dumps(record, indent=1)
         print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
     if args.figure is not None:
         from uav_comm_planner.tools.plots import sweep_figure
-        print(f'wrote {sweep_figure(args.budgets, rows, args.figure, scenario=scenario)}')
+        print(f'wrote {sweep_figure(budgets, rows, args.figure, scenario=scenario)}')
     return 0
 
 
@@ -237,8 +256,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')
     _add_scenario_arguments(sweep_parser)
-    sweep_parser.add_argument('--budgets', type=_floats, default=[0.5, 1, 2, 5, 10, 20],
-                              metavar='W,W,...', help='power budgets P_T, watts')
+    sweep_parser.add_argument('--budgets', type=_floats, default=None, metavar='W,W,...',
+                              help='power budgets P_T, watts (default: those of a sweep file '
+                                   "given as --scenario, else the letter's %s)"
+                                   % ','.join(f'{b:g}' for b in SWEEP_BUDGETS_W))
     sweep_parser.add_argument('--json', type=Path, metavar='FILE.json', help='write the table')
     sweep_parser.add_argument('--figure', type=Path, metavar='FILE.png',
                               help="draw the letter's Fig. 2 (.png, .pdf or .svg)")
