@@ -8,6 +8,8 @@ STAMP := $(VENV)/.installed
 # Present after `make dev`: every (re)install is then editable, so edits to the sources
 # take effect without reinstalling.
 EDITABLE := $(VENV)/.editable
+# The mode of the last install; a change of mode (make dev, or removing .editable) reinstalls.
+MODE_STAMP := $(VENV)/.mode-$(if $(wildcard $(EDITABLE)),editable,normal)
 SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml launch/*.py rviz/*.rviz) \
            $(wildcard uav_comm_planner/*.py uav_comm_planner/*/*.py) resource/uav_comm_planner
 
@@ -19,7 +21,12 @@ ROS_ENV := ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST AMENT_PREFIX_PATH=$(abspath $
 
 install: $(STAMP)
 
-$(STAMP): $(SOURCES)
+$(MODE_STAMP):
+	mkdir -p $(VENV)
+	rm -f $(VENV)/.mode-*
+	touch $@
+
+$(STAMP): $(SOURCES) $(MODE_STAMP)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade 'pip>=23'
 	$(BIN)/python -m pip install --quiet $(if $(wildcard $(EDITABLE)),--editable )'.[ros,plots,test]'
@@ -41,7 +48,6 @@ $(STAMP): $(SOURCES)
 dev:
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	touch $(EDITABLE)
-	rm -f $(STAMP)
 	$(MAKE) install
 
 run: $(STAMP)

@@ -394,26 +394,36 @@ def test_changelog_has_the_ros_layout():
 
 # --- make dev --------------------------------------------------------------------------------
 
-def _make_install_commands(venv: Path) -> str:
-    done = subprocess.run(['make', '--dry-run', '--always-make', 'install', f'VENV={venv}'],
-                          cwd=ROOT, capture_output=True, text=True, timeout=60)
+def _make_install_commands(venv: Path, *, always: bool = False) -> str:
+    """What ``make install`` would run for ``venv`` (make's dry run: nothing is installed)."""
+    command = ['make', '--dry-run', 'install', f'VENV={venv}'] + (['--always-make'] * always)
+    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     return done.stdout
 
 
 def test_make_dev_makes_every_later_install_editable(tmp_path):
-    """What ``make install`` would run, for a virtual environment with and without the mark
-    ``make dev`` leaves (make's dry run: nothing is installed)."""
+    """An installed, up-to-date virtual environment reinstalls editable once ``make dev``
+    has left its mark, and normally again once the mark is removed."""
     if shutil.which('make') is None:
         pytest.skip('make is not installed')
     venv = tmp_path / 'venv'
     (venv / 'bin').mkdir(parents=True)
     (venv / 'bin' / 'python').touch(mode=0o755)
-    normal = _make_install_commands(venv)
+    normal = _make_install_commands(venv, always=True)
     assert "-m pip install --quiet '.[ros,plots,test]'" in normal
     assert '--editable' not in normal
+    (venv / '.mode-normal').touch()
+    (venv / '.installed').touch()          # installed after every source and the mode
+    assert 'pip install' not in _make_install_commands(venv)
     (venv / '.editable').touch()
     editable = _make_install_commands(venv)
     assert "-m pip install --quiet --editable '.[ros,plots,test]'" in editable
     # An editable install leaves out data_files; the recipe copies what ros2 run/launch need.
     assert 'cp -r package.xml config launch rviz' in editable
+    # What that install leaves; then the mark goes and the next install is a normal one.
+    (venv / '.mode-normal').rename(venv / '.mode-editable')
+    (venv / '.installed').touch()
+    assert 'pip install' not in _make_install_commands(venv)
+    (venv / '.editable').unlink()
+    assert "-m pip install --quiet '.[ros,plots,test]'" in _make_install_commands(venv)
