@@ -19,3 +19,15 @@ class SolverError(PlannerError, RuntimeError):
 
 class MissionExportError(PlannerError):
     """A mission file could not be written; the previous file, if any, is left untouched."""
+
+
+class ComputeBudgetError(InvalidScenarioError):
+    """A problem larger than the compute budget (nodes x slots) was refused before any work."""
+
+
+class PlanCancelledError(PlannerError):
+    """A plan was given up between two steps because its caller asked it to stop."""
+
+
+class OutputFileError(PlannerError, OSError):
+    """An output path cannot be written safely: not a regular file, a link, no folder, ..."""
