@@ -34,7 +34,7 @@ setup(
         # outside one, the PyPI wheels of Jazzy provide them.
         'ros': ROS_JAZZY,
         'plots': ['matplotlib>=3.8,<4'],
-        'test': ['pytest>=8,<10'],
+        'test': ['pytest>=8,<10', 'hypothesis>=6.100,<7'],
     },
     zip_safe=True,
     maintainer='uav_comm_planner maintainers',
@@ -43,7 +43,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            f'planner = {PACKAGE}.ros.node:main',
+            f'planner = {PACKAGE}.ros.launcher:main',
             f'send_ground_nodes = {PACKAGE}.ros.send_ground_nodes:main',
             f'uav-comm-planner = {PACKAGE}.tools.cli:main',
         ],

@@ -28,6 +28,3 @@ class ComputeBudgetError(InvalidScenarioError):
 class PlanCancelledError(PlannerError):
     """A plan was given up between two steps because its caller asked it to stop."""
 
-
-class OutputFileError(PlannerError, OSError):
-    """An output path cannot be written safely: not a regular file, a link, no folder, ..."""

@@ -33,7 +33,7 @@ MAX_COORDINATE_M = 1.0e7
 #: The shortest leg V delta a plan may have: below a micrometre no solver resolves the motion.
 MIN_STEP_M = 1.0e-6
 #: Default compute budget: the largest N x M (nodes times slots) a plan accepts.
-MAX_NODE_SLOTS = 1_000_000
+MAX_NODE_SLOTS = 100_000
 
 
 def _real(name: str, value: object) -> float:

@@ -7,6 +7,7 @@ which runs :func:`attempt` on its own thread and hands back a :class:`PlanOutcom
 from __future__ import annotations
 
 from dataclasses import dataclass
+import inspect
 import math
 from pathlib import Path as FilePath
 import threading
@@ -14,7 +15,7 @@ from typing import Callable, Generic, TypeVar
 
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
-from uav_comm_planner.errors import InfeasibleHorizonError, PlannerError
+from uav_comm_planner.errors import InfeasibleHorizonError, PlanCancelledError, PlannerError
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.vehicle.mission import export_mission
 
@@ -29,7 +30,8 @@ class LatestOnlyWorker(Generic[Request]):
     """Runs ``job`` on one thread, one request at a time; newer requests replace waiting ones.
 
     Nothing queues up: at most one request waits while a job runs, and it is the newest.
-    ``job`` must not raise.
+    A running job may ask :meth:`superseded` between its steps and give up when a newer
+    request waits (or the worker stops). ``job`` must not raise.
     """
 
     def __init__(self, job: Callable[[Request], None], *, name: str) -> None:
@@ -48,8 +50,18 @@ class LatestOnlyWorker(Generic[Request]):
             self._condition.notify()
         return replaced
 
+    def superseded(self) -> bool:
+        """True when the running job should give up: a newer request waits, or stopping."""
+        return self._waiting is not None or self._stopping
+
+    @property
+    def busy(self) -> bool:
+        """True while the worker thread is alive (a job may be running)."""
+        return self._thread.is_alive()
+
     def stop(self, timeout_s: float = WORKER_STOP_TIMEOUT_S) -> None:
-        """Drop any waiting request and wait up to ``timeout_s`` for the running job."""
+        """Drop any waiting request and wait up to ``timeout_s`` for the running job, which
+        :meth:`superseded` asks to give up."""
         with self._condition:
             self._stopping = True
             self._waiting = None
@@ -88,6 +100,7 @@ class PlanOutcome:
     error: str = ''
     mission_path: FilePath | None = None
     mission_error: str = ''
+    cancelled: bool = False
 
 
 def remaining_scenario(scenario: Scenario, position: tuple[float, float],
@@ -110,15 +123,36 @@ def remaining_scenario(scenario: Scenario, position: tuple[float, float],
 
 
 def write_mission(result: PlanResult, output: NodeSettings) -> FilePath:
-    """Write ``result`` to ``output.mission_file``; raises MissionExportError on failure."""
-    return export_mission(result, output.mission_file, output.home, end=output.mission_end,
+    """Write ``result`` to ``output.mission_path`` (``mission_file`` inside ``mission_dir``);
+    raises MissionExportError on failure."""
+    return export_mission(result, output.mission_path, output.home, end=output.mission_end,
                           firmware=output.mission_firmware)
 
 
-def attempt(planner: Planner, request: PlanRequest) -> PlanOutcome:
-    """Plan ``request`` and write its mission if asked; every failure becomes the outcome."""
+def accepts_should_stop(planner: Callable[..., object]) -> bool:
+    """Whether ``planner`` takes the keyword ``should_stop`` (as the core's plan() does)."""
     try:
-        result = planner(request.scenario, request.settings)
+        parameters = inspect.signature(planner).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    return any(p.name == 'should_stop' or p.kind is inspect.Parameter.VAR_KEYWORD
+               for p in parameters)
+
+
+def attempt(planner: Planner, request: PlanRequest, *,
+            should_stop: Callable[[], bool] | None = None) -> PlanOutcome:
+    """Plan ``request`` and write its mission if asked; every failure becomes the outcome.
+
+    ``should_stop``, when given, is passed on to the planner, which asks it between steps;
+    a plan given up that way is an outcome with ``cancelled`` set.
+    """
+    try:
+        if should_stop is None:
+            result = planner(request.scenario, request.settings)
+        else:
+            result = planner(request.scenario, request.settings, should_stop=should_stop)
+    except PlanCancelledError as exc:
+        return PlanOutcome(request, error=str(exc), cancelled=True)
     except PlannerError as exc:
         return PlanOutcome(request, error=str(exc))
     except Exception as exc:  # noqa: B902 - a failed plan must not end the worker thread

@@ -1,7 +1,9 @@
 """Command line: ``uav-comm-planner plan``, ``sweep`` and ``bench``.
 
 Both take the letter's case (``--case I`` or ``II``) or a scenario file, with flags that
-override single settings; bad input ends with a one-line error and exit status 2.
+override single settings; bad input ends with a one-line error
+(``uav-comm-planner: error: ...``, no usage block) and exit status 2. Every check (arguments,
+scenario, output paths and formats, finite output) passes before the first file is written.
 """
 
 from __future__ import annotations
@@ -15,12 +17,29 @@ from typing import Sequence
 
 from uav_comm_planner.tools import bench
 from uav_comm_planner.errors import PlannerError
-from uav_comm_planner.files import write_text_atomic
+from uav_comm_planner.files import check_output_path, write_text_atomic
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.tools.plots import METHOD_LABELS
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.tools.serialize import result_to_dict, scenario_from_dict
+
+PROG = 'uav-comm-planner'
+#: A scenario file larger than this is refused before it is parsed.
+MAX_SCENARIO_FILE_BYTES = 16 * 1024 * 1024
+
+
+class CommandLineError(Exception):
+    """A bad argument, found by the parser."""
+
+
+class OneLineArgumentParser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors raise :class:`CommandLineError` instead of printing the
+    usage block and exiting; :func:`main` prints them as one line and returns 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise CommandLineError(message)
+
 
 # Scenario field -> (flag, help) for the single-value overrides.
 _SCALAR_FLAGS = {
@@ -79,19 +98,47 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
                         help='absolute convergence tolerance epsilon, bit/s (default 0: the '
                              'relative tolerance 1e-4 alone; --letter uses 0.01)')
     parser.add_argument('--max-nodes', type=int, default=None, help='largest number of nodes')
+    parser.add_argument('--max-node-slots', type=int, default=None,
+                        help='compute budget: largest N x M, nodes times slots (default '
+                             f'{SolverSettings().max_node_slots})')
     parser.add_argument('--letter', action='store_true',
                         help="run the letter's Algorithm 1 exactly: straight-line start only, "
                              'absolute tolerance 0.01 bit/s (default: best of the straight and '
                              'hover-and-fly starts, relative tolerance 1e-4)')
 
 
+def read_scenario_file(path: Path) -> dict:
+    """The JSON object of a scenario file; refuses (PlannerError) a file that is not UTF-8, not
+    JSON, nested too deeply, larger than MAX_SCENARIO_FILE_BYTES or not an object at the top."""
+    name = str(path)
+    try:
+        with open(path, 'rb') as handle:
+            raw = handle.read(MAX_SCENARIO_FILE_BYTES + 1)
+    except OSError as exc:
+        raise PlannerError(f'cannot read scenario file {name!r}: {exc.strerror or exc}') from None
+    if len(raw) > MAX_SCENARIO_FILE_BYTES:
+        raise PlannerError(f'scenario file {name!r} is larger than '
+                           f'{MAX_SCENARIO_FILE_BYTES} bytes')
+    try:
+        text = raw.decode('utf-8')
+    except UnicodeDecodeError as exc:
+        raise PlannerError(f'scenario file {name!r} is not UTF-8 text ({exc.reason} at byte '
+                           f'{exc.start})') from None
+    try:
+        data = json.loads(text)
+    except RecursionError:
+        raise PlannerError(f'scenario file {name!r} is nested too deeply') from None
+    except ValueError as exc:
+        raise PlannerError(f'scenario file {name!r} is not valid JSON: {exc}') from None
+    if not isinstance(data, dict):
+        raise PlannerError(f'scenario file {name!r} must hold a JSON object {{"field": value, '
+                           f'...}}, not {type(data).__name__}')
+    return data
+
+
 def _scenario(args: argparse.Namespace) -> Scenario:
     if args.scenario is not None:
-        try:
-            data = json.loads(args.scenario.read_text(encoding='utf-8'))
-        except (OSError, json.JSONDecodeError) as exc:
-            raise PlannerError(f'cannot read scenario file {str(args.scenario)!r}: {exc}')
-        base = scenario_from_dict(data)
+        base = scenario_from_dict(read_scenario_file(args.scenario))
     else:
         base = paper_scenario(args.case)
     changes = {field: getattr(args, field) for field in _SCALAR_FLAGS
@@ -108,6 +155,8 @@ def _settings(args: argparse.Namespace) -> SolverSettings:
         changes['tolerance_bps'] = args.tolerance
     if args.max_nodes is not None:
         changes['max_nodes'] = args.max_nodes
+    if args.max_node_slots is not None:
+        changes['max_node_slots'] = args.max_node_slots
     if args.letter:
         return SolverSettings.letter(**changes)
     return SolverSettings(**changes)
@@ -131,15 +180,35 @@ def format_plan(result: PlanResult) -> str:
     return '\n'.join(lines)
 
 
-def _check_output_folders(*paths: Path | None) -> None:
-    """Fail before planning, not after, when an output file cannot be placed."""
-    for path in paths:
-        if path is not None and not path.parent.is_dir():
-            raise PlannerError(f'folder {str(path.parent)!r} for {str(path)!r} does not exist')
+def _check_outputs(*paths: Path | None, figure: Path | None = None) -> None:
+    """Fail before planning, not after, when an output file cannot be placed or its format
+    is unknown: each path must be a regular file (or absent) in a writable folder."""
+    for path in (*paths, figure):
+        if path is not None:
+            check_output_path(path)
+    if figure is not None:
+        suffix = figure.suffix.lower().lstrip('.')
+        try:
+            from matplotlib.backend_bases import FigureCanvasBase
+        except ImportError:
+            raise PlannerError('--figure needs matplotlib (the plots extra)') from None
+        formats = FigureCanvasBase.get_supported_filetypes()
+        if suffix not in formats:
+            raise PlannerError(f'unknown figure format for {str(figure)!r}: use one of '
+                               f'{", ".join("." + f for f in sorted(formats))}')
+
+
+def json_text(data: object) -> str:
+    """``data`` as indented JSON; refuses (PlannerError) Infinity or NaN, which JSON lacks."""
+    try:
+        return json.dumps(data, indent=1, allow_nan=False) + '\n'
+    except ValueError:
+        raise PlannerError('the result holds a non-finite number (Infinity or NaN); nothing '
+                           'was written') from None
 
 
 def _command_plan(args: argparse.Namespace) -> int:
-    _check_output_folders(args.json, args.figure, args.mission)
+    _check_outputs(args.json, args.mission, figure=args.figure)
     if args.mission is not None:
         from uav_comm_planner.vehicle.mission import MISSION_FORMATS
         if args.mission.suffix.lower() not in MISSION_FORMATS:
@@ -147,9 +216,12 @@ def _command_plan(args: argparse.Namespace) -> int:
                                f'.waypoints or .plan file')
     result = plan(_scenario(args), _settings(args))
     print(format_plan(result))
-    if args.json is not None:
-        text = json.dumps(result_to_dict(result), indent=1)
-        print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
+    text = json_text(result_to_dict(result)) if args.json is not None else None
+    if args.mission is not None:
+        from uav_comm_planner.vehicle.mission import build_mission_items
+        build_mission_items(result, args.home, end=args.mission_end, firmware=args.firmware)
+    if text is not None:
+        print(f'wrote {write_text_atomic(args.json, text)}')
     if args.figure is not None:
         from uav_comm_planner.tools.plots import plan_figure
         print(f'wrote {plan_figure(result, args.figure)}')
@@ -162,20 +234,23 @@ def _command_plan(args: argparse.Namespace) -> int:
 
 
 def _command_sweep(args: argparse.Namespace) -> int:
-    _check_output_folders(args.json, args.figure)
+    _check_outputs(args.json, figure=args.figure)
     scenario, settings = _scenario(args), _settings(args)
+    scenarios = [scenario.replace(power_budget_w=budget) for budget in args.budgets]
+    for each in scenarios:
+        settings.check(each)
     rows: dict[str, list[float]] = {'proposed': [], 'straight': [], 'static': []}
     print(f'{"P_T (W)":>8}{"proposed":>12}{"straight":>12}{"static":>12}{"time (s)":>10}')
-    for budget in args.budgets:
-        result = plan(scenario.replace(power_budget_w=budget), settings)
+    for budget, each in zip(args.budgets, scenarios):
+        result = plan(each, settings)
         values = [result.min_throughput, result.baselines['straight'], result.baselines['static']]
         for key, value in zip(rows, values):
             rows[key].append(value)
         print(f'{budget:>8g}' + ''.join(f'{v:>12.4f}' for v in values)
               + f'{result.solve_time_s:>10.2f}')
     if args.json is not None:
-        text = json.dumps({'budgets_w': args.budgets, 'min_throughput': rows}, indent=1)
-        print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
+        text = json_text({'budgets_w': args.budgets, 'min_throughput': rows})
+        print(f'wrote {write_text_atomic(args.json, text)}')
     if args.figure is not None:
         from uav_comm_planner.tools.plots import sweep_figure
         print(f'wrote {sweep_figure(args.budgets, rows, args.figure)}')
@@ -188,8 +263,8 @@ def _command_bench(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog='uav-comm-planner',
+    parser = OneLineArgumentParser(
+        prog=PROG,
         description='Joint transmit-power and trajectory planning for a communication UAV.')
     commands = parser.add_subparsers(dest='command', required=True)
 
@@ -228,14 +303,22 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _error_line(exc: BaseException) -> str:
+    return ' '.join(str(exc).split()) or type(exc).__name__
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status: 0, or 2 after a one-line error."""
     logging.basicConfig(level=logging.WARNING, format='%(levelname)s %(name)s: %(message)s')
-    args = build_parser().parse_args(argv)
     try:
+        args = build_parser().parse_args(argv)
         return args.handler(args)
-    except (PlannerError, FileNotFoundError, PermissionError, IsADirectoryError) as exc:
-        print(f'uav-comm-planner: error: {exc}', file=sys.stderr)
+    except (CommandLineError, PlannerError, OSError) as exc:
+        print(f'{PROG}: error: {_error_line(exc)}', file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted', file=sys.stderr)
+        return 130
 
 
 if __name__ == '__main__':

@@ -24,8 +24,9 @@ so rounding never accumulates: a replay of the file (leg length / commanded spee
 reaches every waypoint at its planned time within that tolerance. Commanded speeds stay within
 [``min_speed_mps``, the plan's V]; a leg slower than ``min_speed_mps`` (autopilots do not hold a
 crawl of a few cm/s) is flown at that speed after holding at its start for the time left over.
-ArduPilot keeps a waypoint's hold in whole seconds (a uint16), so for ``firmware='ardupilot'``
-holds are whole seconds, rounded down unless within the tolerance of the next one, and the next
+ArduPilot keeps a waypoint's hold in whole seconds (AP_Mission stores param1 of NAV_WAYPOINT
+in a uint16, so at most 65535 s; a longer hold is written as repeated waypoints at the same
+place, each holding at most that), so for ``firmware='ardupilot'`` holds are whole seconds, rounded down unless within the tolerance of the next one, and the next
 leg slows down by the fraction. Holds shorter than the tolerance are dropped: any hold makes the
 vehicle stop at the waypoint. The replay is kinematic: the autopilot's acceleration and corner
 rounding are not modelled.
@@ -43,7 +44,7 @@ from typing import Callable, Sequence
 import numpy as np
 from pymavlink import mavutil, mavwp
 
-from uav_comm_planner.errors import MissionExportError
+from uav_comm_planner.errors import InvalidScenarioError, MissionExportError
 from uav_comm_planner.files import write_with
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, Home
 from uav_comm_planner.core.model import flown_path
@@ -71,6 +72,10 @@ MIN_SPEED_MPS = 0.5
 SPEED_DECIMALS = 2
 #: Latitude and longitude to 1e-8 degree (about 1 mm).
 DEGREE_DECIMALS = 8
+#: The longest hold ArduPilot stores in one NAV_WAYPOINT (param1 kept as a uint16), seconds.
+ARDUPILOT_MAX_HOLD_S = 65535.0
+#: A hold split into more waypoints than this (about 49 days for ArduPilot) is refused.
+MAX_HOLD_PARTS = 64
 #: Keep the speed in force when it reaches the next stop within this fraction of a slot.
 TIMING_TOLERANCE_SLOTS = 0.05
 
@@ -276,7 +281,14 @@ def _check_firmware(firmware: str) -> None:
 def build_mission_items(result: PlanResult, home: Home, *, end: str = 'land',
                         firmware: str = 'ardupilot', merge_radius_m: float = MERGE_RADIUS_M,
                         min_speed_mps: float = MIN_SPEED_MPS) -> list[MissionItem]:
-    """The mission rows of a plan, home first (see the module docstring for their meaning)."""
+    """The mission rows of a plan, home first (see the module docstring for their meaning).
+
+    Raises :class:`~uav_comm_planner.errors.MissionExportError` when a row would hold a value
+    outside its format's range (a non-finite number, a latitude beyond 90 degrees...).
+    """
+    if not isinstance(home, Home):
+        raise MissionExportError(f'home must be a Home(latitude, longitude, altitude), got '
+                                 f'{home!r}')
     if end not in MISSION_ENDS:
         raise MissionExportError(f'unknown mission end {end!r}: choose land or rtl')
     stops = plan_stops(result, firmware=firmware, merge_radius_m=merge_radius_m,
@@ -287,24 +299,43 @@ def build_mission_items(result: PlanResult, home: Home, *, end: str = 'land',
     altitude = result.scenario.altitude_m
     east = np.array([stop.position_m[0] for stop in stops])
     north = np.array([stop.position_m[1] for stop in stops])
-    latitude, longitude, _ = enu_to_geodetic(east, north, 0.0, home)
+    try:
+        latitude, longitude, _ = enu_to_geodetic(east, north, 0.0, home)
+    except InvalidScenarioError as exc:
+        raise MissionExportError(str(exc)) from None
     latitude, longitude = latitude.round(DEGREE_DECIMALS), longitude.round(DEGREE_DECIMALS)
     items = [MissionItem(NAV_WAYPOINT, FRAME_GLOBAL, x=home.latitude_deg,
                          y=home.longitude_deg, z=home.altitude_m, current=True),
              MissionItem(NAV_TAKEOFF, FRAME_RELATIVE_ALT, (0.0, 0.0, 0.0, yaw),
                          home.latitude_deg, home.longitude_deg, altitude)]
-    items += _stop_items(stops, latitude, longitude, altitude, yaw)
+    max_hold_s = ARDUPILOT_MAX_HOLD_S if firmware == 'ardupilot' else math.inf
+    items += _stop_items(stops, latitude, longitude, altitude, yaw, max_hold_s=max_hold_s)
     if end == 'land':
         items.append(MissionItem(NAV_LAND, FRAME_RELATIVE_ALT, (0.0, 0.0, 0.0, yaw),
                                  float(latitude[-1]), float(longitude[-1]), 0.0))
     else:
         items.append(MissionItem(NAV_RETURN_TO_LAUNCH, FRAME_MISSION))
+    _check_items(items)
     return items
 
 
+def _check_items(items: Sequence[MissionItem]) -> None:
+    """Refuse rows a mission file cannot carry: non-finite values (a NaN yaw excepted, PX4's
+    "keep the heading"), latitudes beyond 90 or longitudes beyond 180 degrees."""
+    for seq, item in enumerate(items):
+        values = (*item.params[:3], item.x, item.y, item.z)
+        if not all(math.isfinite(v) for v in values) or math.isinf(item.params[3]):
+            raise MissionExportError(f'mission item {seq} holds a non-finite value: {values}')
+        if item.frame != FRAME_MISSION and not (abs(item.x) <= 90.0 and abs(item.y) <= 180.0):
+            raise MissionExportError(f'mission item {seq} is at latitude {item.x}, longitude '
+                                     f'{item.y}, outside the globe')
+
+
 def _stop_items(stops: Sequence[Stop], latitude: np.ndarray, longitude: np.ndarray,
-                altitude_m: float, yaw: float) -> list[MissionItem]:
-    """A waypoint per stop (latitude, longitude: (S,) degrees), each leg's speed before it."""
+                altitude_m: float, yaw: float, *,
+                max_hold_s: float = math.inf) -> list[MissionItem]:
+    """A waypoint per stop (latitude, longitude: (S,) degrees), each leg's speed before it;
+    a hold longer than ``max_hold_s`` becomes repeated waypoints at the stop."""
     items = []
     speed_in_force = None
     for index, stop in enumerate(stops):
@@ -312,9 +343,23 @@ def _stop_items(stops: Sequence[Stop], latitude: np.ndarray, longitude: np.ndarr
             speed_in_force = stops[index - 1].speed_mps
             items.append(MissionItem(DO_CHANGE_SPEED, FRAME_MISSION,
                                      (SPEED_TYPE_GROUND, speed_in_force, THROTTLE_UNCHANGED, 0.0)))
-        items.append(MissionItem(NAV_WAYPOINT, FRAME_RELATIVE_ALT, (stop.hold_s, 0.0, 0.0, yaw),
-                                 float(latitude[index]), float(longitude[index]), altitude_m))
+        for hold in _hold_parts(stop.hold_s, max_hold_s):
+            items.append(MissionItem(NAV_WAYPOINT, FRAME_RELATIVE_ALT, (hold, 0.0, 0.0, yaw),
+                                     float(latitude[index]), float(longitude[index]),
+                                     altitude_m))
     return items
+
+
+def _hold_parts(hold_s: float, max_hold_s: float) -> list[float]:
+    """``hold_s`` as holds of at most ``max_hold_s`` each that add up to it ([0.0] for none)."""
+    if hold_s <= max_hold_s:
+        return [hold_s]
+    whole, rest = divmod(hold_s, max_hold_s)
+    if whole + (rest > 0) > MAX_HOLD_PARTS:
+        raise MissionExportError(
+            f'a hold of {hold_s:g} s needs more than {MAX_HOLD_PARTS} waypoints of at most '
+            f'{max_hold_s:g} s each; shorten horizon_s')
+    return [max_hold_s] * int(whole) + ([rest] if rest > 0 else [])
 
 
 # Writers.
@@ -407,9 +452,6 @@ def export_mission(result: PlanResult, path: str | os.PathLike, home: Home, *,
         raise MissionExportError(
             f'unknown mission format {target.suffix or "(no extension)"!r} for {str(target)!r}: '
             f'use a .waypoints or .plan file')
-    if not isinstance(home, Home):
-        raise MissionExportError(f'home must be a Home(latitude, longitude, altitude), got '
-                                 f'{home!r}')
     items = build_mission_items(result, home, end=end, firmware=firmware,
                                 merge_radius_m=merge_radius_m)
     if suffix == '.plan':
