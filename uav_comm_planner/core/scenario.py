@@ -82,7 +82,8 @@ def _finite_positive(name: str, compute: Callable[[], float], reason: str) -> fl
     except (OverflowError, ZeroDivisionError, FloatingPointError):
         value = math.nan
     if not (math.isfinite(value) and value >= sys.float_info.min):
-        raise InvalidScenarioError(f'{name} is {value:g}, out of floating-point range: {reason}')
+        found = 'overflows' if math.isnan(value) else f'is {value:g}'
+        raise InvalidScenarioError(f'{name} {found}, out of floating-point range: {reason}')
     return value
 
 
