@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import math
 import os
-from pathlib import Path
 import stat
 import tracemalloc
 
@@ -357,7 +356,7 @@ def test_bad_scenario_files_are_one_line_refusals(tmp_path, capsys, content, mes
     (['sweep', '--budgets', ''], 'expected comma-separated numbers'),
 ])
 def test_bad_command_lines_are_one_line_refusals_before_any_file(tmp_path, capsys, argv,
-                                                                  message):
+                                                                 message):
     argv = [arg.replace('{tmp}', str(tmp_path)) for arg in argv]
     assert message in one_line_refusal(capsys, tmp_path, argv)
 

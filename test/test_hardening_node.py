@@ -17,10 +17,10 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
+from test_node import DEADLINE_S, Harness, NODES_B, PROCESS_DEADLINE_S
 
 from uav_comm_planner import plan
 from uav_comm_planner.ros.node import NODE_NAME
-from test_node import DEADLINE_S, Harness, NODES_A, NODES_B, PROCESS_DEADLINE_S
 
 pytestmark = pytest.mark.filterwarnings('ignore::DeprecationWarning')
 

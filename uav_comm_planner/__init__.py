@@ -33,6 +33,7 @@ def __getattr__(name: str) -> object:
 
 
 __all__ = [
-    'ComputeBudgetError', 'PlanCancelledError', 'InfeasibleHorizonError', 'InvalidScenarioError', 'MissionExportError', 'PlanResult',
+    'ComputeBudgetError', 'PlanCancelledError', 'InfeasibleHorizonError',
+    'InvalidScenarioError', 'MissionExportError', 'PlanResult',
     'PlannerError', 'Scenario', 'SolverError', 'SolverSettings', 'paper_scenario', 'plan',
 ]

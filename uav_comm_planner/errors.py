@@ -27,4 +27,3 @@ class ComputeBudgetError(InvalidScenarioError):
 
 class PlanCancelledError(PlannerError):
     """A plan was given up between two steps because its caller asked it to stop."""
-

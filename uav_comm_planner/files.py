@@ -1,13 +1,13 @@
 """Atomic file replacement: a reader sees the old file or the new one, never half of one.
 
 Only regular files are written: a path that is a folder, a device (such as ``/dev/null``), a
-pipe, a socket or a symbolic link is refused before anything is written (an OSError
-saying which: IsADirectoryError, NotARegularFileError, ...), since renaming over it would replace the device or the link
-itself. A new file gets the mode ``0o666 & ~umask``, as ``open()`` would give it; a replaced
-file keeps its mode. The temporary file is ``.<name>.partial-<pid>-<random><suffix>`` beside
-the target, so that one left by a killed process is recognisable; writing a target removes
-the leftovers of that target whose process is gone.
-"""
+pipe, a socket or a symbolic link is refused before anything is written (an OSError saying
+which: IsADirectoryError, NotARegularFileError, ...), since renaming over it would replace the
+device or the link itself. A new file gets the mode ``0o666 & ~umask``, as ``open()`` would
+give it; a replaced file keeps its mode. The temporary file is
+``.<name>.partial-<pid>-<random><suffix>`` beside the target, so that one left by a killed
+process is recognisable; writing a target removes the leftovers of that target whose process
+is gone."""
 
 from __future__ import annotations
 
@@ -22,6 +22,7 @@ from typing import Callable, Iterator
 
 class NotARegularFileError(OSError):
     """The output path is a device, a pipe, a socket or a symbolic link, not a regular file."""
+
 
 #: Marks a temporary file: ``.<target name>.partial-<pid>-<random><suffix>``.
 PARTIAL_MARK = '.partial-'

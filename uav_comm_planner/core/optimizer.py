@@ -295,5 +295,6 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
         upper_bound=throughput_upper_bound(scenario), start_throughputs=values)
 
 
-__all__ = ['PlanResult', 'Step', 'StopCheck', 'alternate', 'within_speed_limit', 'baseline_rates', 'optimal_power', 'plan',
+__all__ = ['PlanResult', 'Step', 'StopCheck', 'alternate', 'within_speed_limit',
+           'baseline_rates', 'optimal_power', 'plan',
            'spectral_efficiency_to_rate', 'throughput_upper_bound']

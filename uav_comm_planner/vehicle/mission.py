@@ -26,8 +26,9 @@ reaches every waypoint at its planned time within that tolerance. Commanded spee
 crawl of a few cm/s) is flown at that speed after holding at its start for the time left over.
 ArduPilot keeps a waypoint's hold in whole seconds (AP_Mission stores param1 of NAV_WAYPOINT
 in a uint16, so at most 65535 s; a longer hold is written as repeated waypoints at the same
-place, each holding at most that), so for ``firmware='ardupilot'`` holds are whole seconds, rounded down unless within the tolerance of the next one, and the next
-leg slows down by the fraction. Holds shorter than the tolerance are dropped: any hold makes the
+place, each holding at most that), so for ``firmware='ardupilot'`` holds are whole seconds,
+rounded down unless within the tolerance of the next one, and the next leg slows down by the
+fraction. Holds shorter than the tolerance are dropped: any hold makes the
 vehicle stop at the waypoint. The replay is kinematic: the autopilot's acceleration and corner
 rounding are not modelled.
 """
