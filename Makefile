@@ -12,7 +12,7 @@ SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml) \
 # and planners on a shared machine do not hear each other.
 ROS_ENV := ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST AMENT_PREFIX_PATH=$(abspath $(VENV))
 
-.PHONY: install run test bench figures clean
+.PHONY: install run test fuzz bench figures clean
 
 install: $(STAMP)
 
@@ -33,6 +33,12 @@ run: $(STAMP)
 test: $(STAMP)
 	$(ROS_ENV) ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-$$(( 100 + $$$$ % 100 ))} \
 		$(BIN)/python -m pytest $(PYTEST_ARGS)
+
+# Seeded fuzzing of the API, the command line and mission export (minutes; not part of `test`).
+FUZZ_CASES ?= 10000
+FUZZ_SEED ?= 1
+fuzz: $(STAMP)
+	$(BIN)/python test/fuzz/fuzz_api_cli.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
 
 bench: $(STAMP)
 	$(BIN)/uav-comm-planner bench $(ARGS)
