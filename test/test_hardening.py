@@ -228,6 +228,22 @@ def test_only_regular_files_are_written(tmp_path):
                                                           'pipe.json']
 
 
+def test_read_only_and_foreign_files_are_not_replaced(tmp_path):
+    locked = tmp_path / 'locked.json'
+    locked.write_text('keep')
+    locked.chmod(0o444)
+    with pytest.raises(PermissionError, match='read-only'):
+        write_text_atomic(locked, 'x')
+    assert locked.read_text() == 'keep'
+    if os.geteuid() == 0:
+        foreign = tmp_path / 'survey.json'
+        foreign.write_text('theirs')
+        os.chown(foreign, 12345, -1)
+        with pytest.raises(PermissionError, match='belongs to another user'):
+            write_text_atomic(foreign, 'x')
+        assert foreign.read_text() == 'theirs'
+
+
 def test_new_files_follow_the_umask(tmp_path):
     previous = os.umask(0o027)
     try:

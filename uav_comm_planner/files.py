@@ -43,10 +43,12 @@ def _umask() -> int:
 def check_output_path(path: str | os.PathLike) -> Path:
     """Refuse an output path that cannot be replaced safely; return it as a Path.
 
-    The folder must exist and be writable; the path must be absent or a regular file. Raises
-    FileNotFoundError when the folder does not exist, NotADirectoryError when it is a file,
-    IsADirectoryError when ``path`` is a folder, :class:`NotARegularFileError` for a device,
-    pipe, socket or symbolic link and PermissionError when the folder cannot be written.
+    The folder must exist and be writable; the path must be absent or a regular file of this
+    process's user with a write permission bit (even for root, a read-only or another user's
+    file is not replaced). Raises FileNotFoundError when the folder does not exist,
+    NotADirectoryError when it is a file, IsADirectoryError when ``path`` is a folder,
+    :class:`NotARegularFileError` for a device, pipe, socket or symbolic link and
+    PermissionError for a read-only or foreign file or a folder that cannot be written.
     """
     target = Path(path)
     folder = target.parent
@@ -65,6 +67,12 @@ def check_output_path(path: str | os.PathLike) -> Path:
                 if stat.S_ISLNK(info.st_mode) else 'a device, pipe or socket')
         raise NotARegularFileError(errno.EEXIST, f'not a regular file: it is {kind}',
                                    str(target))
+    if info is not None and not info.st_mode & 0o222:
+        raise PermissionError(errno.EACCES, 'the file is read-only; it is not replaced',
+                              str(target))
+    if info is not None and info.st_uid != os.geteuid():
+        raise PermissionError(errno.EPERM, 'the file belongs to another user; it is not '
+                              'replaced', str(target))
     if not os.access(folder, os.W_OK | os.X_OK):
         raise PermissionError(errno.EACCES, 'the folder is not writable', str(folder))
     return target
