@@ -273,6 +273,10 @@ def test_home_altitude_has_a_range():
         Home(47.0, 8.0, 1e308)
     with pytest.raises(InvalidScenarioError, match='home altitude must be in'):
         Home.parse('47,8,-5000')
+    with pytest.raises(InvalidScenarioError, match='home latitude_deg must be a finite number'):
+        Home(10 ** 400, 8.0, 400.0)
+    with pytest.raises(InvalidScenarioError, match='home altitude_m must be a finite number'):
+        Home(47.0, 8.0, True)
 
 
 def test_a_hold_beyond_ardupilots_uint16_is_split_into_repeated_waypoints(tmp_path):

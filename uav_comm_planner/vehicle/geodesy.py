@@ -39,10 +39,14 @@ class Home:
     def __post_init__(self) -> None:
         for name in ('latitude_deg', 'longitude_deg', 'altitude_m'):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) \
-                    or not math.isfinite(value):
+            try:
+                number = float(value)
+            except (TypeError, ValueError, OverflowError):
+                number = math.nan
+            if isinstance(value, (bool, np.bool_)) or not isinstance(
+                    value, (int, float, np.integer, np.floating)) or not math.isfinite(number):
                 raise InvalidScenarioError(f'home {name} must be a finite number, got {value!r}')
-            object.__setattr__(self, name, float(value))
+            object.__setattr__(self, name, number)
         if not -90.0 <= self.latitude_deg <= 90.0:
             raise InvalidScenarioError(
                 f'home latitude must be in [-90, 90] degrees, got {self.latitude_deg}')
