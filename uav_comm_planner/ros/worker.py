@@ -22,7 +22,9 @@ from uav_comm_planner.vehicle.mission import export_mission
 #: How long shutting down waits for a plan in progress before leaving it to its daemon thread.
 WORKER_STOP_TIMEOUT_S = 5.0
 
-Planner = Callable[[Scenario, SolverSettings], PlanResult]
+#: (scenario, settings) -> plan; one that also takes the keyword ``should_stop`` (as the core's
+#: plan() does) is asked to give up when a newer request arrives.
+Planner = Callable[..., PlanResult]
 Request = TypeVar('Request')
 
 
@@ -53,11 +55,6 @@ class LatestOnlyWorker(Generic[Request]):
     def superseded(self) -> bool:
         """True when the running job should give up: a newer request waits, or stopping."""
         return self._waiting is not None or self._stopping
-
-    @property
-    def busy(self) -> bool:
-        """True while the worker thread is alive (a job may be running)."""
-        return self._thread.is_alive()
 
     def stop(self, timeout_s: float = WORKER_STOP_TIMEOUT_S) -> None:
         """Drop any waiting request and wait up to ``timeout_s`` for the running job, which
