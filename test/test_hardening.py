@@ -279,6 +279,14 @@ def test_home_altitude_has_a_range():
         Home(47.0, 8.0, True)
 
 
+def test_node_parameters_refuse_an_absurd_home_altitude_and_wrong_types():
+    from uav_comm_planner.ros.params import config_from_parameters
+    with pytest.raises(InvalidScenarioError, match='home altitude must be in'):
+        config_from_parameters({'home_altitude_m': 1e308})
+    with pytest.raises(InvalidScenarioError, match='start_m has the wrong type'):
+        config_from_parameters({'start_m': ['a', 'b']})
+
+
 def test_a_hold_beyond_ardupilots_uint16_is_split_into_repeated_waypoints(tmp_path):
     # Start = goal above the only node, 200 000 s in 4 slots: the UAV hovers the whole time.
     scenario = Scenario(ground_nodes_m=((0.0, 0.0),), goal_m=(0.0, 0.0), num_slots=4,
