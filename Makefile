@@ -17,7 +17,7 @@ SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml launch/*.py r
 # and planners on a shared machine do not hear each other.
 ROS_ENV := ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST AMENT_PREFIX_PATH=$(abspath $(VENV))
 
-.PHONY: install dev run test bench figures docs clean
+.PHONY: install dev run test fuzz bench figures docs clean
 
 install: $(STAMP)
 
@@ -56,6 +56,12 @@ run: $(STAMP)
 test: $(STAMP)
 	$(ROS_ENV) ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-$$(( 100 + $$$$ % 100 ))} \
 		$(BIN)/python -m pytest $(PYTEST_ARGS)
+
+# Seeded fuzzing of the API, the command line and mission export (minutes; not part of `test`).
+FUZZ_CASES ?= 10000
+FUZZ_SEED ?= 1
+fuzz: $(STAMP)
+	$(BIN)/python test/fuzz/fuzz_api_cli.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
 
 # The flight section flies on ArduCopter SITL: $(SITL), or $$UAV_COMM_PLANNER_SITL if unset.
 SITL ?= $(wildcard ../shared/sitl/arducopter)

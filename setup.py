@@ -40,7 +40,7 @@ setup(
         'plots': ['matplotlib>=3.8,<4'],
         # PyYAML (RViz configuration and launch parameters in the tests) also comes with
         # the ROS wheels; named here so that the tests do not rely on that.
-        'test': ['pytest>=8,<10', 'pyyaml>=6,<7'],
+        'test': ['pytest>=8,<10', 'pyyaml>=6,<7', 'hypothesis>=6.100,<7'],
     },
     zip_safe=True,
     maintainer='uav_comm_planner maintainers',
@@ -49,7 +49,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            f'planner = {PACKAGE}.ros.node:main',
+            f'planner = {PACKAGE}.ros.launcher:main',
             f'send_ground_nodes = {PACKAGE}.ros.send_ground_nodes:main',
             f'uav-comm-planner = {PACKAGE}.tools.cli:main',
         ],

@@ -383,7 +383,7 @@ def test_vehicle_aware_node_publishes_the_plan_as_flown(harness):
 
 def test_mission_written_on_every_plan_and_on_demand(harness, tmp_path):
     mission = tmp_path / 'flight.waypoints'
-    h = harness(mission_file=str(mission), **MULTIROTOR)
+    h = harness(mission_dir=str(tmp_path), mission_file=mission.name, **MULTIROTOR)
     h.published(1)
     assert mission.read_text().startswith('QGC WPL 110')
     mission.unlink()
@@ -391,7 +391,8 @@ def test_mission_written_on_every_plan_and_on_demand(harness, tmp_path):
     assert answer.success, answer.message
     assert mission.read_text().startswith('QGC WPL 110')
 
-    nowhere = Parameter('mission_file', value=str(tmp_path / 'missing' / 'f.waypoints'))
+    (tmp_path / 'taken.waypoints').mkdir()
+    nowhere = Parameter('mission_file', value='taken.waypoints')
     errors = h.node.error_count
     answer = h.call('set_parameters', SetParameters.Request(
         parameters=[nowhere.to_parameter_msg()]))
@@ -406,7 +407,7 @@ def test_mission_file_with_unknown_extension_is_refused(harness, tmp_path):
     h = harness()
     h.published(1)
     answer = h.call('set_parameters', SetParameters.Request(parameters=[
-        Parameter('mission_file', value=str(tmp_path / 'f.txt')).to_parameter_msg()]))
+        Parameter('mission_file', value='f.txt').to_parameter_msg()]))
     assert not answer.results[0].successful
     assert '.waypoints' in answer.results[0].reason
 

@@ -251,7 +251,7 @@ def test_launch_file_declares_its_arguments_and_starts_the_planner():
                  if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant)}
     assert constants['PACKAGE'] == PACKAGE
     setup_text = (ROOT / 'setup.py').read_text(encoding='utf-8')
-    assert f"'{constants['EXECUTABLE']} = {{PACKAGE}}.ros.node:main'" in setup_text
+    assert f"'{constants['EXECUTABLE']} = {{PACKAGE}}.ros.launcher:main'" in setup_text
     from uav_comm_planner.ros.node import NODE_NAME
     assert constants['NODE_NAME'] == NODE_NAME
 

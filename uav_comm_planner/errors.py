@@ -23,3 +23,11 @@ class MissionExportError(PlannerError):
 
 class VehicleLinkError(PlannerError):
     """The vehicle's MAVLink link failed or the vehicle refused what was sent; says which."""
+
+
+class ComputeBudgetError(InvalidScenarioError):
+    """A problem larger than the compute budget (nodes x slots) was refused before any work."""
+
+
+class PlanCancelledError(PlannerError):
+    """A plan was given up between two steps because its caller asked it to stop."""

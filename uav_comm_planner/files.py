@@ -1,4 +1,13 @@
-"""Atomic file replacement: a reader sees the old file or the new one, never half of one."""
+"""Atomic file replacement: a reader sees the old file or the new one, never half of one.
+
+Only regular files are written: a path that is a folder, a device (such as ``/dev/null``), a
+pipe, a socket or a symbolic link is refused before anything is written (an OSError saying
+which: IsADirectoryError, NotARegularFileError, ...), since renaming over it would replace the
+device or the link itself. A new file gets the mode ``0o666 & ~umask``, as ``open()`` would
+give it; a replaced file keeps its mode. The temporary file is
+``.<name>.partial-<pid>-<random><suffix>`` beside the target, so that one left by a killed
+process is recognisable; writing a target removes the leftovers of that target whose process
+is gone."""
 
 from __future__ import annotations
 
@@ -6,17 +15,40 @@ import contextlib
 import errno
 import os
 from pathlib import Path
+import stat
 import tempfile
 from typing import Callable, Iterator
 
 
-@contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, *, suffix: str = '') -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success it replaces ``path`` atomically.
+class NotARegularFileError(OSError):
+    """The output path is a device, a pipe, a socket or a symbolic link, not a regular file."""
 
-    Raises FileNotFoundError when the folder does not exist, NotADirectoryError when it is a
-    file, IsADirectoryError when ``path`` is a folder and PermissionError when the folder
-    cannot be written; on any failure the temporary file is removed and ``path`` is untouched.
+
+#: Marks a temporary file: ``.<target name>.partial-<pid>-<random><suffix>``.
+PARTIAL_MARK = '.partial-'
+
+
+def _umask() -> int:
+    """The process's umask, read without changing it where Linux allows (else set back)."""
+    with contextlib.suppress(OSError, ValueError):
+        with open('/proc/self/status', encoding='ascii') as status:
+            for line in status:
+                if line.startswith('Umask:'):
+                    return int(line.split()[1], 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def check_output_path(path: str | os.PathLike) -> Path:
+    """Refuse an output path that cannot be replaced safely; return it as a Path.
+
+    The folder must exist and be writable; the path must be absent or a regular file of this
+    process's user with a write permission bit (even for root, a read-only or another user's
+    file is not replaced). Raises FileNotFoundError when the folder does not exist,
+    NotADirectoryError when it is a file, IsADirectoryError when ``path`` is a folder,
+    :class:`NotARegularFileError` for a device, pipe, socket or symbolic link and
+    PermissionError for a read-only or foreign file or a folder that cannot be written.
     """
     target = Path(path)
     folder = target.parent
@@ -24,11 +56,69 @@ def atomic_path(path: str | os.PathLike, *, suffix: str = '') -> Iterator[Path]:
         if folder.exists():
             raise NotADirectoryError(errno.ENOTDIR, 'it is not a folder', str(folder))
         raise FileNotFoundError(f'folder {str(folder)!r} does not exist')
-    if target.is_dir():
+    try:
+        info = target.lstat()
+    except FileNotFoundError:
+        info = None
+    if info is not None and stat.S_ISDIR(info.st_mode):
         raise IsADirectoryError(errno.EISDIR, 'it is a folder', str(target))
-    # mkstemp makes the file private (0600); a replaced file keeps its mode, a new one is 0644.
-    mode = target.stat().st_mode & 0o777 if target.is_file() else 0o644
-    handle, temporary = tempfile.mkstemp(dir=folder, prefix=f'.{target.name}.',
+    if info is not None and not stat.S_ISREG(info.st_mode):
+        kind = ('a symbolic link; give the path of the file it points to'
+                if stat.S_ISLNK(info.st_mode) else 'a device, pipe or socket')
+        raise NotARegularFileError(errno.EEXIST, f'not a regular file: it is {kind}',
+                                   str(target))
+    if info is not None and not info.st_mode & 0o222:
+        raise PermissionError(errno.EACCES, 'the file is read-only; it is not replaced',
+                              str(target))
+    if info is not None and info.st_uid != os.geteuid():
+        raise PermissionError(errno.EPERM, 'the file belongs to another user; it is not '
+                              'replaced', str(target))
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise PermissionError(errno.EACCES, 'the folder is not writable', str(folder))
+    return target
+
+
+def _remove_stale_partials(target: Path) -> None:
+    """Remove temporary files of ``target`` left behind by processes that no longer run."""
+    prefix = f'.{target.name}{PARTIAL_MARK}'
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(target.parent):
+            if not entry.name.startswith(prefix):
+                continue
+            pid = entry.name[len(prefix):].split('-', 1)[0]
+            if pid.isdigit() and not _running(int(pid)):
+                with contextlib.suppress(OSError):
+                    os.unlink(entry.path)
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, *, suffix: str = '') -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; on success it replaces ``path`` atomically.
+
+    Raises the OSError of :func:`check_output_path` before creating anything when ``path``
+    cannot be replaced safely; on any failure the
+    temporary file is removed and ``path`` is untouched.
+    """
+    target = check_output_path(path)
+    folder = target.parent
+    _remove_stale_partials(target)
+    if target.is_file():
+        mode = target.stat().st_mode & 0o7777
+    else:
+        mode = 0o666 & ~_umask()
+    # mkstemp makes the file private (0600); the mode is set before the rename.
+    handle, temporary = tempfile.mkstemp(dir=folder,
+                                         prefix=f'.{target.name}{PARTIAL_MARK}{os.getpid()}-',
                                          suffix=suffix or target.suffix)
     os.close(handle)
     try:

@@ -5,9 +5,15 @@ Notation: q (M, 2) waypoints in metres, w (N, 2) ground nodes in metres, p (N, M
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from uav_comm_planner.core.scenario import Scenario
+
+
+#: ln 2: log2(1 + x) is computed as log1p(x) / LN2, exact to the last digits even when x is tiny.
+LN2 = math.log(2.0)
 
 
 def squared_distances(q: np.ndarray, scenario: Scenario) -> np.ndarray:
@@ -47,7 +53,7 @@ def spectral_efficiency_to_rate(bits_per_use: np.ndarray, scenario: Scenario) ->
 
 def spectral_efficiencies(a: np.ndarray, p: np.ndarray) -> np.ndarray:
     """mean_m log2(1 + p_n[m] a_n[m]): (N,) bits per channel use, for a and p (N, M)."""
-    return np.log2(1.0 + np.asarray(p, dtype=float) * a).sum(axis=1) / a.shape[1]
+    return np.log1p(np.asarray(p, dtype=float) * a).sum(axis=1) / (LN2 * a.shape[1])
 
 
 def average_rates(q: np.ndarray, p: np.ndarray, scenario: Scenario) -> np.ndarray:

@@ -11,10 +11,11 @@ from typing import Callable
 import numpy as np
 
 from uav_comm_planner.core import initial
-from uav_comm_planner.errors import SolverError
+from uav_comm_planner.errors import InvalidScenarioError, PlanCancelledError, SolverError
 from uav_comm_planner.core.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
-from uav_comm_planner.core.model import (average_rates, snr_per_watt, snr_scale,
-                                    spectral_efficiencies, spectral_efficiency_to_rate)
+from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt,
+                                         snr_scale, spectral_efficiencies,
+                                         spectral_efficiency_to_rate)
 from uav_comm_planner.core.power import conic_power, PowerAllocation, waterfilling_power
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.trajectory import trajectory_step_cvxpy, TrajectoryStep
@@ -22,6 +23,8 @@ from uav_comm_planner.core.trajectory import trajectory_step_cvxpy, TrajectorySt
 logger = logging.getLogger(__name__)
 
 PowerSolver = Callable[[np.ndarray, float], PowerAllocation]
+#: Asked between steps; True gives the plan up with :class:`PlanCancelledError`.
+StopCheck = Callable[[], bool]
 TrajectorySolver = Callable[[np.ndarray, np.ndarray, Scenario], TrajectoryStep]
 
 POWER_SOLVERS: dict[str, PowerSolver] = {
@@ -116,6 +119,7 @@ def baseline_rates(scenario: Scenario,
 def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
               power_solver: PowerSolver = waterfilling_power,
               trajectory_solver: TrajectorySolver = trajectory_step_cvxpy,
+              should_stop: StopCheck | None = None,
               ) -> tuple[np.ndarray, np.ndarray, list[Step], int, int, bool]:
     """Algorithm 1 from trajectory q (M, 2): returns (q, p, history, outer, inner, converged).
 
@@ -123,21 +127,27 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
     gains at most the tolerance; it stops when a power step gains at most the tolerance over
     the previous one (the letter's rule). A last power step on the final trajectory follows,
     which can only raise the objective. A trajectory step that would lower the true minimum
-    rate (possible only through solver round-off) is discarded and ends its loop.
+    rate (possible only through solver round-off) is discarded and ends its loop. Every
+    trajectory is projected onto the speed limit (:func:`within_speed_limit`), so solver
+    round-off never lets a leg exceed V delta. ``should_stop`` is asked before every step;
+    when it returns True the run ends with :class:`~uav_comm_planner.errors.PlanCancelledError`.
     """
     history: list[Step] = []
+    check_stop = _stop_checker(should_stop)
 
     def min_rate(a_now: np.ndarray, p_now: np.ndarray) -> float:
         bits = spectral_efficiencies(a_now, p_now).min()
         return float(spectral_efficiency_to_rate(bits, scenario))
 
     def power_step(a_now: np.ndarray) -> tuple[np.ndarray, float]:
+        check_stop()
         allocation = power_solver(a_now, scenario.power_budget_w)
         # The allocation's efficiency is min_n mean_m log2(1 + p a) of its own p.
         value = float(spectral_efficiency_to_rate(allocation.efficiency, scenario))
         history.append(Step('power', value))
         return allocation.p, value
 
+    q = within_speed_limit(q, scenario)
     a = snr_per_watt(q, scenario)
     previous_power_value = -np.inf
     inner_total = 0
@@ -151,9 +161,11 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
             break
         previous_power_value = value
         for _ in range(settings.max_inner_iterations):
+            check_stop()
             step = trajectory_solver(q, p, scenario)
             inner_total += 1
-            a_new = snr_per_watt(step.q, scenario)
+            q_new = within_speed_limit(step.q, scenario)
+            a_new = snr_per_watt(q_new, scenario)
             new_value = min_rate(a_new, p)
             if new_value < value:
                 logger.debug('trajectory step lowered the objective by %.3g; kept the old one',
@@ -161,7 +173,7 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
                 break
             history.append(Step('trajectory', new_value))
             gain = new_value - value
-            q, a, value = step.q, a_new, new_value
+            q, a, value = q_new, a_new, new_value
             if gain <= _tolerance(settings, value):
                 break
     else:
@@ -181,8 +193,40 @@ def throughput_upper_bound(scenario: Scenario) -> float:
     """
     n, m = scenario.num_nodes, scenario.num_slots
     best_snr_per_watt = snr_scale(scenario) / scenario.altitude_m ** 2
-    bits = math.log2(1.0 + best_snr_per_watt * scenario.power_budget_w / (n * m))
+    bits = math.log1p(best_snr_per_watt * scenario.power_budget_w / (n * m)) / LN2
     return float(spectral_efficiency_to_rate(np.float64(bits), scenario))
+
+
+def within_speed_limit(q: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """q (M, 2) metres, moved just enough toward the straight line that no leg exceeds V delta.
+
+    With s the straight line q0 -> qF at uniform speed (legs D / (M + 1) <= V delta, D =
+    ||qF - q0||) and L the longest leg of q, the blend (1 - lam) q + lam s has legs at most
+    (1 - lam) L + lam D / (M + 1) (triangle inequality), which is V delta for
+    lam = (L - V delta) / (L - D / (M + 1)). A solver's answer is within round-off of the
+    limit, so lam is of that order; at the goal's maximum reach, D = (M + 1) V delta, lam = 1
+    and the only feasible path, the straight line, is returned. q itself is returned when
+    every leg is within the limit.
+    """
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    limit = scenario.max_step_m
+    longest = float(np.linalg.norm(np.diff(flown_path(q, scenario), axis=0), axis=1).max())
+    if longest <= limit:
+        return q
+    straight = initial.straight_line(scenario)
+    straight_leg = math.dist(scenario.start_m, scenario.goal_m) / (scenario.num_slots + 1)
+    if not math.isfinite(longest) or longest - straight_leg <= 0:
+        return straight
+    # A few ulps more than the exact lam, so that the blend's round-off stays within V delta.
+    lam = min(1.0, (longest - limit) / (longest - straight_leg) * (1 + 1e-12) + 1e-15)
+    return (1.0 - lam) * q + lam * straight
+
+
+def _stop_checker(should_stop: StopCheck | None) -> Callable[[], None]:
+    def check() -> None:
+        if should_stop is not None and should_stop():
+            raise PlanCancelledError('plan cancelled between steps: a newer request came')
+    return check
 
 
 def _solvers(scenario: Scenario, power_method: str,
@@ -191,15 +235,21 @@ def _solvers(scenario: Scenario, power_method: str,
         power_solver = POWER_SOLVERS[power_method]
         trajectory_solver = TRAJECTORY_SOLVERS[trajectory_method]
     except KeyError as exc:
-        raise ValueError(f'unknown method {exc.args[0]!r}; power: {sorted(POWER_SOLVERS)}, '
-                         f'trajectory: {sorted(TRAJECTORY_SOLVERS)}') from None
+        raise InvalidScenarioError(
+            f'unknown method {exc.args[0]!r}; power: {sorted(POWER_SOLVERS)}, '
+            f'trajectory: {sorted(TRAJECTORY_SOLVERS)}') from None
+    except TypeError:
+        raise InvalidScenarioError(
+            f'methods are names: power_method one of {sorted(POWER_SOLVERS)}, '
+            f'trajectory_method one of {sorted(TRAJECTORY_SOLVERS)}') from None
     if trajectory_method in TRAJECTORY_STEPPERS:
         trajectory_solver = TRAJECTORY_STEPPERS[trajectory_method](scenario)
     return power_solver, trajectory_solver
 
 
 def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
-         power_method: str = 'waterfilling', trajectory_method: str = 'clarabel') -> PlanResult:
+         power_method: str = 'waterfilling', trajectory_method: str = 'clarabel',
+         should_stop: StopCheck | None = None) -> PlanResult:
     """Jointly optimise the trajectory and the transmit power for ``scenario``.
 
     Runs the letter's Algorithm 1 from every start in ``settings.starts`` (by default the
@@ -209,21 +259,33 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     updated in place; ``power_method='conic', trajectory_method='cvxpy'`` rebuilds cvxpy
     problems every step (the reference). Raises
     :class:`~uav_comm_planner.errors.InvalidScenarioError` for a scenario outside the limits of
-    ``settings`` and :class:`~uav_comm_planner.errors.SolverError` when a convex step fails.
+    ``settings`` (among them the compute budget N x M, checked before any work),
+    :class:`~uav_comm_planner.errors.SolverError` when a convex step fails and
+    :class:`~uav_comm_planner.errors.PlanCancelledError` when ``should_stop`` (asked between
+    steps) returns True.
     """
-    settings = settings or SolverSettings()
+    if settings is None:
+        settings = SolverSettings()
+    elif not isinstance(settings, SolverSettings):
+        raise InvalidScenarioError(
+            f'settings must be SolverSettings or None, got {type(settings).__name__}')
     settings.check(scenario)
+    if should_stop is not None and not callable(should_stop):
+        raise InvalidScenarioError(f'should_stop must be callable, got {should_stop!r}')
+    check_stop = _stop_checker(should_stop)
     began = time.perf_counter()
     power_solver, trajectory_solver = _solvers(scenario, power_method, trajectory_method)
     runs = {}
     for name in settings.starts:
         runs[name] = alternate(scenario, STARTS[name](scenario), settings,
-                               power_solver=power_solver, trajectory_solver=trajectory_solver)
+                               power_solver=power_solver, trajectory_solver=trajectory_solver,
+                               should_stop=should_stop)
     # The last step of each run is the true min rate of the (q, p) it returns.
     values = {name: run[2][-1].min_throughput for name, run in runs.items()}
     best = max(values, key=lambda name: (values[name], -settings.starts.index(name)))
     q, p, history, outer, inner, converged = runs[best]
     rates = average_rates(q, p, scenario)
+    check_stop()
     baselines = baseline_rates(scenario, power_solver) if settings.compute_baselines else {}
     return PlanResult(
         scenario=scenario, trajectory=q, times=scenario.times_s, power=p, rates=rates,
@@ -233,5 +295,6 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
         upper_bound=throughput_upper_bound(scenario), start_throughputs=values)
 
 
-__all__ = ['PlanResult', 'Step', 'alternate', 'baseline_rates', 'optimal_power', 'plan',
+__all__ = ['PlanResult', 'Step', 'StopCheck', 'alternate', 'within_speed_limit',
+           'baseline_rates', 'optimal_power', 'plan',
            'spectral_efficiency_to_rate', 'throughput_upper_bound']

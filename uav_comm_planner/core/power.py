@@ -22,7 +22,7 @@ import numpy as np
 
 from uav_comm_planner.core.conic import solve_to_optimality
 from uav_comm_planner.errors import SolverError
-from uav_comm_planner.core.model import spectral_efficiencies
+from uav_comm_planner.core.model import LN2, spectral_efficiencies
 
 _NEWTON_MAX_STEPS = 200
 
@@ -49,26 +49,46 @@ def _within_budget(p: np.ndarray, a: np.ndarray, power_budget_w: float) -> Power
 
 
 class _WaterLevels:
-    """Per-node minimum power as a function of the common target c, for fixed a (N, M)."""
+    """Per-node minimum power as a function of the common target c, for fixed a (N, M).
+
+    Written for precision at low SNR, where mu_n is within a few ulps of 1/a_n[m]: with the
+    slots of node n sorted best first and r_i = log2(a_i / a_1) <= 0 (exact near 0), the
+    exponent u_i = log2(mu_n a_i) = M c / k + r_i - (1/k) sum_{j<=k} r_j for k active slots,
+    and node n's power is sum_{i<=k} expm1(u_i ln 2) / a_i, free of cancellation.
+    """
 
     def __init__(self, a: np.ndarray):
         self.a = a
         self.num_slots = a.shape[1]
         self._rows = np.arange(a.shape[0])
         best_first = np.sort(a, axis=1)[:, ::-1]
+        self.best_first = best_first
         self.worst_best = float(best_first[:, 0].min())          # min_n max_m a_n[m]
         log_a = np.log2(best_first)
         self.log_sum = np.cumsum(log_a, axis=1)                   # S_k
         self.inv_sum = np.cumsum(1.0 / best_first, axis=1)        # sum_{i<=k} 1/a_i
-        # k slots are active at target c iff M c >= S_k - k log2 a_k (nondecreasing in k).
-        self.threshold = self.log_sum - np.arange(1, self.num_slots + 1) * log_a
+        self.relative = np.log2(best_first / best_first[:, :1])   # r_i
+        self.relative_sum = np.cumsum(self.relative, axis=1)      # R_k
+        # k slots are active at target c iff M c >= R_k - k r_k (nondecreasing in k, R_1 = 0).
+        self.threshold = self.relative_sum - np.arange(1, self.num_slots + 1) * self.relative
+
+    def shifts(self, c: float) -> np.ndarray:
+        """log2(mu_n a_n,best) (N,) at target c: the exponent of each node's best slot."""
+        active = np.count_nonzero(self.threshold <= self.num_slots * c, axis=1)
+        return (self.num_slots * c - self.relative_sum[self._rows, active - 1]) / active
 
     def levels(self, c: float) -> tuple[np.ndarray, np.ndarray]:
         """Water level mu_n (N,) and node power P_n(c) (N,) for target c >= 0."""
-        active = np.count_nonzero(self.threshold <= self.num_slots * c, axis=1)
-        idx = active - 1
-        mu = np.exp2((self.num_slots * c - self.log_sum[self._rows, idx]) / active)
-        return mu, active * mu - self.inv_sum[self._rows, idx]
+        exponents = self.shifts(c)[:, None] + self.relative
+        np.maximum(exponents, 0.0, out=exponents)               # inactive slots: no power
+        node_power = (np.expm1(LN2 * exponents) / self.best_first).sum(axis=1)
+        return np.exp2(exponents[:, 0]) / self.best_first[:, 0], node_power
+
+    def power(self, c: float) -> np.ndarray:
+        """p (N, M) watts in the slots' own order at target c: (mu_n - 1/a_n[m])^+."""
+        exponents = self.shifts(c)[:, None] + np.log2(self.a / self.best_first[:, :1])
+        np.maximum(exponents, 0.0, out=exponents)
+        return np.expm1(LN2 * exponents) / self.a
 
     def start(self, power_budget_w: float) -> float:
         """A target c at or above the root of P(c) = P_T, and at it when every slot is active.
@@ -81,12 +101,17 @@ class _WaterLevels:
         exact at high SNR, where Newton's method then stops at once.
         """
         m = self.num_slots
-        jensen = math.log2(1.0 + power_budget_w * self.worst_best / m)
+        jensen = math.log1p(power_budget_w * self.worst_best / m) / LN2
         mean_log = self.log_sum[:, -1] / m
         lowest = mean_log.min()
         all_active = (math.log2(power_budget_w + self.inv_sum[:, -1].sum()) - math.log2(m)
                       + lowest - math.log2(np.exp2(lowest - mean_log).sum()))
         return min(jensen, all_active)
+
+
+#: The closed form of the all-active levels subtracts 1/a from mu; it is used only while
+#: P_T is at least this share of sum 1/a, so that p keeps all but three of its digits.
+_CLOSED_FORM_LEAST_SHARE = 1e-3
 
 
 def _levels_if_all_active(a: np.ndarray, inv_a: np.ndarray,
@@ -106,36 +131,48 @@ def _levels_if_all_active(a: np.ndarray, inv_a: np.ndarray,
     return mu if (mu * a.min(axis=1)).min() >= 1.0 else None
 
 
-def _newton_levels(a: np.ndarray, power_budget_w: float) -> np.ndarray:
-    """The water levels mu (N,) of the optimum, by Newton's method on P(c) = P_T.
+def _newton_target(a: np.ndarray, power_budget_w: float) -> tuple[_WaterLevels, float]:
+    """The common target c of the optimum, by Newton's method on P(c) = P_T.
 
-    It converges from above, monotonically, because P is convex and increasing, from a start
-    above the root (:meth:`_WaterLevels.start`).
+    P is convex and increasing, so from a start above the root (:meth:`_WaterLevels.start`)
+    the iterates decrease monotonically to it; a start a few ulps below the root (round-off)
+    is followed by one step above it. It stops when P(c) is within 1e-13 of P_T or the step
+    is below 1e-15 of c, so the whole budget is assigned.
     """
     water = _WaterLevels(a)
-    newton_scale = a.shape[1] * math.log(2.0)
+    newton_scale = a.shape[1] * LN2
     c = max(water.start(power_budget_w), 0.0)
     for _ in range(_NEWTON_MAX_STEPS):
         mu, node_power = water.levels(c)
         excess = float(node_power.sum()) - power_budget_w
         step = excess / (newton_scale * float(mu.sum()))
-        if excess <= 1e-13 * power_budget_w or step <= 1e-15 * max(c, 1.0):
-            return mu
+        if abs(excess) <= 1e-13 * power_budget_w or abs(step) <= 1e-15 * c:
+            return water, c
         c = max(c - step, 0.0)
     raise SolverError('water-filling did not converge; check that a (SNR per watt) is sane')
 
 
+def _newton_levels(a: np.ndarray, power_budget_w: float) -> np.ndarray:
+    """The water levels mu (N,) of the optimum, by Newton's method (:func:`_newton_target`)."""
+    water, c = _newton_target(a, power_budget_w)
+    return water.levels(c)[0]
+
+
 def waterfilling_power(a: np.ndarray, power_budget_w: float) -> PowerAllocation:
     """Exact max-min power for SNR per watt ``a`` (N, M) and budget P_T, by water-filling:
-    in closed form when every slot is active, else by Newton's method on the target."""
+    in closed form when every slot is active (and P_T is not negligible against sum 1/a),
+    else by Newton's method on the target."""
     a = np.asarray(a, dtype=float)
     # min > 0 and max < inf fail for NaN too.
     if a.ndim != 2 or a.size == 0 or not (a.min() > 0.0 and a.max() < math.inf):
         raise SolverError('water-filling needs a finite, positive SNR-per-watt array (N, M)')
     inv_a = 1.0 / a
-    mu = _levels_if_all_active(a, inv_a, power_budget_w)
+    mu = None
+    if power_budget_w >= _CLOSED_FORM_LEAST_SHARE * inv_a.sum():
+        mu = _levels_if_all_active(a, inv_a, power_budget_w)
     if mu is None:
-        mu = _newton_levels(a, power_budget_w)
+        water, c = _newton_target(a, power_budget_w)
+        return _within_budget(water.power(c), a, power_budget_w)
     p = mu[:, None] - inv_a
     np.maximum(p, 0.0, out=p)
     return _within_budget(p, a, power_budget_w)

@@ -10,11 +10,14 @@ import dataclasses
 from dataclasses import dataclass
 import functools
 import math
-from typing import Sequence
+import sys
+from typing import Callable, Sequence
 
 import numpy as np
+from scipy.spatial import cKDTree
 
-from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+from uav_comm_planner.errors import (ComputeBudgetError, InfeasibleHorizonError,
+                                     InvalidScenarioError)
 
 #: Two ground nodes closer than this (metres) are treated as the same node.
 DUPLICATE_NODE_DISTANCE_M = 1e-3
@@ -25,20 +28,63 @@ Point = tuple[float, float]
 START_NAMES = ('straight', 'hover')
 
 
-def _point(name: str, value: Sequence[float]) -> Point:
+#: Coordinates are east-north metres from a local origin; beyond 10 000 km they leave the Earth.
+MAX_COORDINATE_M = 1.0e7
+#: The shortest leg V delta a plan may have: below a micrometre no solver resolves the motion.
+MIN_STEP_M = 1.0e-6
+#: Default compute budget: the largest N x M (nodes times slots) a plan accepts.
+MAX_NODE_SLOTS = 100_000
+
+
+def _real(name: str, value: object) -> float:
+    """``value`` as a float if it is a real number (int or float, not bool, str or None)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+            value, (int, float, np.integer, np.floating)):
+        raise InvalidScenarioError(f'{name} must be a number, got {value!r}')
     try:
-        x, y = (float(v) for v in value)
-    except (TypeError, ValueError) as exc:
-        raise InvalidScenarioError(
-            f'{name} must be a pair (x, y) in metres, got {value!r}') from exc
+        return float(value)
+    except OverflowError:
+        raise InvalidScenarioError(f'{name} must be a finite number, got {value!r}') from None
+
+
+def _point(name: str, value: Sequence[float]) -> Point:
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) \
+            or len(value) != 2:
+        raise InvalidScenarioError(f'{name} must be a pair (x, y) in metres, got {value!r}')
+    x, y = (_real(name, v) for v in value)
     if not (math.isfinite(x) and math.isfinite(y)):
         raise InvalidScenarioError(f'{name} must be finite, got ({x}, {y})')
+    if max(abs(x), abs(y)) > MAX_COORDINATE_M:
+        raise InvalidScenarioError(
+            f'{name} = ({x:g}, {y:g}) m is out of range: coordinates are metres from a local '
+            f'origin, at most {MAX_COORDINATE_M:g} m')
     return (x, y)
 
 
 def _positive(name: str, value: float) -> None:
-    if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+    value = _real(name, value)
+    if not math.isfinite(value) or value <= 0:
         raise InvalidScenarioError(f'{name} must be a positive finite number, got {value!r}')
+
+
+def _count(name: str, value: object) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) \
+            or value < 1:
+        raise InvalidScenarioError(f'{name} must be an integer >= 1, got {value!r}')
+    return int(value)
+
+
+def _finite_positive(name: str, compute: Callable[[], float], reason: str) -> float:
+    """A derived quantity that must come out finite and positive (no overflow, no underflow)."""
+    try:
+        with np.errstate(all='raise'):
+            value = float(compute())
+    except (OverflowError, ZeroDivisionError, FloatingPointError):
+        value = math.nan
+    if not (math.isfinite(value) and value >= sys.float_info.min):
+        found = 'overflows' if math.isnan(value) else f'is {value:g}'
+        raise InvalidScenarioError(f'{name} {found}, out of floating-point range: {reason}')
+    return value
 
 
 @dataclass(frozen=True)
@@ -67,11 +113,10 @@ class Scenario:
         nodes = self.ground_nodes_m
         if isinstance(nodes, np.ndarray):
             nodes = nodes.tolist()
-        try:
-            nodes = tuple(_point(f'ground node {i + 1}', w) for i, w in enumerate(nodes))
-        except TypeError as exc:
+        if isinstance(nodes, (str, bytes)) or not isinstance(nodes, Sequence):
             raise InvalidScenarioError(
-                'ground_nodes_m must be a sequence of (x, y) pairs') from exc
+                f'ground_nodes_m must be a sequence of (x, y) pairs, got {type(nodes).__name__}')
+        nodes = tuple(_point(f'ground node {i + 1}', w) for i, w in enumerate(nodes))
         if not nodes:
             raise InvalidScenarioError('no ground nodes: give at least one (x, y) position')
         object.__setattr__(self, 'ground_nodes_m', nodes)
@@ -80,24 +125,54 @@ class Scenario:
         for name in ('altitude_m', 'max_speed_mps', 'horizon_s', 'bandwidth_hz',
                      'reference_gain', 'power_budget_w'):
             _positive(name, getattr(self, name))
-        if not math.isfinite(self.noise_psd_dbm_per_hz):
+            object.__setattr__(self, name, float(getattr(self, name)))
+        noise = _real('noise_psd_dbm_per_hz', self.noise_psd_dbm_per_hz)
+        if not math.isfinite(noise):
             raise InvalidScenarioError(
                 f'noise_psd_dbm_per_hz must be finite, got {self.noise_psd_dbm_per_hz!r}')
-        if isinstance(self.num_slots, bool) or not isinstance(self.num_slots, (int, np.integer)) \
-                or self.num_slots < 1:
-            raise InvalidScenarioError(
-                f'num_slots must be an integer >= 1, got {self.num_slots!r}')
-        object.__setattr__(self, 'num_slots', int(self.num_slots))
+        object.__setattr__(self, 'noise_psd_dbm_per_hz', noise)
+        object.__setattr__(self, 'num_slots', _count('num_slots', self.num_slots))
+        self._check_scales()
         self._check_duplicates()
         self._check_reachable()
 
+    def _check_scales(self) -> None:
+        """Refuse settings whose derived quantities leave floating point (overflow, underflow).
+
+        Checked: sigma^2 (W/Hz), H^2, delta and V delta, the SNR per watt right above a node
+        a_max = N beta0 / (H^2 B sigma^2), at the far corner of the area, and P_T a_max.
+        """
+        _finite_positive('sigma^2 (W/Hz)', lambda: self.noise_psd_w_per_hz,
+                         'noise_psd_dbm_per_hz is outside what a double holds')
+        _finite_positive('H^2 (m^2)', lambda: self.altitude_m ** 2, 'change altitude_m')
+        _finite_positive('delta = T / M (s)', lambda: self.slot_s, 'change horizon_s or num_slots')
+        step = _finite_positive('V delta (m)', lambda: self.max_step_m,
+                                'change max_speed_mps, horizon_s or num_slots')
+        if step < MIN_STEP_M:
+            raise InvalidScenarioError(
+                f'the longest leg V delta = {step:g} m is below {MIN_STEP_M:g} m: the UAV cannot '
+                f'move measurably; raise max_speed_mps or horizon_s, or lower num_slots')
+        scale = _finite_positive(
+            'the SNR per watt at 1 m, N beta0 / (B sigma^2)',
+            lambda: self.num_nodes * self.reference_gain / self.bandwidth_hz
+            / self.noise_psd_w_per_hz, 'change reference_gain, bandwidth_hz or the noise')
+        best = _finite_positive('the SNR per watt above a node, a_max', lambda: scale
+                                / self.altitude_m ** 2, 'change altitude_m or the noise')
+        _finite_positive('P_T a_max', lambda: best * self.power_budget_w,
+                         'change power_budget_w or the noise')
+        points = np.array((*self.ground_nodes_m, self.start_m, self.goal_m))
+        span = float(np.ptp(points, axis=0).max())
+        _finite_positive('the SNR per watt across the area', lambda: scale / (
+            2 * span ** 2 + self.altitude_m ** 2), 'change altitude_m or the noise')
+
     def _check_duplicates(self) -> None:
-        w = self.nodes
-        gaps = np.linalg.norm(w[:, None, :] - w[None, :, :], axis=-1)
-        gaps[np.diag_indices(len(w))] = np.inf
-        i, j = np.unravel_index(np.argmin(gaps), gaps.shape)
-        if gaps[i, j] < DUPLICATE_NODE_DISTANCE_M:
-            i, j = sorted((int(i), int(j)))
+        """Refuse two nodes within DUPLICATE_NODE_DISTANCE_M: O(N log N) with a k-d tree."""
+        if self.num_nodes < 2:
+            return
+        pairs = cKDTree(self.nodes).query_pairs(
+            np.nextafter(DUPLICATE_NODE_DISTANCE_M, 0.0), output_type='ndarray')
+        if len(pairs):
+            i, j = (int(v) for v in min(map(tuple, pairs.tolist())))
             raise InvalidScenarioError(
                 f'duplicate ground nodes: node {i + 1} and node {j + 1} are both at '
                 f'{self.ground_nodes_m[i]}; give each node once')
@@ -165,6 +240,9 @@ class SolverSettings:
     rule is relative, because rates in bit/s scale with B and shrink with N: the letter's
     absolute 0.01 stops early when rates are small. ``starts`` names the initial
     trajectories Algorithm 1 is run from ('straight', 'hover'); the best plan is kept.
+    ``max_nodes`` and ``max_node_slots`` bound the work a plan may take: at most
+    ``max_nodes`` ground nodes and at most ``max_node_slots`` = N x M (nodes times slots; the
+    memory and the time of each step grow with it).
     :meth:`letter` gives the letter's Algorithm 1 exactly.
     """
 
@@ -173,6 +251,7 @@ class SolverSettings:
     max_outer_iterations: int = 50
     max_inner_iterations: int = 50
     max_nodes: int = 100
+    max_node_slots: int = MAX_NODE_SLOTS
     compute_baselines: bool = True
     starts: tuple[str, ...] = START_NAMES
 
@@ -184,6 +263,8 @@ class SolverSettings:
         return cls(**fields)
 
     def __post_init__(self) -> None:
+        for name in ('tolerance_bps', 'relative_tolerance'):
+            object.__setattr__(self, name, _real(name, getattr(self, name)))
         if not math.isfinite(self.tolerance_bps) or self.tolerance_bps < 0:
             raise InvalidScenarioError(
                 f'tolerance_bps must be >= 0 and finite, got {self.tolerance_bps!r}')
@@ -192,26 +273,49 @@ class SolverSettings:
                 f'relative_tolerance must be in [0, 1), got {self.relative_tolerance!r}')
         if self.tolerance_bps == 0 and self.relative_tolerance == 0:
             raise InvalidScenarioError('tolerance_bps and relative_tolerance cannot both be 0')
-        for name in ('max_outer_iterations', 'max_inner_iterations', 'max_nodes'):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise InvalidScenarioError(f'{name} must be an integer >= 1, got {value!r}')
+        for name in ('max_outer_iterations', 'max_inner_iterations', 'max_nodes',
+                     'max_node_slots'):
+            object.__setattr__(self, name, _count(name, getattr(self, name)))
+        if not isinstance(self.compute_baselines, (bool, np.bool_)):
+            raise InvalidScenarioError(
+                f'compute_baselines must be True or False, got {self.compute_baselines!r}')
+        object.__setattr__(self, 'compute_baselines', bool(self.compute_baselines))
         self._check_starts()
 
     def _check_starts(self) -> None:
-        starts = (self.starts,) if isinstance(self.starts, str) else tuple(self.starts)
+        starts = self.starts
+        if isinstance(starts, str):
+            starts = (starts,)
+        elif not isinstance(starts, (Sequence, np.ndarray)) or not all(
+                isinstance(name, str) for name in starts):
+            raise InvalidScenarioError(
+                f'starts must name one or more of {START_NAMES}, got {self.starts!r}')
+        starts = tuple(starts)
         unknown = [name for name in starts if name not in START_NAMES]
         if not starts or unknown:
             raise InvalidScenarioError(
                 f'starts must name one or more of {START_NAMES}, got {self.starts!r}')
         object.__setattr__(self, 'starts', tuple(dict.fromkeys(starts)))
 
-    def check(self, scenario: Scenario) -> None:
-        """Refuse a scenario with more nodes than ``max_nodes``."""
-        if scenario.num_nodes > self.max_nodes:
+    def check_node_count(self, count: int) -> None:
+        """Refuse ``count`` ground nodes when it exceeds ``max_nodes`` (before any other work)."""
+        if count > self.max_nodes:
             raise InvalidScenarioError(
-                f'too many ground nodes: {scenario.num_nodes} given, the limit max_nodes is '
+                f'too many ground nodes: {count} given, the limit max_nodes is '
                 f'{self.max_nodes}')
+
+    def check(self, scenario: Scenario) -> None:
+        """Refuse a scenario beyond the limits: ``max_nodes`` and the compute budget N x M."""
+        if not isinstance(scenario, Scenario):
+            raise InvalidScenarioError(
+                f'plan needs a Scenario, got {type(scenario).__name__}')
+        self.check_node_count(scenario.num_nodes)
+        size = scenario.num_nodes * scenario.num_slots
+        if size > self.max_node_slots:
+            raise ComputeBudgetError(
+                f'problem too large: N x M = {scenario.num_nodes} nodes x '
+                f'{scenario.num_slots} slots = {size} exceeds the compute budget '
+                f'max_node_slots = {self.max_node_slots}; lower num_slots or the node count')
 
 
 PAPER_NODES_M = ((200.0, 400.0), (1000.0, 200.0), (1800.0, 400.0))

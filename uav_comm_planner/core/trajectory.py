@@ -16,14 +16,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import functools
-import math
 from typing import Callable
 
 import cvxpy as cp
 import numpy as np
 
 from uav_comm_planner.core.conic import solve_to_optimality
-from uav_comm_planner.core.model import snr_scale, squared_distances
+from uav_comm_planner.core.model import LN2, snr_scale, squared_distances
 from uav_comm_planner.core.scenario import Scenario
 
 #: The conic problems see positions in kilometres: coordinates of order 1, not 1000.
@@ -49,8 +48,8 @@ def surrogate_coefficients(q_k: np.ndarray, p: np.ndarray,
     """The SCA bound's coefficients at the expansion point q^k (M, 2) for power p (N, M)."""
     d = squared_distances(q_k, scenario)
     snr = np.asarray(p, dtype=float) * (snr_scale(scenario) / d)
-    return SurrogateCoefficients(value=np.log2(1.0 + snr),
-                                 slope=snr / ((1.0 + snr) * math.log(2.0)),
+    return SurrogateCoefficients(value=np.log1p(snr) / LN2,
+                                 slope=snr / ((1.0 + snr) * LN2),
                                  d=d, horizontal=d - scenario.altitude_m ** 2)
 
 

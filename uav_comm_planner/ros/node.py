@@ -13,6 +13,8 @@ Replanning:
   mission from ``start_m`` and restarts the mission clock. A ``ground_nodes`` message goes
   through the ``ground_nodes`` parameter, so it is checked like any parameter change and the
   parameter always holds the node set in use;
+- a request that comes while a plan runs also asks the running plan to give up at its next
+  step (the core's ``plan(should_stop=...)``), so the newest request is planned at once;
 - a ``uav_pose`` message plans the rest of the mission from the UAV's position: the waypoints
   whose planned time has passed (time since the mission clock started, in whole slots) are
   dropped and the remaining ones, with the same slot length, lead to ``goal_m``. It is an
@@ -22,6 +24,7 @@ Replanning:
 from __future__ import annotations
 
 from collections import deque
+import signal
 import sys
 import threading
 
@@ -41,8 +44,9 @@ from uav_comm_planner.ros.binding import ParameterBinding
 from uav_comm_planner.ros.messages import ground_nodes_of
 from uav_comm_planner.ros.params import flat_pairs, PlannerConfig
 from uav_comm_planner.ros.publishing import PlanPublisher, summary_line, TOPIC_PATH
-from uav_comm_planner.ros.worker import (attempt, LatestOnlyWorker, Planner, PlanOutcome,
-                                         PlanRequest, remaining_scenario, write_mission)
+from uav_comm_planner.ros.worker import (accepts_should_stop, attempt, LatestOnlyWorker,
+                                         Planner, PlanOutcome, PlanRequest, remaining_scenario,
+                                         write_mission)
 
 NODE_NAME = 'uav_comm_planner'
 
@@ -54,6 +58,9 @@ SERVICE_EXPORT_MISSION = '~/export_mission'
 #: Volatile so that both volatile and transient-local publishers can send node sets.
 GROUND_NODES_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                               durability=DurabilityPolicy.VOLATILE)
+#: Service requests are queued, not dropped, up to this many in flight (the default is 10).
+SERVICE_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
 #: Best effort accepts pose streams of either reliability; only the latest pose matters.
 UAV_POSE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
                           durability=DurabilityPolicy.VOLATILE)
@@ -68,7 +75,8 @@ class PlannerNode(Node):
     make a valid scenario.
 
     For tests and introspection: ``requests_made`` counts plan requests, ``plans_run``
-    finished plan attempts, ``plans_published`` the successful ones; ``error_count`` and
+    finished plan attempts, ``plans_published`` the successful ones, ``plans_cancelled``
+    those given up for a newer request; ``error_count`` and
     ``last_error`` follow every error logged.
     """
 
@@ -95,9 +103,12 @@ class PlannerNode(Node):
         self.create_subscription(PoseArray, TOPIC_GROUND_NODES, self._on_ground_nodes,
                                  GROUND_NODES_QOS)
         self.create_subscription(PoseStamped, TOPIC_UAV_POSE, self._on_uav_pose, UAV_POSE_QOS)
-        self.create_service(Trigger, SERVICE_REPLAN, self._on_replan)
-        self.create_service(Trigger, SERVICE_EXPORT_MISSION, self._on_export_mission)
+        self.create_service(Trigger, SERVICE_REPLAN, self._on_replan, qos_profile=SERVICE_QOS)
+        self.create_service(Trigger, SERVICE_EXPORT_MISSION, self._on_export_mission,
+                            qos_profile=SERVICE_QOS)
 
+        self._preemptible = accepts_should_stop(planner)
+        self.plans_cancelled = 0
         self._worker: LatestOnlyWorker[PlanRequest] = LatestOnlyWorker(
             self._plan_and_export, name='uav_comm_planner.worker')
         self.request_plan('start')
@@ -118,6 +129,12 @@ class PlannerNode(Node):
     def _on_ground_nodes(self, message: PoseArray) -> None:
         """Take the message's positions as the new node set, through the parameter."""
         if not self._frame_accepted(message.header.frame_id, TOPIC_GROUND_NODES):
+            return
+        limit = self._config.settings.max_nodes
+        if len(message.poses) > limit:
+            # Refused before any conversion: the cost of a message must not grow unchecked.
+            self._report_error(f'{TOPIC_GROUND_NODES} refused: too many ground nodes: '
+                               f'{len(message.poses)} given, the limit max_nodes is {limit}')
             return
         nodes = Parameter('ground_nodes', Parameter.Type.DOUBLE_ARRAY,
                           flat_pairs(ground_nodes_of(message)))
@@ -152,7 +169,8 @@ class PlannerNode(Node):
         output = self._config.node
         response.success = False
         if not output.mission_file:
-            response.message = 'parameter mission_file is empty: set a .waypoints or .plan path'
+            response.message = ('parameter mission_file is empty: set a .waypoints or .plan '
+                                'file name')
         elif self.current_plan is None:
             response.message = 'no plan yet'
         else:
@@ -183,7 +201,8 @@ class PlannerNode(Node):
 
     def _plan_and_export(self, request: PlanRequest) -> None:
         """Worker thread: plan, write the mission if asked, hand the outcome back."""
-        outcome = attempt(self._planner, request)
+        outcome = attempt(self._planner, request,
+                          should_stop=self._worker.superseded if self._preemptible else None)
         with self._outcomes_lock:
             if self._closing:
                 return
@@ -197,6 +216,11 @@ class PlannerNode(Node):
             self._outcomes.clear()
         for outcome in outcomes:
             self.plans_run += 1
+            if outcome.cancelled:
+                self.plans_cancelled += 1
+                self.get_logger().info(f'plan for {outcome.request.reason} given up for a '
+                                       f'newer request')
+                continue
             if outcome.result is None:
                 self._report_error(f'planning failed ({outcome.request.reason}); the last '
                                    f'good plan stays published: {outcome.error}')
@@ -230,7 +254,9 @@ class PlannerNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Entry point of ``ros2 run uav_comm_planner planner``; returns the exit status."""
+    """Run the node until Ctrl-C or shutdown; returns the exit status (0, or 2 for invalid
+    parameters). Once it is stopping, further Ctrl-C are ignored so that the shutdown (the
+    running plan gives up at its next step) is never cut short by a traceback."""
     rclpy.init(args=args)
     node = None
     status = 0
@@ -245,10 +271,13 @@ def main(args: list[str] | None = None) -> int:
         print(f'{NODE_NAME}: invalid parameters: {exc}', file=sys.stderr)
         status = 2
     finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         if node is not None:
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
+        # rclpy.shutdown puts back the handler it found; keep ignoring until the process ends.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
     return status
 
 

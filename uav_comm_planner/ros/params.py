@@ -17,7 +17,8 @@ dataclasses.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from pathlib import PurePath
+import os
+from pathlib import Path, PurePath
 import typing
 from typing import Any, Mapping, Sequence
 
@@ -26,7 +27,7 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from uav_comm_planner.core.scenario import paper_scenario, Point, Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.vehicle.flyable import check_speed
-from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
+from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
 from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
 from uav_comm_planner.vehicle.mission import FIRMWARE_TYPES, MISSION_ENDS, MISSION_FORMATS
 
@@ -46,11 +47,15 @@ class NodeSettings:
     plan as the vehicle flies it; off, the node publishes the optimiser's plan as is.
 
     ``mission_file`` empty means no mission is written; its extension chooses the format
-    (``.waypoints`` or ``.plan``). The home position anchors the planning frame's origin
+    (``.waypoints`` or ``.plan``). It is a bare file name (no folder, no ``..``, not hidden)
+    inside ``mission_dir``, a folder fixed when the node starts (a read-only parameter; empty
+    means the node's working directory), so that whoever may set parameters cannot make the
+    node write anywhere else. The home position anchors the planning frame's origin
     (east-north metres) on WGS84; ``home_altitude_m`` is above mean sea level.
     """
 
     frame_id: str = 'map'
+    mission_dir: str = ''
     mission_file: str = ''
     home_latitude_deg: float = DEFAULT_HOME[0]
     home_longitude_deg: float = DEFAULT_HOME[1]
@@ -61,12 +66,16 @@ class NodeSettings:
     vehicle_params_file: str = ''
 
     def __post_init__(self) -> None:
+        for name in ('frame_id', 'mission_dir', 'mission_file', *CHOICES):
+            if not isinstance(getattr(self, name), str):
+                raise InvalidScenarioError(f'{name} must be a string, got '
+                                           f'{getattr(self, name)!r}')
         if not self.frame_id.strip():
             raise InvalidScenarioError('frame_id must not be empty, e.g. "map"')
-        suffix = PurePath(self.mission_file).suffix.lower()
-        if self.mission_file and suffix not in MISSION_FORMATS:
-            raise InvalidScenarioError(
-                f'mission_file must end in one of {MISSION_FORMATS}, got {self.mission_file!r}')
+        if '\0' in self.mission_dir:
+            raise InvalidScenarioError('mission_dir must be a folder path')
+        if self.mission_file:
+            _check_bare_file_name(self.mission_file)
         try:
             self.home
         except InvalidScenarioError as exc:
@@ -78,9 +87,27 @@ class NodeSettings:
                 raise InvalidScenarioError(f'{name} must be one of {allowed}, got {value!r}')
 
     @property
+    def mission_path(self) -> Path:
+        """Where the mission is written: ``mission_file`` inside ``mission_dir``."""
+        return Path(self.mission_dir or os.getcwd()) / self.mission_file
+
+    @property
     def home(self) -> Home:
         """The WGS84 anchor of ``frame_id``."""
         return Home(self.home_latitude_deg, self.home_longitude_deg, self.home_altitude_m)
+
+
+def _check_bare_file_name(name: str) -> None:
+    """Refuse a mission file name that is not a plain, visible name with a mission suffix."""
+    if ('/' in name or '\\' in name or '\0' in name or name.startswith('.')
+            or name != name.strip()):
+        raise InvalidScenarioError(
+            f'mission_file must be a bare file name inside mission_dir (no folder, no "..", '
+            f'not hidden), got {name!r}')
+    suffix = PurePath(name).suffix.lower()
+    if suffix not in MISSION_FORMATS:
+        raise InvalidScenarioError(
+            f'mission_file must end in one of {MISSION_FORMATS}, got {name!r}')
 
 
 @dataclass(frozen=True)
@@ -119,12 +146,16 @@ DESCRIPTIONS = {
     'relative_tolerance': 'stop when an iteration gains at most this fraction of the objective',
     'max_outer_iterations': 'limit on power steps of Algorithm 1',
     'max_inner_iterations': 'limit on SCA trajectory steps per power step',
-    'max_nodes': 'largest number of ground nodes accepted',
+    'max_nodes': 'largest number of ground nodes accepted (read-only: fixed at start-up)',
+    'max_node_slots': 'compute budget: largest N x M, nodes times slots, a plan may take '
+                      '(read-only: fixed at start-up)',
     'compute_baselines': 'also compute the straight-line and static-point baselines',
     'starts': 'initial trajectories Algorithm 1 is run from; the best plan is kept',
     'frame_id': 'frame of the ground nodes, the UAV pose and every output',
-    'mission_file': 'write the planned flight here on every plan (.waypoints or .plan); '
-                    'empty: no mission file',
+    'mission_dir': 'folder of mission files, fixed at start-up (read-only); empty: the '
+                   "node's working directory",
+    'mission_file': 'write the planned flight to this file in mission_dir on every plan '
+                    '(a bare name ending in .waypoints or .plan); empty: no mission file',
     'home_latitude_deg': 'WGS84 latitude of the frame origin (deg)',
     'home_longitude_deg': 'WGS84 longitude of the frame origin (deg)',
     'home_altitude_m': 'altitude of the frame origin above mean sea level (m)',
@@ -158,9 +189,14 @@ RANGES = {
     'max_outer_iterations': (1, 100000),
     'max_inner_iterations': (1, 100000),
     'max_nodes': (1, 100000),
+    'max_node_slots': (1, 100000000),
     'home_latitude_deg': (-90.0, 90.0),
     'home_longitude_deg': (-180.0, 180.0),
+    'home_altitude_m': HOME_ALTITUDE_RANGE_M,
 }
+#: Parameters that only the node's start-up (overrides, a parameter file) may set: the
+#: limits on the work a plan may take and where mission files go.
+READ_ONLY = frozenset({'max_nodes', 'max_node_slots', 'mission_dir'})
 
 _SCALAR_KINDS = {bool: 'bool', int: 'int', float: 'float', str: 'str'}
 
@@ -193,7 +229,8 @@ class ParameterSpec:
         descriptor = ParameterDescriptor(
             name=self.name,
             description=DESCRIPTIONS.get(self.name) or DESCRIPTIONS.get(
-                self.field, f'{self.owner.__name__}.{self.field}'))
+                self.field, f'{self.owner.__name__}.{self.field}'),
+            read_only=self.field in READ_ONLY)
         if self.field in CHOICES:
             descriptor.additional_constraints = f'one of {", ".join(CHOICES[self.field])}'
         elif self.kind == 'pair':
@@ -225,6 +262,15 @@ def to_parameter_value(value: Any, kind: str) -> ParameterValue:
 
 def from_parameter_value(name: str, value: Any, kind: str) -> Any:
     """A ROS parameter value back as the dataclass field value; refuses a wrong shape."""
+    try:
+        return _from_parameter_value(name, value, kind)
+    except (TypeError, ValueError, OverflowError) as exc:
+        if isinstance(exc, InvalidScenarioError):
+            raise
+        raise InvalidScenarioError(f'{name} has the wrong type: {value!r}') from None
+
+
+def _from_parameter_value(name: str, value: Any, kind: str) -> Any:
     if kind == 'pair':
         values = [float(v) for v in value]
         if len(values) != 2:
@@ -280,8 +326,10 @@ def config_from_parameters(values: Mapping[str, Any]) -> PlannerConfig:
     for spec in parameter_specs():
         value = values.get(spec.name, spec.default)
         chosen[spec.owner][spec.field] = from_parameter_value(spec.name, value, spec.kind)
-    scenario = Scenario(**chosen[Scenario])
     settings = SolverSettings(**chosen[SolverSettings])
+    # The limit first: the scenario's own checks cost more the more nodes there are.
+    settings.check_node_count(len(chosen[Scenario]['ground_nodes_m']))
+    scenario = Scenario(**chosen[Scenario])
     settings.check(scenario)
     node = NodeSettings(**chosen[NodeSettings])
     vehicle = VehicleLimits(**chosen[VehicleLimits])

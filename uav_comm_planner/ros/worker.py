@@ -7,6 +7,8 @@ which runs :func:`attempt` on its own thread and hands back a :class:`PlanOutcom
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+import functools
+import inspect
 import math
 from pathlib import Path as FilePath
 import threading
@@ -14,7 +16,7 @@ from typing import Callable, Generic, TypeVar
 
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
-from uav_comm_planner.errors import InfeasibleHorizonError, PlannerError
+from uav_comm_planner.errors import InfeasibleHorizonError, PlanCancelledError, PlannerError
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
 from uav_comm_planner.vehicle.limits import VehicleLimits
@@ -23,7 +25,9 @@ from uav_comm_planner.vehicle.mission import export_mission
 #: How long shutting down waits for a plan in progress before leaving it to its daemon thread.
 WORKER_STOP_TIMEOUT_S = 5.0
 
-Planner = Callable[[Scenario, SolverSettings], PlanResult]
+#: (scenario, settings) -> plan; one that also takes the keyword ``should_stop`` (as the core's
+#: plan() does) is asked to give up when a newer request arrives.
+Planner = Callable[..., PlanResult]
 Request = TypeVar('Request')
 
 
@@ -31,7 +35,8 @@ class LatestOnlyWorker(Generic[Request]):
     """Runs ``job`` on one thread, one request at a time; newer requests replace waiting ones.
 
     Nothing queues up: at most one request waits while a job runs, and it is the newest.
-    ``job`` must not raise.
+    A running job may ask :meth:`superseded` between its steps and give up when a newer
+    request waits (or the worker stops). ``job`` must not raise.
     """
 
     def __init__(self, job: Callable[[Request], None], *, name: str) -> None:
@@ -50,8 +55,13 @@ class LatestOnlyWorker(Generic[Request]):
             self._condition.notify()
         return replaced
 
+    def superseded(self) -> bool:
+        """True when the running job should give up: a newer request waits, or stopping."""
+        return self._waiting is not None or self._stopping
+
     def stop(self, timeout_s: float = WORKER_STOP_TIMEOUT_S) -> None:
-        """Drop any waiting request and wait up to ``timeout_s`` for the running job."""
+        """Drop any waiting request and wait up to ``timeout_s`` for the running job, which
+        :meth:`superseded` asks to give up."""
         with self._condition:
             self._stopping = True
             self._waiting = None
@@ -96,6 +106,7 @@ class PlanOutcome:
     error: str = ''
     mission_path: FilePath | None = None
     mission_error: str = ''
+    cancelled: bool = False
 
 
 def remaining_scenario(scenario: Scenario, position: tuple[float, float],
@@ -118,14 +129,33 @@ def remaining_scenario(scenario: Scenario, position: tuple[float, float],
 
 
 def write_mission(outcome: PlanOutcome, output: NodeSettings) -> FilePath:
-    """Write an outcome's plan to ``output.mission_file``; raises MissionExportError."""
-    return export_mission(outcome.vehicle_plan or outcome.result, output.mission_file,
+    """Write an outcome's plan to ``output.mission_path`` (``mission_file`` inside
+    ``mission_dir``); raises MissionExportError on failure."""
+    return export_mission(outcome.vehicle_plan or outcome.result, output.mission_path,
                           output.home, end=output.mission_end,
                           firmware=output.mission_firmware, limits=outcome.request.vehicle)
 
 
-def attempt(planner: Planner, request: PlanRequest) -> PlanOutcome:
-    """Plan ``request`` and write its mission if asked; every failure becomes the outcome."""
+def accepts_should_stop(planner: Callable[..., object]) -> bool:
+    """Whether ``planner`` takes the keyword ``should_stop`` (as the core's plan() does)."""
+    try:
+        parameters = inspect.signature(planner).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    return any(p.name == 'should_stop' or p.kind is inspect.Parameter.VAR_KEYWORD
+               for p in parameters)
+
+
+def attempt(planner: Planner, request: PlanRequest, *,
+            should_stop: Callable[[], bool] | None = None) -> PlanOutcome:
+    """Plan ``request`` and write its mission if asked; every failure becomes the outcome.
+
+    ``should_stop``, when given, is passed on to the planner, which asks it between steps;
+    a plan given up that way is an outcome with ``cancelled`` set. A vehicle-aware request
+    is planned for its vehicle; the outcome's ``result`` is then the plan as flown.
+    """
+    if should_stop is not None:
+        planner = functools.partial(planner, should_stop=should_stop)
     vehicle_plan = None
     try:
         if request.output.vehicle_aware:
@@ -135,6 +165,8 @@ def attempt(planner: Planner, request: PlanRequest) -> PlanOutcome:
             result = vehicle_plan.flown
         else:
             result = planner(request.scenario, request.settings)
+    except PlanCancelledError as exc:
+        return PlanOutcome(request, error=str(exc), cancelled=True)
     except PlannerError as exc:
         return PlanOutcome(request, error=str(exc))
     except Exception as exc:  # noqa: B902 - a failed plan must not end the worker thread

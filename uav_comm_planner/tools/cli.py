@@ -1,7 +1,9 @@
 """Command line: ``uav-comm-planner plan``, ``sweep`` and ``bench``.
 
 Both take the letter's case (``--case I`` or ``II``) or a scenario file, with flags that
-override single settings; bad input ends with a one-line error and exit status 2.
+override single settings; bad input ends with a one-line error
+(``uav-comm-planner: error: ...``, no usage block) and exit status 2. Every check (arguments,
+scenario, output paths and formats, finite output) passes before the first file is written.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from typing import Sequence
 
 from uav_comm_planner.tools import bench
 from uav_comm_planner.errors import PlannerError
-from uav_comm_planner.files import write_text_atomic
+from uav_comm_planner.files import check_output_path, write_text_atomic
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.tools.plots import check_figure_path, METHOD_LABELS
@@ -26,6 +28,23 @@ from uav_comm_planner.tools.serialize import (package_version, result_to_dict, r
 
 #: The budgets of the letter's Fig. 2, watts.
 SWEEP_BUDGETS_W = (0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
+
+PROG = 'uav-comm-planner'
+#: A scenario file larger than this is refused before it is parsed.
+MAX_SCENARIO_FILE_BYTES = 16 * 1024 * 1024
+
+
+class CommandLineError(Exception):
+    """A bad argument, found by the parser."""
+
+
+class OneLineArgumentParser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors raise :class:`CommandLineError` instead of printing the
+    usage block and exiting; :func:`main` prints them as one line and returns 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise CommandLineError(message)
+
 
 # Scenario field -> (flag, help) for the single-value overrides.
 _SCALAR_FLAGS = {
@@ -95,25 +114,47 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
                         help='absolute convergence tolerance epsilon, bit/s (default 0: the '
                              'relative tolerance 1e-4 alone; --letter uses 0.01)')
     parser.add_argument('--max-nodes', type=int, default=None, help='largest number of nodes')
+    parser.add_argument('--max-node-slots', type=int, default=None,
+                        help='compute budget: largest N x M, nodes times slots (default '
+                             f'{SolverSettings().max_node_slots})')
     parser.add_argument('--letter', action='store_true',
                         help="run the letter's Algorithm 1 exactly: straight-line start only, "
                              'absolute tolerance 0.01 bit/s (default: best of the straight and '
                              'hover-and-fly starts, relative tolerance 1e-4)')
 
 
-def _scenario_file(path: Path) -> dict:
+def read_scenario_file(path: Path) -> dict:
+    """The JSON object of a scenario file; refuses (PlannerError) a file that is not UTF-8, not
+    JSON, nested too deeply, larger than MAX_SCENARIO_FILE_BYTES or not an object at the top."""
+    name = str(path)
     try:
-        data = json.loads(path.read_text(encoding='utf-8'))
-    except (OSError, json.JSONDecodeError) as exc:
-        raise PlannerError(f'cannot read scenario file {str(path)!r}: {exc}')
+        with open(path, 'rb') as handle:
+            raw = handle.read(MAX_SCENARIO_FILE_BYTES + 1)
+    except OSError as exc:
+        raise PlannerError(f'cannot read scenario file {name!r}: {exc.strerror or exc}') from None
+    if len(raw) > MAX_SCENARIO_FILE_BYTES:
+        raise PlannerError(f'scenario file {name!r} is larger than '
+                           f'{MAX_SCENARIO_FILE_BYTES} bytes')
+    try:
+        text = raw.decode('utf-8')
+    except UnicodeDecodeError as exc:
+        raise PlannerError(f'scenario file {name!r} is not UTF-8 text ({exc.reason} at byte '
+                           f'{exc.start})') from None
+    try:
+        data = json.loads(text)
+    except RecursionError:
+        raise PlannerError(f'scenario file {name!r} is nested too deeply') from None
+    except ValueError as exc:
+        raise PlannerError(f'scenario file {name!r} is not valid JSON: {exc}') from None
     if not isinstance(data, dict):
-        raise PlannerError(f'scenario file {str(path)!r} must hold a JSON object')
+        raise PlannerError(f'scenario file {name!r} must hold a JSON object {{"field": value, '
+                           f'...}}, not {type(data).__name__}')
     return data
 
 
 def _scenario(args: argparse.Namespace) -> Scenario:
     if args.scenario is not None:
-        base = scenario_from_dict(_scenario_file(args.scenario))
+        base = scenario_from_dict(read_scenario_file(args.scenario))
     else:
         base = paper_scenario(args.case)
     changes = {field: getattr(args, field) for field in _SCALAR_FLAGS
@@ -130,11 +171,13 @@ def _settings(args: argparse.Namespace) -> SolverSettings:
         changes['tolerance_bps'] = args.tolerance
     if args.max_nodes is not None:
         changes['max_nodes'] = args.max_nodes
+    if args.max_node_slots is not None:
+        changes['max_node_slots'] = args.max_node_slots
     if args.letter:
         return SolverSettings.letter(**changes)
     if args.scenario is not None:
         # A result file records the settings it was made with: run it again with them.
-        data = _scenario_file(args.scenario)
+        data = read_scenario_file(args.scenario)
         if 'settings' in data:
             return settings_from_dict({**data['settings'], **changes})
     return SolverSettings(**changes)
@@ -178,30 +221,37 @@ def format_flown(vehicle_plan) -> str:
     """The vehicle-aware lines under the plan's table."""
     flown, ideal, schedule = vehicle_plan.flown, vehicle_plan.ideal, vehicle_plan.schedule
     limits = vehicle_plan.limits
+    end_s = ideal.scenario.slot_s * (ideal.scenario.num_slots + 1)
     lines = [f'{"as the vehicle flies it (the plan to state)":<42}'
              f'{flown.min_throughput:>28.4f}',
              f'vehicle: cruise {limits.describe_cruise()}, acceleration '
              f'{limits.max_accel_mpss:g} m/s/s, jerk {limits.max_jerk_mpsss:g} m/s/s/s; '
              f'{len(schedule.legs)} legs, {len(schedule.stops) - 2} stops, qF reached at '
-             f'{schedule.arrival_s:.1f} s of {ideal.scenario.slot_s * (ideal.scenario.num_slots + 1):g}']
+             f'{schedule.arrival_s:.1f} s of {end_s:g}']
     return '\n'.join(lines)
 
 
-def _check_output_folders(*paths: Path | None) -> None:
-    """Fail before planning, not after, when an output file cannot be placed."""
-    for path in paths:
-        if path is not None and not path.parent.is_dir():
-            raise PlannerError(f'folder {str(path.parent)!r} for {str(path)!r} does not exist')
+def _check_outputs(*paths: Path | None, figure: Path | None = None) -> None:
+    """Fail before planning, not after, when an output file cannot be placed or its format
+    is unknown: each path must be a regular file (or absent) in a writable folder."""
+    for path in (*paths, figure):
+        if path is not None:
+            check_output_path(path)
+    if figure is not None:
+        check_figure_path(figure)
 
 
-def _check_figure(path: Path | None) -> None:
-    if path is not None:
-        check_figure_path(path)
+def json_text(data: object) -> str:
+    """``data`` as indented JSON; refuses (PlannerError) Infinity or NaN, which JSON lacks."""
+    try:
+        return json.dumps(data, indent=1, allow_nan=False) + '\n'
+    except ValueError:
+        raise PlannerError('the result holds a non-finite number (Infinity or NaN); nothing '
+                           'was written') from None
 
 
 def _command_plan(args: argparse.Namespace) -> int:
-    _check_output_folders(args.json, args.figure, args.mission)
-    _check_figure(args.figure)
+    _check_outputs(args.json, args.mission, figure=args.figure)
     if args.mission is not None:
         from uav_comm_planner.vehicle.mission import MISSION_FORMATS
         if args.mission.suffix.lower() not in MISSION_FORMATS:
@@ -219,9 +269,15 @@ def _command_plan(args: argparse.Namespace) -> int:
     else:
         result = plan(scenario, settings)
         print(format_plan(result))
-    if args.json is not None:
-        text = json.dumps(result_to_dict(result, settings=_settings(args)), indent=1)
-        print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
+    # Every check before the first file: the JSON text and the mission's rows.
+    text = (json_text(result_to_dict(result, settings=settings))
+            if args.json is not None else None)
+    if args.mission is not None:
+        from uav_comm_planner.vehicle.mission import build_mission_items
+        build_mission_items(vehicle_plan, args.home, end=args.mission_end,
+                            firmware=args.firmware)
+    if text is not None:
+        print(f'wrote {write_text_atomic(args.json, text)}')
     if args.figure is not None:
         from uav_comm_planner.tools.plots import plan_figure
         print(f'wrote {plan_figure(result, args.figure)}')
@@ -238,7 +294,7 @@ def _sweep_budgets(args: argparse.Namespace) -> list[float]:
     if args.budgets is not None:
         return args.budgets
     if args.scenario is not None:
-        recorded = _scenario_file(args.scenario).get('budgets_w')
+        recorded = read_scenario_file(args.scenario).get('budgets_w')
         if recorded is not None:
             try:
                 return [float(v) for v in recorded]
@@ -249,14 +305,16 @@ def _sweep_budgets(args: argparse.Namespace) -> list[float]:
 
 
 def _command_sweep(args: argparse.Namespace) -> int:
-    _check_output_folders(args.json, args.figure)
-    _check_figure(args.figure)
+    _check_outputs(args.json, figure=args.figure)
     scenario, settings = _scenario(args), _settings(args)
+    budgets = _sweep_budgets(args)
+    scenarios = [scenario.replace(power_budget_w=budget) for budget in budgets]
+    for each in scenarios:
+        settings.check(each)
     rows: dict[str, list[float]] = {'proposed': [], 'straight': [], 'static': []}
     print(f'{"P_T (W)":>8}{"proposed":>12}{"straight":>12}{"static":>12}{"time (s)":>10}')
-    budgets = _sweep_budgets(args)
-    for budget in budgets:
-        result = plan(scenario.replace(power_budget_w=budget), settings)
+    for budget, each in zip(budgets, scenarios):
+        result = plan(each, settings)
         values = [result.min_throughput, result.baselines['straight'], result.baselines['static']]
         for key, value in zip(rows, values):
             rows[key].append(value)
@@ -265,8 +323,7 @@ def _command_sweep(args: argparse.Namespace) -> int:
     if args.json is not None:
         record = {'budgets_w': budgets, 'min_throughput': rows,
                   'scenario': scenario_to_dict(scenario), **run_record(settings)}
-        text = json.dumps(record, indent=1)
-        print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
+        print(f'wrote {write_text_atomic(args.json, json_text(record))}')
     if args.figure is not None:
         from uav_comm_planner.tools.plots import sweep_figure
         print(f'wrote {sweep_figure(budgets, rows, args.figure, scenario=scenario)}')
@@ -279,8 +336,8 @@ def _command_bench(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog='uav-comm-planner',
+    parser = OneLineArgumentParser(
+        prog=PROG,
         description='Joint transmit-power and trajectory planning for a communication UAV.')
     parser.add_argument('--version', action='version', version=f'%(prog)s {package_version()}')
     commands = parser.add_subparsers(dest='command', required=True)
@@ -334,14 +391,22 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _error_line(exc: BaseException) -> str:
+    return ' '.join(str(exc).split()) or type(exc).__name__
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status: 0, or 2 after a one-line error."""
     logging.basicConfig(level=logging.WARNING, format='%(levelname)s %(name)s: %(message)s')
-    args = build_parser().parse_args(argv)
     try:
+        args = build_parser().parse_args(argv)
         return args.handler(args)
-    except (PlannerError, FileNotFoundError, PermissionError, IsADirectoryError) as exc:
-        print(f'uav-comm-planner: error: {exc}', file=sys.stderr)
+    except (CommandLineError, PlannerError, OSError) as exc:
+        print(f'{PROG}: error: {_error_line(exc)}', file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted', file=sys.stderr)
+        return 130
 
 
 if __name__ == '__main__':

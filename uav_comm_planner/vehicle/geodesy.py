@@ -18,6 +18,9 @@ from uav_comm_planner.errors import InvalidScenarioError
 
 #: PX4 and ArduPilot SITL's default launch point (Zurich, 488 m above sea level).
 DEFAULT_HOME = (47.397742, 8.545594, 488.0)
+#: Home altitudes accepted, metres above mean sea level: from below the Dead Sea shore
+#: (-430 m) to above the highest airfields, with margin.
+HOME_ALTITUDE_RANGE_M = (-1000.0, 10000.0)
 
 
 @dataclass(frozen=True)
@@ -36,16 +39,25 @@ class Home:
     def __post_init__(self) -> None:
         for name in ('latitude_deg', 'longitude_deg', 'altitude_m'):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) \
-                    or not math.isfinite(value):
+            try:
+                number = float(value)
+            except (TypeError, ValueError, OverflowError):
+                number = math.nan
+            if isinstance(value, (bool, np.bool_)) or not isinstance(
+                    value, (int, float, np.integer, np.floating)) or not math.isfinite(number):
                 raise InvalidScenarioError(f'home {name} must be a finite number, got {value!r}')
-            object.__setattr__(self, name, float(value))
+            object.__setattr__(self, name, number)
         if not -90.0 <= self.latitude_deg <= 90.0:
             raise InvalidScenarioError(
                 f'home latitude must be in [-90, 90] degrees, got {self.latitude_deg}')
         if not -180.0 <= self.longitude_deg <= 180.0:
             raise InvalidScenarioError(
                 f'home longitude must be in [-180, 180] degrees, got {self.longitude_deg}')
+        low, high = HOME_ALTITUDE_RANGE_M
+        if not low <= self.altitude_m <= high:
+            raise InvalidScenarioError(
+                f'home altitude must be in [{low:g}, {high:g}] m above sea level, got '
+                f'{self.altitude_m:g}')
 
     @classmethod
     def parse(cls, text: str) -> 'Home':
@@ -67,12 +79,22 @@ def enu_to_geodetic(east_m: np.ndarray, north_m: np.ndarray, up_m: np.ndarray | 
     """ENU metres from ``home`` -> (latitude deg, longitude deg, ellipsoidal height m).
 
     Inputs broadcast against each other: (K,) each, or scalars; outputs have their shape.
+    Raises :class:`~uav_comm_planner.errors.InvalidScenarioError` when a result is not a finite
+    latitude in [-90, 90] and longitude in [-180, 180] (offsets too large for the ellipsoid).
     """
     latitude, longitude, height = pymap3d.enu2geodetic(
         np.asarray(east_m, dtype=float), np.asarray(north_m, dtype=float),
         np.asarray(up_m, dtype=float), home.latitude_deg, home.longitude_deg, home.altitude_m,
         ell=pymap3d.Ellipsoid.from_name('wgs84'), deg=True)
-    return np.asarray(latitude), np.asarray(longitude), np.asarray(height)
+    latitude, longitude, height = (np.asarray(v) for v in (latitude, longitude, height))
+    if not (np.all(np.isfinite(latitude)) and np.all(np.isfinite(longitude))
+            and np.all(np.isfinite(height)) and np.all(np.abs(latitude) <= 90.0)
+            and np.all(np.abs(longitude) <= 180.0)):
+        raise InvalidScenarioError(
+            f'positions up to {float(np.max(np.abs(east_m))):g} m east and '
+            f'{float(np.max(np.abs(north_m))):g} m north of home do not map to valid '
+            f'latitudes and longitudes')
+    return latitude, longitude, height
 
 
 def geodetic_to_enu(latitude_deg: np.ndarray, longitude_deg: np.ndarray,
@@ -86,4 +108,4 @@ def geodetic_to_enu(latitude_deg: np.ndarray, longitude_deg: np.ndarray,
     return np.asarray(east), np.asarray(north), np.asarray(up)
 
 
-__all__ = ['DEFAULT_HOME', 'Home', 'enu_to_geodetic', 'geodetic_to_enu']
+__all__ = ['DEFAULT_HOME', 'HOME_ALTITUDE_RANGE_M', 'Home', 'enu_to_geodetic', 'geodetic_to_enu']

@@ -53,6 +53,8 @@ THROTTLE_UNCHANGED = -1.0
 #: with %f: steps of 1e-6 degree (0.11 m of latitude), so a point moves by at most 6 cm, far
 #: inside the 2 m waypoint radius.
 DEGREE_DECIMALS = 8
+#: A hold split into more waypoints than this (about 49 days for ArduPilot) is refused.
+MAX_HOLD_PARTS = 64
 
 FIRMWARE_TYPES = {'ardupilot': MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 'px4': MAV.MAV_AUTOPILOT_PX4}
 MISSION_ENDS = ('land', 'rtl')
@@ -110,6 +112,9 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
     A :class:`~uav_comm_planner.vehicle.flyable.VehiclePlan` keeps its own timing; a plain
     :class:`PlanResult` is timed here for ``limits`` (ArduCopter's defaults when None).
     """
+    if not isinstance(home, Home):
+        raise MissionExportError(f'home must be a Home(latitude, longitude, altitude), got '
+                                 f'{home!r}')
     if end not in MISSION_ENDS:
         raise MissionExportError(f'unknown mission end {end!r}: choose land or rtl')
     _check_firmware(firmware)
@@ -121,8 +126,11 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
     altitude = scenario.altitude_m
 
     def waypoint(position: np.ndarray, hold_s: float) -> MissionItem:
-        latitude, longitude, _ = enu_to_geodetic(np.array([position[0]]),
-                                                 np.array([position[1]]), 0.0, home)
+        try:
+            latitude, longitude, _ = enu_to_geodetic(np.array([position[0]]),
+                                                     np.array([position[1]]), 0.0, home)
+        except InvalidScenarioError as exc:
+            raise MissionExportError(str(exc)) from None
         return MissionItem(NAV_WAYPOINT, FRAME_RELATIVE_ALT, (hold_s, 0.0, 0.0, yaw),
                            round(float(latitude[0]), DEGREE_DECIMALS),
                            round(float(longitude[0]), DEGREE_DECIMALS), altitude)
@@ -133,7 +141,8 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
                          home.latitude_deg, home.longitude_deg, altitude)]
     in_force = None
     for index, stop in enumerate(schedule.stops):
-        items += [waypoint(stop.position_m, hold) for hold in _holds(stop.hold_s, firmware)]
+        items += [waypoint(stop.position_m, hold)
+                  for hold in _hold_parts(stop.hold_s, MAX_HOLD_S[firmware])]
         if index == len(schedule.legs):
             break
         leg = schedule.legs[index]
@@ -148,15 +157,32 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
                                  last.x, last.y, 0.0))
     else:
         items.append(MissionItem(NAV_RETURN_TO_LAUNCH, FRAME_MISSION))
+    _check_items(items)
     return items
 
 
-def _holds(hold_s: float, firmware: str) -> list[float]:
-    """One waypoint's hold, split over repeated waypoints where the firmware stores less."""
-    longest = MAX_HOLD_S[firmware]
-    holds = [longest] * int(hold_s // longest)
-    rest = hold_s - longest * len(holds)
-    return holds + [rest] if rest > 0 or not holds else holds
+def _check_items(items: Sequence[MissionItem]) -> None:
+    """Refuse rows a mission file cannot carry: non-finite values (a NaN yaw excepted, PX4's
+    "keep the heading"), latitudes beyond 90 or longitudes beyond 180 degrees."""
+    for seq, item in enumerate(items):
+        values = (*item.params[:3], item.x, item.y, item.z)
+        if not all(math.isfinite(v) for v in values) or math.isinf(item.params[3]):
+            raise MissionExportError(f'mission item {seq} holds a non-finite value: {values}')
+        if item.frame != FRAME_MISSION and not (abs(item.x) <= 90.0 and abs(item.y) <= 180.0):
+            raise MissionExportError(f'mission item {seq} is at latitude {item.x}, longitude '
+                                     f'{item.y}, outside the globe')
+
+
+def _hold_parts(hold_s: float, max_hold_s: float) -> list[float]:
+    """``hold_s`` as holds of at most ``max_hold_s`` each that add up to it ([0.0] for none)."""
+    if hold_s <= max_hold_s:
+        return [hold_s]
+    whole, rest = divmod(hold_s, max_hold_s)
+    if whole + (rest > 0) > MAX_HOLD_PARTS:
+        raise MissionExportError(
+            f'a hold of {hold_s:g} s needs more than {MAX_HOLD_PARTS} waypoints of at most '
+            f'{max_hold_s:g} s each; shorten horizon_s')
+    return [max_hold_s] * int(whole) + ([rest] if rest > 0 else [])
 
 
 # Writers.
