@@ -35,6 +35,11 @@ setup(
         'ros': ROS_JAZZY,
         'plots': ['matplotlib>=3.8,<4'],
         'test': ['pytest>=8,<10'],
+        # Monte Carlo studies (uav-comm-planner montecarlo): Dask for the workers, pyarrow for
+        # the Parquet table, matplotlib for the figures. dask and distributed are released
+        # together under the same calendar version.
+        'study': ['dask>=2024.8,<2027', 'distributed>=2024.8,<2027', 'pyarrow>=15,<27',
+                  'matplotlib>=3.8,<4'],
     },
     zip_safe=True,
     maintainer='uav_comm_planner maintainers',
