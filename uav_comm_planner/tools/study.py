@@ -28,6 +28,7 @@ import logging
 import math
 import os
 from pathlib import Path
+import signal
 import statistics
 import sys
 import tempfile
@@ -155,18 +156,22 @@ class Draw:
     def parse(cls, text: str, *, integer: bool = False) -> 'Draw':
         """``5``, ``1,2,5``, ``4:12`` or ``0.5:20:log`` (see the class)."""
         text = str(text).strip()
+        parts = text.split(':')
+        log = len(parts) == 3 and parts[2].strip().lower() == 'log'
         try:
-            if ':' in text:
-                parts = text.split(':')
-                log = len(parts) == 3 and parts[2].strip().lower() == 'log'
-                if len(parts) != 2 and not log:
-                    raise ValueError
-                return cls(low=float(parts[0]), high=float(parts[1]), log=log, integer=integer)
-            return cls(grid=tuple(float(v) for v in text.split(',')), integer=integer)
+            if len(parts) == 1:
+                grid = tuple(float(v) for v in text.split(','))
+            elif len(parts) == 2 or log:
+                low, high = float(parts[0]), float(parts[1])
+            else:
+                raise ValueError(text)
         except ValueError:
             raise InvalidScenarioError(
                 f'expected a value, a grid A,B,C or a range LOW:HIGH[:log], got {text!r}'
             ) from None
+        if len(parts) == 1:
+            return cls(grid=grid, integer=integer)
+        return cls(low=low, high=high, log=log, integer=integer)
 
     @property
     def is_range(self) -> bool:
@@ -348,17 +353,20 @@ def _generators(design: StudyDesign, drop: int) -> tuple[np.random.Generator, ..
 def row_settings(design: StudyDesign, index: int) -> tuple[dict, np.random.Generator]:
     """The settings columns of row ``index`` and the generator its nodes are drawn from."""
     if not 0 <= index < design.total_rows:
-        raise InvalidScenarioError(f'row {index} is outside the study (0..{design.total_rows - 1})')
+        raise InvalidScenarioError(
+            f'row {index} is outside the study (0..{design.total_rows - 1})')
     drop, point = divmod(index, len(design.grid_points))
     settings_rng, nodes_rng, endpoints_rng = _generators(design, drop)
     row: dict = {'index': index, 'drop': drop, 'seed': design.seed, 'area': design.area,
                  'endpoints': design.endpoints}
     grid = design.grid_points[point]
-    for name, draw in design.draws.items():
+    for name in SETTINGS:
         # Ranges draw in the fixed order of SETTINGS, so that every grid point sees the same.
-        row[name] = draw.sample(settings_rng) if draw.is_range else grid[name]
-    if 'horizon_s' not in row:
-        row['horizon_s'] = float(row['slots'])
+        draw = design.draws.get(name)
+        if draw is None:  # the horizon, when not drawn: slots of 1 s
+            row[name] = float(row['slots'])
+        else:
+            row[name] = draw.sample(settings_rng) if draw.is_range else grid[name]
     side = row['side_m']
     rule = ENDPOINTS[design.endpoints]
     if rule is None:
@@ -676,6 +684,16 @@ def worker_info() -> dict:
     return {'pid': os.getpid(), 'omp_num_threads': os.environ.get('OMP_NUM_THREADS')}
 
 
+def ignore_interrupts() -> bool:
+    """Run on the embedded cluster's workers: Ctrl-C reaches the whole process group, but it
+    is for the study's own process, which then stops the workers itself."""
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the worker's main thread: leave it
+        return False
+    return True
+
+
 @contextlib.contextmanager
 def dask_client(*, workers: int | None = None, scheduler: str | None = None,
                 connect_timeout_s: float = 30.0) -> Iterator[object]:
@@ -702,6 +720,7 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None,
                 n_workers=count, threads_per_worker=1, processes=True,
                 dashboard_address='127.0.0.1:0', silence_logs=logging.ERROR)
         client = distributed.Client(cluster)
+        client.run(ignore_interrupts)
     try:
         if scheduler:
             try:
@@ -900,7 +919,8 @@ def summary(design: StudyDesign, rows: Sequence[dict]) -> str:
             gains = [row[f'{method}_bps'] / row[f'{baseline}_bps'] - 1.0 for row in ok
                      if row[f'{baseline}_bps'] > 0]
             if gains:
-                lines.append(f'{method} over {baseline}: mean gain {100 * statistics.fmean(gains):.1f} %')
+                lines.append(f'{method} over {baseline}: mean gain '
+                             f'{100 * statistics.fmean(gains):.1f} %')
     return '\n'.join(lines)
 
 

@@ -28,7 +28,8 @@ CONFIDENCE = 0.95
 #: A setting with more distinct values than this is grouped into this many equal-count bins.
 MAX_GROUPS = 8
 STYLES = {'default': 'o-', 'letter': 's--'}
-LINES = {'default': '-', 'letter': '--', 'straight': ':', 'static': '-.', 'bound': (0, (6, 2, 1, 2))}
+LINES = {'default': '-', 'letter': '--', 'straight': ':', 'static': '-.',
+         'bound': (0, (6, 2, 1, 2))}
 
 
 def _ok(rows: Sequence[dict]) -> list[dict]:
