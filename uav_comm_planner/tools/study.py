@@ -33,7 +33,7 @@ import statistics
 import sys
 import tempfile
 import time
-from typing import Callable, Iterable, Iterator, Mapping, Sequence, TextIO
+from typing import Callable, Iterator, Mapping, Sequence, TextIO
 
 import numpy as np
 
@@ -331,8 +331,10 @@ def columns(design: StudyDesign) -> list[tuple[str, type]]:
     index, drop, seed, area, endpoints; the settings of :data:`SETTINGS` (``horizon_s``
     always, T = M seconds when not drawn); start and goal (metres); for each method m:
     ``m_bps`` (min throughput, bit/s), ``m_iterations``, ``m_sca_steps``, ``m_s`` (wall
-    time, seconds), ``m_status``; the row's ``status`` ('ok', 'failed' when a method raised,
-    'invalid' when the scenario itself was refused) and ``error`` (empty when ok).
+    time, seconds), ``m_status``; ``cpu_s``, the processor time of the whole row (below the
+    sum of the wall times when the worker had to share its core); the row's ``status`` ('ok',
+    'failed' when a method raised, 'invalid' when the scenario itself was refused) and
+    ``error`` (empty when ok).
     """
     cols: list[tuple[str, type]] = [('index', int), ('drop', int), ('seed', int), ('area', str),
                                     ('endpoints', str)]
@@ -341,7 +343,7 @@ def columns(design: StudyDesign) -> list[tuple[str, type]]:
     for method in design.methods:
         cols += [(f'{method}_bps', float), (f'{method}_iterations', int),
                  (f'{method}_sca_steps', int), (f'{method}_s', float), (f'{method}_status', str)]
-    return cols + [('status', str), ('error', str)]
+    return cols + [('cpu_s', float), ('status', str), ('error', str)]
 
 
 def _generators(design: StudyDesign, drop: int) -> tuple[np.random.Generator, ...]:
@@ -409,7 +411,7 @@ def failed_row(design: StudyDesign, index: int, error: str) -> dict:
     """The row of a scenario whose task was lost (a worker died): settings and the error."""
     row, _ = row_settings(design, index)
     _empty_methods(design, row, 'lost')
-    row.update(status='failed', error=error)
+    row.update(cpu_s=None, status='failed', error=error)
     return row
 
 
@@ -420,13 +422,15 @@ def evaluate(design: StudyDesign, index: int) -> dict:
     that raises gives its columns None, its status 'error' and the row status 'failed' with
     the first error; the other methods still run.
     """
+    cpu_began = time.process_time()
     row, nodes_rng = row_settings(design, index)
     errors = []
     try:
         scenario = _scenario(design, row, nodes_rng)
     except Exception as exc:  # every failure is a row, never a lost study
         _empty_methods(design, row, 'skipped')
-        row.update(status='invalid', error=_one_line(exc))
+        row.update(cpu_s=time.process_time() - cpu_began, status='invalid',
+                   error=_one_line(exc))
         return row
     for method in design.methods:
         began = time.perf_counter()
@@ -440,7 +444,8 @@ def evaluate(design: StudyDesign, index: int) -> dict:
             else float(outcome.min_throughput_bps),
             f'{method}_iterations': outcome.iterations, f'{method}_sca_steps': outcome.sca_steps,
             f'{method}_s': time.perf_counter() - began, f'{method}_status': outcome.status})
-    row.update(status='failed' if errors else 'ok', error='; '.join(errors))
+    row.update(cpu_s=time.process_time() - cpu_began, status='failed' if errors else 'ok',
+               error='; '.join(errors))
     return row
 
 
@@ -805,7 +810,7 @@ class StudyRun:
     batch_size: int
     startup_s: float
     wall_s: float
-    busy_s: float
+    cpu_s: float
 
     @property
     def rate(self) -> float:
@@ -813,14 +818,11 @@ class StudyRun:
         return self.planned / self.wall_s if self.wall_s > 0 else math.nan
 
     @property
-    def efficiency(self) -> float:
-        """Busy time of the methods over wall time x workers: 1 when every worker planned
-        all the time; less for scheduling, transfers and other load on the machine."""
-        return self.busy_s / (self.wall_s * self.workers) if self.wall_s > 0 else math.nan
-
-
-def _busy_s(design: StudyDesign, rows: Iterable[dict]) -> float:
-    return sum(row[f'{method}_s'] or 0.0 for row in rows for method in design.methods)
+    def cpu_share(self) -> float:
+        """Processor time of the rows over wall time x workers: 1 when every worker planned
+        on a core of its own all the time; less for scheduling, transfers, and other programs
+        taking the cores."""
+        return self.cpu_s / (self.wall_s * self.workers) if self.wall_s > 0 else math.nan
 
 
 def run_study(design: StudyDesign, out: str | os.PathLike, *, workers: int | None = None,
@@ -865,7 +867,7 @@ def run_study(design: StudyDesign, out: str | os.PathLike, *, workers: int | Non
                               'worker') + '\n')
         bar = Progress(design.total_rows, in_table, progress)
         planned = failed = 0
-        busy = 0.0
+        cpu = 0.0
         compute_began = time.perf_counter()
         futures = {}
         for batch in batches_of(todo, size):
@@ -884,7 +886,7 @@ def run_study(design: StudyDesign, out: str | os.PathLike, *, workers: int | Non
                 bad = sum(row['status'] != 'ok' for row in rows)
                 planned += len(rows)
                 failed += bad
-                busy += _busy_s(design, rows)
+                cpu += sum(row['cpu_s'] or 0.0 for row in rows)
                 bar.update(len(rows), bad)
         except KeyboardInterrupt:
             client.cancel(list(futures))
@@ -893,7 +895,7 @@ def run_study(design: StudyDesign, out: str | os.PathLike, *, workers: int | Non
             bar.show(final=True)
         wall_s = time.perf_counter() - compute_began
     return StudyRun(planned, failed, in_table + planned, design.total_rows, len(infos), size,
-                    startup_s, wall_s, busy)
+                    startup_s, wall_s, cpu)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -929,7 +931,8 @@ def format_run(run: StudyRun) -> str:
         return f'nothing to plan: {run.in_table} of {run.total} rows are in the table'
     return (f'planned {run.planned} scenarios ({run.failed} failed) in {run.wall_s:.1f} s on '
             f'{run.workers} workers: {run.rate:.2f} scenarios/s, batches of {run.batch_size}, '
-            f'worker busy {100 * run.efficiency:.0f} %; cluster start {run.startup_s:.1f} s; '
+            f'workers on a core {100 * run.cpu_share:.0f} % of the time; cluster start '
+            f'{run.startup_s:.1f} s; '
             f'{run.in_table} of {run.total} rows in the table')
 
 
@@ -947,8 +950,9 @@ def measure_scaling(design: StudyDesign, worker_counts: Sequence[int], repeats: 
                 run = run_study(design, target, workers=count, batch_size=batch_size)
                 runs[count].append(run)
                 print(f'round {repeat + 1}, {count} worker(s): {run.rate:.2f} scenarios/s '
-                      f'({run.planned} in {run.wall_s:.2f} s, busy {100 * run.efficiency:.0f} %, '
-                      f'cluster start {run.startup_s:.1f} s)', file=out, flush=True)
+                      f'({run.planned} in {run.wall_s:.2f} s, workers on a core '
+                      f'{100 * run.cpu_share:.0f} % of the time, cluster start '
+                      f'{run.startup_s:.1f} s)', file=out, flush=True)
     medians = {k: statistics.median(r.rate for r in v) for k, v in runs.items()}
     for count, rate in medians.items():
         print(f'{count} worker(s): median {rate:.2f} scenarios/s', file=out)
