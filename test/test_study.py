@@ -7,6 +7,7 @@ import contextlib
 import io
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -22,9 +23,6 @@ from uav_comm_planner.tools import cli, study
 from uav_comm_planner.tools.study import (columns, Draw, evaluate, open_table, plan_batch,
                                           read_table, row_settings, run_study, scenario_at,
                                           StudyDesign, StudyError)
-
-pytest.importorskip('distributed')
-pytest.importorskip('pyarrow')
 
 #: The quick study of the tests: 40 drops, N 2..4, M 20 (tens of milliseconds each).
 QUICK = dict(cases=40, seed=7, draws={'nodes': '2:4', 'slots': '20', 'side_m': '800'})
@@ -321,6 +319,29 @@ def test_ctrl_c_stops_the_study_and_the_same_command_goes_on(tmp_path, scheduler
     _, rows = read_table(out)
     assert [row['index'] for row in rows] == list(range(400))
     assert values_only(rows[::37]) == values_only(plan_batch(design, range(0, 400, 37)))
+
+
+def test_progress_shows_the_rows_the_rate_and_the_time_left():
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    terminal = Terminal()
+    bar = study.Progress(100, 20, terminal)
+    bar.began -= 2.0
+    bar.update(10, 1)
+    line = terminal.getvalue()
+    assert line.startswith('\rmontecarlo 30/100 rows [' + '#' * 7 + ' ' * 17 + ']  30% ')
+    rate, left = re.search(r'([\d.]+) scenarios/s, (\d+) s left, 1 failed$', line).groups()
+    assert float(rate) == pytest.approx(5.0, rel=0.05)
+    assert int(left) == pytest.approx(14, abs=1)
+    log = io.StringIO()
+    bar = study.Progress(10, 0, log, every_s=3600.0)
+    bar.update(3, 0)
+    bar.update(3, 0)
+    bar.show(final=True)
+    assert [line.split(' [')[0] for line in log.getvalue().splitlines()] == [
+        'montecarlo 3/10 rows', 'montecarlo 6/10 rows']
 
 
 # --- command line ----------------------------------------------------------------------------

@@ -766,6 +766,7 @@ class Progress:
         self.every_s = every_s
         self.began = time.perf_counter()
         self.last_shown = -math.inf
+        self.width = 0
 
     @property
     def rate(self) -> float:
@@ -791,7 +792,9 @@ class Progress:
             return
         now = time.perf_counter()
         if self.tty:
-            self.stream.write('\r' + self.line() + ('\n' if final else ''))
+            line = self.line()
+            self.stream.write('\r' + line.ljust(self.width) + ('\n' if final else ''))
+            self.width = len(line)
         elif final or now - self.last_shown >= self.every_s:
             self.stream.write(self.line() + '\n')
             self.last_shown = now
