@@ -705,38 +705,37 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None,
     """A ``distributed.Client``: on the cluster at ``scheduler``, or on an embedded
     LocalCluster of ``workers`` single-threaded worker processes (default: one per core)."""
     import distributed
-    cluster = None
     # Dask reports every start and stop at INFO; a study shows its own progress instead.
     dask_logger = logging.getLogger('distributed')
     level = dask_logger.level
     dask_logger.setLevel(logging.WARNING)
-    if scheduler:
-        try:
-            client = distributed.Client(scheduler, timeout=f'{connect_timeout_s}s')
-        except (OSError, TimeoutError) as exc:
-            dask_logger.setLevel(level)
-            raise StudyError(f'cannot reach the Dask scheduler at {scheduler}: {exc}') from None
-    else:
-        count = workers or os.cpu_count() or 1
-        # The scheduler's web server on a free port of this host only: several studies on
-        # one machine do not fight over 8787.
-        with _blas_one_thread():
-            cluster = distributed.LocalCluster(
-                n_workers=count, threads_per_worker=1, processes=True,
-                dashboard_address='127.0.0.1:0', silence_logs=logging.ERROR)
-        client = distributed.Client(cluster)
-        client.run(ignore_interrupts)
+    cluster = client = None
     try:
         if scheduler:
             try:
+                client = distributed.Client(scheduler, timeout=f'{connect_timeout_s}s')
                 client.wait_for_workers(1, timeout=connect_timeout_s)
-            except TimeoutError:
+            except (OSError, TimeoutError) as exc:
+                if client is None:
+                    raise StudyError(f'cannot reach the Dask scheduler at {scheduler}: '
+                                     f'{exc}') from None
                 raise StudyError(f'no Dask worker joined {scheduler} within '
                                  f'{connect_timeout_s:g} s; start one with `dask worker '
                                  f'{scheduler} --nthreads 1`') from None
+        else:
+            # The scheduler's web server on a free port of this host only: several studies
+            # on one machine do not fight over 8787.
+            with _blas_one_thread():
+                cluster = distributed.LocalCluster(
+                    n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                    processes=True, dashboard_address='127.0.0.1:0',
+                    silence_logs=logging.ERROR)
+            client = distributed.Client(cluster)
+            client.run(ignore_interrupts)
         yield client
     finally:
-        client.close()
+        if client is not None:
+            client.close()
         if cluster is not None:
             cluster.close()
         dask_logger.setLevel(level)
