@@ -379,6 +379,16 @@ def test_mean_interval_uses_student_t():
     assert half == pytest.approx(2.2622 * values.std(ddof=1) / np.sqrt(10), rel=1e-4)
 
 
+def test_a_drawn_real_setting_is_grouped_into_equal_count_bins():
+    from uav_comm_planner.tools.study_plots import groups
+    x = np.random.default_rng(1).uniform(1.0, 10.0, 100)
+    bins = groups(x)
+    assert len(bins) == 8 and sorted(np.concatenate(bins).tolist()) == list(range(100))
+    assert {b.size for b in bins} == {12, 13}
+    assert all(x[a].max() <= x[b].min() for a, b in zip(bins, bins[1:]))
+    assert [x[b][0] for b in groups(np.array([3.0, 1.0, 3.0]))] == [1.0, 3.0]
+
+
 def test_gain_table_groups_rows_by_the_setting(quick_tables):
     from uav_comm_planner.tools.study_plots import gain_table
     design, folder, _, _ = quick_tables
