@@ -813,11 +813,15 @@ class StudyRun:
     startup_s: float
     wall_s: float
     cpu_s: float
+    coordinator_cpu_s: float = 0.0
 
     @property
     def rate(self) -> float:
         """Scenarios per second of wall time, from the first task to the last row written."""
         return self.planned / self.wall_s if self.wall_s > 0 else math.nan
+
+    # coordinator_cpu_s: processor time of this process (client, and the embedded cluster's
+    # scheduler) while the rows were planned.
 
     @property
     def cpu_share(self) -> float:
@@ -871,6 +875,7 @@ def run_study(design: StudyDesign, out: str | os.PathLike, *, workers: int | Non
         planned = failed = 0
         cpu = 0.0
         compute_began = time.perf_counter()
+        coordinator_began = time.process_time()
         futures = {}
         for batch in batches_of(todo, size):
             future = client.submit(plan_batch, design, batch, pure=False)
@@ -896,8 +901,9 @@ def run_study(design: StudyDesign, out: str | os.PathLike, *, workers: int | Non
         finally:
             bar.show(final=True)
         wall_s = time.perf_counter() - compute_began
+        coordinator_cpu_s = time.process_time() - coordinator_began
     return StudyRun(planned, failed, in_table + planned, design.total_rows, len(infos), size,
-                    startup_s, wall_s, cpu)
+                    startup_s, wall_s, cpu, coordinator_cpu_s)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -953,8 +959,9 @@ def measure_scaling(design: StudyDesign, worker_counts: Sequence[int], repeats: 
                 runs[count].append(run)
                 print(f'round {repeat + 1}, {count} worker(s): {run.rate:.2f} scenarios/s '
                       f'({run.planned} in {run.wall_s:.2f} s, workers on a core '
-                      f'{100 * run.cpu_share:.0f} % of the time, cluster start '
-                      f'{run.startup_s:.1f} s)', file=out, flush=True)
+                      f'{100 * run.cpu_share:.0f} % of the time, this process '
+                      f'{100 * run.coordinator_cpu_s / run.wall_s:.0f} % of a core, cluster '
+                      f'start {run.startup_s:.1f} s)', file=out, flush=True)
     medians = {k: statistics.median(r.rate for r in v) for k, v in runs.items()}
     for count, rate in medians.items():
         print(f'{count} worker(s): median {rate:.2f} scenarios/s', file=out)
