@@ -766,6 +766,7 @@ class Progress:
         self.began = time.perf_counter()
         self.last_shown = -math.inf
         self.width = 0
+        self.shown_done = -1
 
     @property
     def rate(self) -> float:
@@ -794,9 +795,9 @@ class Progress:
             line = self.line()
             self.stream.write('\r' + line.ljust(self.width) + ('\n' if final else ''))
             self.width = len(line)
-        elif final or now - self.last_shown >= self.every_s:
+        elif (final and self.done != self.shown_done) or now - self.last_shown >= self.every_s:
             self.stream.write(self.line() + '\n')
-            self.last_shown = now
+            self.last_shown, self.shown_done = now, self.done
         self.stream.flush()
 
 
