@@ -360,6 +360,8 @@ def test_without_dask_the_command_says_how_to_install_it(tmp_path, monkeypatch):
     (['--out', 'missing/s.csv'], 'does not exist'),
     (['--figure', 'cdf.svg'], 'name a .pdf or .png'),
     (['--methods', 'default,oracle'], 'methods must name'),
+    (['--limit', '0'], '--limit must be >= 1'),
+    (['--workers', '0'], '--workers must be >= 1'),
 ])
 def test_bad_options_end_with_one_line_and_status_2(tmp_path, monkeypatch, argv, match):
     monkeypatch.chdir(tmp_path)

@@ -847,10 +847,12 @@ def run_study(design: StudyDesign, out: str | os.PathLike, *, workers: int | Non
         raise StudyError(f'--workers must be >= 1, got {workers}')
     if batch_size is not None and not 1 <= batch_size <= 10 * MAX_BATCH:
         raise StudyError(f'--batch must be in 1..{10 * MAX_BATCH}, got {batch_size}')
+    if limit is not None and limit < 1:
+        raise StudyError(f'--limit must be >= 1, got {limit}')
     table, done = open_table(out, design)
     todo = [i for i in range(design.total_rows) if i not in done]
     if limit is not None:
-        todo = todo[:max(0, limit)]
+        todo = todo[:limit]
     in_table = len(done & set(range(design.total_rows)))
     if not todo:
         return StudyRun(0, 0, in_table, design.total_rows, 0, 0, 0.0, 0.0, 0.0)
