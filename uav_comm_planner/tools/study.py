@@ -975,6 +975,13 @@ def measure_scaling(design: StudyDesign, worker_counts: Sequence[int], repeats: 
             print(f'scaling {base} -> {count} workers: {medians[count] / medians[base]:.2f}x '
                   f'(median rates; per round {", ".join(f"{r:.2f}" for r in ratios)})',
                   file=out, flush=True)
+            per_cpu = {k: statistics.median(r.planned / r.cpu_s for r in runs[k])
+                       for k in (base, count)}
+            share = per_cpu[count] / per_cpu[base]
+            print(f'per second of worker processor time: {per_cpu[base]:.2f} scenarios with '
+                  f'{base}, {per_cpu[count]:.2f} with {count} ({share:.2f} of it: what '
+                  f'distributing costs when each worker has a core of its own)',
+                  file=out, flush=True)
     return runs
 
 
