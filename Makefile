@@ -29,7 +29,7 @@ $(MODE_STAMP):
 $(STAMP): $(SOURCES) $(MODE_STAMP)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade 'pip>=23'
-	$(BIN)/python -m pip install --quiet $(if $(wildcard $(EDITABLE)),--editable )'.[ros,plots,test]'
+	$(BIN)/python -m pip install --quiet $(if $(wildcard $(EDITABLE)),--editable )'.[ros,plots,study,test]'
 	@# `ros2 run uav_comm_planner planner` looks for lib/<package>/<executable>;
 	@# pip puts console scripts in bin/, so link them where ros2 run looks.
 	mkdir -p $(VENV)/lib/uav_comm_planner

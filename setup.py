@@ -41,6 +41,11 @@ setup(
         # PyYAML (RViz configuration and launch parameters in the tests) also comes with
         # the ROS wheels; named here so that the tests do not rely on that.
         'test': ['pytest>=8,<10', 'pyyaml>=6,<7', 'hypothesis>=6.100,<7'],
+        # Monte Carlo studies (uav-comm-planner montecarlo): Dask for the workers, pyarrow for
+        # the Parquet table, matplotlib for the figures. dask and distributed are released
+        # together under the same calendar version.
+        'study': ['dask>=2024.8,<2027', 'distributed>=2024.8,<2027', 'pyarrow>=15,<27',
+                  'matplotlib>=3.8,<4'],
     },
     zip_safe=True,
     maintainer='uav_comm_planner maintainers',

@@ -5,7 +5,7 @@
 | core/     | numpy, scipy, cvxpy, clarabel                                           |
 | vehicle/  | core, pymavlink, pymap3d                                                |
 | ros/      | core, vehicle, rclpy and ROS messages                                   |
-| tools/    | core, vehicle, matplotlib; never rclpy                                  |
+| tools/    | core, vehicle, scipy, matplotlib, dask, pyarrow; never rclpy            |
 | top level | errors and files import nothing of the package; ``__init__`` re-exports |
 |           | the public API from core                                                |
 """
@@ -35,7 +35,7 @@ THIRD_PARTY = {
     'vehicle': {'numpy', 'pymavlink', 'pymap3d'},
     'ros': {'numpy', 'rclpy', 'builtin_interfaces', 'geometry_msgs', 'nav_msgs', 'std_msgs',
             'std_srvs', 'visualization_msgs', 'rcl_interfaces', 'diagnostic_msgs'},
-    'tools': {'numpy', 'matplotlib', 'dask', 'distributed', 'pyarrow'},
+    'tools': {'numpy', 'scipy', 'matplotlib', 'dask', 'distributed', 'pyarrow'},
 }
 #: The top-level modules of the package that every folder may use.
 SHARED = {'errors', 'files'}

@@ -411,14 +411,14 @@ def test_make_dev_makes_every_later_install_editable(tmp_path):
     (venv / 'bin').mkdir(parents=True)
     (venv / 'bin' / 'python').touch(mode=0o755)
     normal = _make_install_commands(venv, always=True)
-    assert "-m pip install --quiet '.[ros,plots,test]'" in normal
+    assert "-m pip install --quiet '.[ros,plots,study,test]'" in normal
     assert '--editable' not in normal
     (venv / '.mode-normal').touch()
     (venv / '.installed').touch()          # installed after every source and the mode
     assert 'pip install' not in _make_install_commands(venv)
     (venv / '.editable').touch()
     editable = _make_install_commands(venv)
-    assert "-m pip install --quiet --editable '.[ros,plots,test]'" in editable
+    assert "-m pip install --quiet --editable '.[ros,plots,study,test]'" in editable
     # An editable install leaves out data_files; the recipe copies what ros2 run/launch need.
     assert 'cp -r package.xml config launch rviz' in editable
     # What that install leaves; then the mark goes and the next install is a normal one.
@@ -426,4 +426,4 @@ def test_make_dev_makes_every_later_install_editable(tmp_path):
     (venv / '.installed').touch()
     assert 'pip install' not in _make_install_commands(venv)
     (venv / '.editable').unlink()
-    assert "-m pip install --quiet '.[ros,plots,test]'" in _make_install_commands(venv)
+    assert "-m pip install --quiet '.[ros,plots,study,test]'" in _make_install_commands(venv)

@@ -21,11 +21,24 @@ def _interrupt_once(_signum: int, _frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def _stop_after_loading(_signum: int, _frame: object) -> None:
+    """A Ctrl-C while the modules load is kept for later: an exception raised inside the
+    import machinery can land in a finaliser, which only prints it and goes on."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _STOP_REQUESTED.set()
+
+
+_STOP_REQUESTED = threading.Event()
+
+
 def main(args: list[str] | None = None) -> int:
     """Run the planner node; returns the exit status (0 after Ctrl-C)."""
+    signal.signal(signal.SIGINT, _stop_after_loading)
+    from uav_comm_planner.ros.node import main as run_node
+    if _STOP_REQUESTED.is_set():
+        return 0
     signal.signal(signal.SIGINT, _interrupt_once)
     try:
-        from uav_comm_planner.ros.node import main as run_node
         status = run_node(args)
     except KeyboardInterrupt:
         status = 0

@@ -1,4 +1,4 @@
-"""Command line: ``uav-comm-planner plan``, ``sweep`` and ``bench``.
+"""Command line: ``uav-comm-planner plan``, ``sweep``, ``bench`` and ``montecarlo``.
 
 Both take the letter's case (``--case I`` or ``II``) or a scenario file, with flags that
 override single settings; bad input ends with a one-line error
@@ -15,7 +15,7 @@ from pathlib import Path
 import sys
 from typing import Sequence
 
-from uav_comm_planner.tools import bench
+from uav_comm_planner.tools import bench, study
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, write_text_atomic
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
@@ -388,6 +388,11 @@ def build_parser() -> argparse.ArgumentParser:
                                        description=bench.DESCRIPTION)
     bench.add_arguments(bench_parser)
     bench_parser.set_defaults(handler=_command_bench)
+
+    study_parser = commands.add_parser('montecarlo', help=study.DESCRIPTION,
+                                       description=study.DESCRIPTION)
+    study.add_arguments(study_parser)
+    study_parser.set_defaults(handler=study.command)
     return parser
 
 
