@@ -216,5 +216,6 @@ def mission_rates_flown(mission: Scenario, power_w: np.ndarray,
     return delivered_bits(mission, flown) / mission.horizon_s
 
 
-__all__ = ['PREVIOUS_PLAN_START', 'FlownSlots', 'RecedingPlan', 'delivered_bits', 'mission_rates_flown',
-           'power_for_nodes', 'replan', 'rest_of_mission', 'within_speed_limit']
+__all__ = ['PREVIOUS_PLAN_START', 'FlownSlots', 'RecedingPlan', 'delivered_bits',
+           'mission_rates_flown', 'power_for_nodes', 'replan', 'rest_of_mission',
+           'within_speed_limit']
