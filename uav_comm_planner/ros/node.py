@@ -7,21 +7,36 @@ made while a plan runs replaces any request still waiting, so the newest input w
 executor's callbacks stay responsive. Results come back to the executor through a guard
 condition, where they are published and logged.
 
+The mission clock (:mod:`uav_comm_planner.ros.progress`) starts when the UAV reaches the
+plan's q0 (a ``uav_pose`` or, with ``mavlink_url``, the vehicle's telemetry within
+START_RADIUS_M of it) or on ``~/start``; never at node start nor on a parameter change. A
+replan of the mission in flight is in force when the vehicle reaches its q0 (with a link,
+after its upload) or, without a link, as soon as it is published.
+
 Replanning:
 
-- a ``ground_nodes`` message, an accepted parameter change or ``~/replan`` plans the whole
-  mission from ``start_m`` and restarts the mission clock. A ``ground_nodes`` message goes
+- before the mission clock runs (and after the mission's last slot), a ``ground_nodes``
+  message or an accepted parameter change plans the whole mission from ``start_m``;
+  ``~/replan`` always does, and ends the mission in flight. A ``ground_nodes`` message goes
   through the ``ground_nodes`` parameter, so it is checked like any parameter change and the
   parameter always holds the node set in use;
-- a ``uav_pose`` message plans the rest of the mission from the UAV's position: the waypoints
-  whose planned time has passed (time since the mission clock started, in whole slots) are
-  dropped and the remaining ones, with the same slot length, lead to ``goal_m``. It is an
-  error when no slot remains or the goal is out of reach from the pose.
+- while the clock runs, the same inputs replan the rest of the mission from the UAV's
+  position by the receding horizon (:mod:`uav_comm_planner.core.receding`): the slots begun so
+  far keep their power and the data they delivered (at the flown positions where a pose or
+  telemetry has them, else as planned), the rest gets what is left of the budget;
+- a ``uav_pose`` replans the same way, only when the UAV is off the plan by more than
+  ``replan_distance_m`` or ``replan_delay_s`` and at most once every ``replan_interval_s``;
+- output-only parameters (:data:`~uav_comm_planner.ros.params.OUTPUT_ONLY`: mission file,
+  firmware, end, frame, home, link and replan settings) never replan.
+
+Every request ends in one ``planner_status`` message: planned (with the plan stamp that
+every output of the plan carries) or refused, with the reason.
 """
 
 from __future__ import annotations
 
 from collections import deque
+import math
 import sys
 import threading
 
@@ -34,22 +49,30 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
+import numpy as np
+
 from uav_comm_planner.core.optimizer import plan
+from uav_comm_planner.core.receding import rest_of_mission
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.ros.binding import ParameterBinding
-from uav_comm_planner.ros.messages import ground_nodes_of
-from uav_comm_planner.ros.params import flat_pairs, PlannerConfig
+from uav_comm_planner.ros.messages import ground_nodes_of, nodes_text
+from uav_comm_planner.ros.params import flat_pairs, OUTPUT_ONLY, PlannerConfig
+from uav_comm_planner.ros.progress import MissionProgress, off_plan, planned_position, PoseTrack
 from uav_comm_planner.ros.publishing import PlanPublisher, summary_line, TOPIC_PATH
 from uav_comm_planner.ros.worker import (attempt, LatestOnlyWorker, Planner, PlanOutcome,
-                                         PlanRequest, remaining_scenario, write_mission)
+                                         PlanRequest, RecedingRequest, write_mission)
 
 NODE_NAME = 'uav_comm_planner'
 
 TOPIC_GROUND_NODES = 'ground_nodes'
 TOPIC_UAV_POSE = 'uav_pose'
 SERVICE_REPLAN = '~/replan'
+SERVICE_START = '~/start'
 SERVICE_EXPORT_MISSION = '~/export_mission'
+#: The UAV is at q0, and the mission clock starts, within this distance of it (metres);
+#: ArduCopter counts a waypoint reached within WPNAV_RADIUS, 2 m by default.
+START_RADIUS_M = 2.5
 
 #: Volatile so that both volatile and transient-local publishers can send node sets.
 GROUND_NODES_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -69,14 +92,15 @@ class PlannerNode(Node):
 
     For tests and introspection: ``requests_made`` counts plan requests, ``plans_run``
     finished plan attempts, ``plans_published`` the successful ones; ``error_count`` and
-    ``last_error`` follow every error logged.
+    ``last_error`` follow every error logged; ``progress`` is the mission in flight.
     """
 
     def __init__(self, *, planner: Planner = plan, **node_options) -> None:
         super().__init__(NODE_NAME, **node_options)
         self._planner = planner
-        self._binding = ParameterBinding(
-            self, lambda names: self.request_plan('parameters ' + ', '.join(names)))
+        self._refusing_nodes: str | None = None
+        self._binding = ParameterBinding(self, self._on_parameters,
+                                         on_refused=self._on_parameters_refused)
 
         self.requests_made = 0
         self.plans_run = 0
@@ -84,7 +108,9 @@ class PlannerNode(Node):
         self.error_count = 0
         self.last_error = ''
         self.current_plan: PlanOutcome | None = None
-        self._mission_start_ns = self._now_ns()
+        self.progress = MissionProgress()
+        self.track = PoseTrack()
+        self._last_pose_replan_s = -math.inf
 
         self._outcomes: deque[PlanOutcome] = deque()
         self._outcomes_lock = threading.Lock()
@@ -96,6 +122,7 @@ class PlannerNode(Node):
                                  GROUND_NODES_QOS)
         self.create_subscription(PoseStamped, TOPIC_UAV_POSE, self._on_uav_pose, UAV_POSE_QOS)
         self.create_service(Trigger, SERVICE_REPLAN, self._on_replan)
+        self.create_service(Trigger, SERVICE_START, self._on_start)
         self.create_service(Trigger, SERVICE_EXPORT_MISSION, self._on_export_mission)
 
         self._worker: LatestOnlyWorker[PlanRequest] = LatestOnlyWorker(
@@ -107,44 +134,104 @@ class PlannerNode(Node):
         return self._binding.config
 
     # Inputs.
-    def _frame_accepted(self, frame_id: str, topic: str) -> bool:
+    def _frame_accepted(self, frame_id: str, topic: str, nodes: str | None = None) -> bool:
         expected = self._config.node.frame_id
         if frame_id and frame_id != expected:
-            self._report_error(f'{topic} refused: its frame is {frame_id!r} but the planner '
-                               f'works in {expected!r} (parameter frame_id)')
+            self._refuse(topic, f'{topic} refused: its frame is {frame_id!r} but the planner '
+                                f'works in {expected!r} (parameter frame_id)', nodes=nodes)
             return False
         return True
 
     def _on_ground_nodes(self, message: PoseArray) -> None:
         """Take the message's positions as the new node set, through the parameter."""
-        if not self._frame_accepted(message.header.frame_id, TOPIC_GROUND_NODES):
+        points = ground_nodes_of(message)
+        text = nodes_text(points)
+        if not self._frame_accepted(message.header.frame_id, TOPIC_GROUND_NODES, text):
             return
-        nodes = Parameter('ground_nodes', Parameter.Type.DOUBLE_ARRAY,
-                          flat_pairs(ground_nodes_of(message)))
-        result = self.set_parameters([nodes])[0]
-        if not result.successful:
-            self._report_error(f'{TOPIC_GROUND_NODES} refused: {result.reason}')
+        nodes = Parameter('ground_nodes', Parameter.Type.DOUBLE_ARRAY, flat_pairs(points))
+        self._refusing_nodes = text
+        try:
+            self.set_parameters([nodes])
+        finally:
+            self._refusing_nodes = None
+
+    def _on_parameters_refused(self, names: list[str], reason: str) -> None:
+        """A refused parameter change (a ground_nodes message included): log and status."""
+        if self._refusing_nodes is not None and names == ['ground_nodes']:
+            self._refuse(TOPIC_GROUND_NODES, f'{TOPIC_GROUND_NODES} refused: {reason}',
+                         nodes=self._refusing_nodes)
+        else:
+            self._refuse('parameters ' + ', '.join(names),
+                         f'parameter change refused ({", ".join(names)}): {reason}')
+
+    def _on_parameters(self, names: list[str]) -> None:
+        """An accepted change: replan unless only output parameters changed."""
+        planning = [name for name in names if name not in OUTPUT_ONLY]
+        if not planning:
+            self.get_logger().info(
+                f'parameters {", ".join(names)} set; they apply to the next plan (no replan)')
+            return
+        reason = (TOPIC_GROUND_NODES if self._refusing_nodes is not None
+                  else 'parameters ' + ', '.join(planning))
+        self.request_update(reason)
 
     def _on_uav_pose(self, message: PoseStamped) -> None:
-        """Replan the rest of the mission from the UAV's current position."""
+        """A position of the UAV: starts the clock at q0, replans when off the plan."""
         if not self._frame_accepted(message.header.frame_id, TOPIC_UAV_POSE):
             return
-        now = self._now_ns()
-        position = (message.pose.position.x, message.pose.position.y)
-        elapsed_s = (now - self._mission_start_ns) / 1e9
-        try:
-            scenario = remaining_scenario(self._config.scenario, position, elapsed_s)
-        except PlannerError as exc:
-            self._report_error(f'{TOPIC_UAV_POSE} refused: {exc}')
+        self.on_position(self._clock_s(), message.pose.position.x, message.pose.position.y,
+                         source=TOPIC_UAV_POSE)
+
+    def on_position(self, time_s: float, x_m: float, y_m: float, *, source: str) -> None:
+        """The UAV at (x, y) metres at ``time_s`` on the mission clock's time base."""
+        if not (math.isfinite(x_m) and math.isfinite(y_m) and math.isfinite(time_s)):
+            self._refuse(source, f'{source} refused: position ({x_m}, {y_m}) is not finite')
             return
-        self._submit(scenario, now, TOPIC_UAV_POSE)
+        self.track.add(time_s, x_m, y_m)
+        segment = self.progress.current
+        if segment is None:
+            return
+        if segment.start_s is None:
+            start = segment.result.scenario.start_m
+            if math.dist(start, (x_m, y_m)) <= START_RADIUS_M:
+                self._start_clock(time_s, f'the UAV reached q0 ({source})')
+            return
+        if self.progress.over(time_s):
+            return
+        output = self._config.node
+        elapsed = time_s - segment.start_s
+        reason = off_plan(segment.result, elapsed, (x_m, y_m),
+                          distance_m=output.replan_distance_m, delay_s=output.replan_delay_s)
+        if not reason or time_s - self._last_pose_replan_s < output.replan_interval_s:
+            return
+        self._last_pose_replan_s = time_s
+        self.get_logger().info(f'{source}: the UAV is {reason}; replanning the rest')
+        self._request_rest(source, time_s, (x_m, y_m))
 
     def _on_replan(self, _request: Trigger.Request,
                    response: Trigger.Response) -> Trigger.Response:
         self.request_plan(SERVICE_REPLAN)
         response.success = True
         response.message = (f'planning the mission from start_m; the plan follows on '
-                            f'{TOPIC_PATH}')
+                            f'{TOPIC_PATH}; the mission clock starts at q0 or on '
+                            f'{SERVICE_START}')
+        return response
+
+    def _on_start(self, _request: Trigger.Request,
+                  response: Trigger.Response) -> Trigger.Response:
+        response.success = False
+        segment = self.progress.current
+        if self._config.node.mavlink_url:
+            response.message = ('the vehicle link starts the mission clock when the vehicle '
+                                'reaches q0 (parameter mavlink_url is set)')
+        elif segment is None:
+            response.message = 'no plan yet'
+        elif segment.start_s is not None:
+            response.message = 'the mission clock is already running'
+        else:
+            self._start_clock(self._clock_s(), SERVICE_START)
+            response.success = True
+            response.message = 'mission clock started: the plan in force is flown from now'
         return response
 
     def _on_export_mission(self, _request: Trigger.Request,
@@ -168,14 +255,62 @@ class PlannerNode(Node):
 
     # Planning.
 
-    def request_plan(self, reason: str) -> None:
-        """Plan the whole mission from ``start_m`` with the current parameters."""
-        self._mission_start_ns = self._now_ns()
-        self._submit(self._config.scenario, self._mission_start_ns, reason)
+    def _start_clock(self, time_s: float, why: str) -> None:
+        self.progress.start_clock(time_s)
+        self.get_logger().info(f'mission clock started: {why}')
 
-    def _submit(self, scenario: Scenario, start_ns: int, reason: str) -> None:
+    def _mission_running(self, time_s: float) -> bool:
+        """Whether a mission is in flight that a replan should continue."""
+        mission = self.progress.mission
+        scenario = self._config.scenario
+        return (self.progress.started and not self.progress.over(time_s)
+                and mission is not None and mission.num_slots == scenario.num_slots
+                and mission.horizon_s == scenario.horizon_s)
+
+    def request_update(self, reason: str) -> None:
+        """New inputs: replan the rest of the mission in flight, else the whole mission."""
+        now = self._clock_s()
+        if self._mission_running(now):
+            latest = self.track.latest
+            segment = self.progress.current
+            if latest is not None and now - latest[0] <= self._config.scenario.slot_s:
+                position = (latest[1], latest[2])
+            else:
+                elapsed = now - segment.start_s if segment.start_s is not None else 0.0
+                position = tuple(planned_position(segment.result, elapsed))
+            self._request_rest(reason, now, position)
+        else:
+            self.request_plan(reason)
+
+    def request_plan(self, reason: str) -> None:
+        """Plan the whole mission from ``start_m`` with the current parameters; a mission in
+        flight ends (its clock stops)."""
+        self.progress = MissionProgress()
+        self._submit(self._config.scenario, reason)
+
+    def _request_rest(self, reason: str, time_s: float, position: tuple[float, float]) -> None:
+        """Replan the rest of the mission in flight from ``position`` at ``time_s``."""
+        mission = self._config.scenario
+        segment = self.progress.current
+        flown = self.progress.flown_slots(time_s, mission.ground_nodes_m, self.track)
+        begun = segment.slots_begun(time_s) if segment.start_s is not None else 0
+        try:
+            rest_of_mission(mission, position, flown)
+        except PlannerError as exc:
+            self._refuse(reason, f'{reason} refused: {exc}',
+                         nodes=nodes_text(mission.ground_nodes_m))
+            return
+        previous = np.asarray(segment.result.trajectory[begun:], dtype=float)
+        rest = RecedingRequest(position_m=(float(position[0]), float(position[1])),
+                               flown=flown, previous_q=previous, segment=segment,
+                               slots_kept=begun)
+        self._submit(mission, reason, rest)
+
+    def _submit(self, scenario: Scenario, reason: str,
+                receding: RecedingRequest | None = None) -> None:
         config = self._config
-        request = PlanRequest(scenario, config.settings, config.node, start_ns, reason)
+        request = PlanRequest(scenario, config.settings, config.node, self._now_ns(), reason,
+                              receding)
         self.requests_made += 1
         if self._worker.submit(request):
             self.get_logger().debug(f'{reason}: replaces a request still waiting')
@@ -196,12 +331,21 @@ class PlannerNode(Node):
             self._outcomes.clear()
         for outcome in outcomes:
             self.plans_run += 1
+            request = outcome.request
             if outcome.result is None:
-                self._report_error(f'planning failed ({outcome.request.reason}); the last '
-                                   f'good plan stays published: {outcome.error}')
+                self._refuse(request.reason, f'planning failed ({request.reason}); the last '
+                                             f'good plan stays published: {outcome.error}',
+                             nodes=nodes_text(request.scenario.ground_nodes_m),
+                             stamp_ns=request.start_ns)
+                continue
+            if not self._take(outcome):
                 continue
             self.current_plan = outcome
             line = summary_line(outcome.result)
+            if outcome.receding is not None:
+                line += (f'; rest of the mission after {outcome.receding.flown.num_slots} '
+                         f'slots, whole mission min throughput {outcome.min_throughput:.4g} '
+                         f'bit/s')
             if outcome.mission_path is not None:
                 line += f'; mission written to {outcome.mission_path}'
             # Logged first, so that whoever receives the plan can already read its line.
@@ -212,6 +356,36 @@ class PlannerNode(Node):
                 self._report_error(f'mission export failed, the plan is kept: '
                                    f'{outcome.mission_error}')
 
+    def _take(self, outcome: PlanOutcome) -> bool:
+        """Make ``outcome`` the plan in force of the mission; False if it came too late."""
+        rest = outcome.request.receding
+        if rest is None:
+            self.progress.begin(outcome.request.scenario, outcome.result)
+            return True
+        segments = self.progress.segments
+        if rest.segment not in segments or any(
+                later.start_s is not None
+                for later in segments[segments.index(rest.segment) + 1:]):
+            self.get_logger().info(f'{outcome.request.reason}: a newer plan is flown already; '
+                                   'this replan is dropped')
+            return False
+        del segments[segments.index(rest.segment) + 1:]
+        rest.segment.slots_kept = rest.slots_kept
+        self.progress.follow_with(outcome.request.scenario, outcome.result,
+                                  rest.segment.first_slot + rest.slots_kept)
+        if not outcome.request.output.mavlink_url:
+            # The UAV was at the new q0 when the replan was asked; without a link to say when
+            # it flies the new plan, the plan is in force from now.
+            self._start_clock(self._clock_s(), 'the replan is in force')
+        return True
+
+    def _refuse(self, request: str, message: str, *, nodes: str | None = None,
+                stamp_ns: int | None = None) -> None:
+        """Log an error and say on planner_status that ``request`` was refused and why."""
+        self._report_error(message)
+        self._publisher.refused(self._now_ns() if stamp_ns is None else stamp_ns, request,
+                                message, nodes=nodes)
+
     def _report_error(self, message: str) -> None:
         self.error_count += 1
         self.last_error = message
@@ -219,6 +393,10 @@ class PlannerNode(Node):
 
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
+
+    def _clock_s(self) -> float:
+        """Now on the mission clock's time base, seconds."""
+        return self._now_ns() / 1e9
 
     def destroy_node(self) -> None:
         """Stop the worker (a plan in progress is abandoned), then destroy the node."""

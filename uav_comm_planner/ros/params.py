@@ -14,6 +14,7 @@ parameter values to validated dataclasses.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+import math
 from pathlib import PurePath
 import typing
 from typing import Any, Mapping, Sequence
@@ -39,6 +40,10 @@ class NodeSettings:
     ``mission_file`` empty means no mission is written; its extension chooses the format
     (``.waypoints`` or ``.plan``). The home position anchors the planning frame's origin
     (east-north metres) on WGS84; ``home_altitude_m`` is above mean sea level.
+    ``mavlink_url`` (empty: no vehicle link) is where every new plan is uploaded and the
+    vehicle's telemetry read. A pose replans the rest of the mission only when the UAV is off
+    the plan by more than ``replan_distance_m`` or ``replan_delay_s``, and at most once every
+    ``replan_interval_s`` (mission clock seconds).
     """
 
     frame_id: str = 'map'
@@ -48,10 +53,19 @@ class NodeSettings:
     home_altitude_m: float = DEFAULT_HOME[2]
     mission_end: str = 'land'
     mission_firmware: str = 'ardupilot'
+    mavlink_url: str = ''
+    replan_distance_m: float = 20.0
+    replan_delay_s: float = 5.0
+    replan_interval_s: float = 10.0
 
     def __post_init__(self) -> None:
         if not self.frame_id.strip():
             raise InvalidScenarioError('frame_id must not be empty, e.g. "map"')
+        for name in ('replan_distance_m', 'replan_delay_s', 'replan_interval_s'):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+                raise InvalidScenarioError(
+                    f'{name} must be a positive finite number, got {value!r}')
         suffix = PurePath(self.mission_file).suffix.lower()
         if self.mission_file and suffix not in MISSION_FORMATS:
             raise InvalidScenarioError(
@@ -112,7 +126,22 @@ DESCRIPTIONS = {
     'home_altitude_m': 'altitude of the frame origin above mean sea level (m)',
     'mission_end': 'what the mission does at the goal: land or rtl',
     'mission_firmware': 'mission dialect: ardupilot or px4',
+    'mavlink_url': 'vehicle link as pymavlink takes it (tcp:HOST:PORT, udpin:0.0.0.0:14550, '
+                   '/dev/ttyACM0,115200): every new plan is uploaded, telemetry starts the '
+                   'mission clock at q0; empty: no link',
+    'replan_distance_m': 'replan from uav_pose when the UAV is farther than this from the '
+                         'planned path (m)',
+    'replan_delay_s': 'replan from uav_pose when the UAV is this far behind or ahead of the '
+                      'planned time (s)',
+    'replan_interval_s': 'at most one replan from uav_pose in this many seconds',
 }
+
+#: Parameters that change only what is done with a plan, never the plan: changing one never
+#: replans nor restarts the mission clock.
+OUTPUT_ONLY = frozenset({
+    'frame_id', 'mission_file', 'home_latitude_deg', 'home_longitude_deg', 'home_altitude_m',
+    'mission_end', 'mission_firmware', 'mavlink_url', 'replan_distance_m', 'replan_delay_s',
+    'replan_interval_s'})
 
 #: Inclusive (low, high) limits shown to tools; the dataclasses check the exact domain.
 RANGES = {
@@ -131,6 +160,9 @@ RANGES = {
     'max_nodes': (1, 100000),
     'home_latitude_deg': (-90.0, 90.0),
     'home_longitude_deg': (-180.0, 180.0),
+    'replan_distance_m': (0.0, 1.0e6),
+    'replan_delay_s': (0.0, 1.0e6),
+    'replan_interval_s': (0.0, 1.0e6),
 }
 
 _SCALAR_KINDS = {bool: 'bool', int: 'int', float: 'float', str: 'str'}
@@ -257,6 +289,6 @@ def flat_pairs(points: Sequence[Sequence[float]]) -> list[float]:
     return to_parameter_value(points, 'pairs')
 
 
-__all__ = ['MISSION_ENDS', 'MISSION_FIRMWARES', 'NodeSettings', 'ParameterSpec',
+__all__ = ['MISSION_ENDS', 'MISSION_FIRMWARES', 'NodeSettings', 'OUTPUT_ONLY', 'ParameterSpec',
            'PlannerConfig', 'config_from_parameters', 'flat_pairs', 'from_parameter_value',
            'parameter_specs', 'to_parameter_value']

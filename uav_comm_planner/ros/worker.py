@@ -7,14 +7,14 @@ which runs :func:`attempt` on its own thread and hands back a :class:`PlanOutcom
 from __future__ import annotations
 
 from dataclasses import dataclass
-import math
 from pathlib import Path as FilePath
 import threading
 from typing import Callable, Generic, TypeVar
 
 from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.receding import FlownSlots, RecedingPlan, replan
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
-from uav_comm_planner.errors import InfeasibleHorizonError, PlannerError
+from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.vehicle.mission import export_mission
 
@@ -69,44 +69,59 @@ class LatestOnlyWorker(Generic[Request]):
 
 
 @dataclass(frozen=True)
+class RecedingRequest:
+    """The rest of a mission in flight to replan (see :mod:`uav_comm_planner.core.receding`).
+
+    position_m: where the rest starts; flown: the slots already flown (power mapped onto the
+    mission's nodes); previous_q: the rest of the plan in force, one more start;
+    segment: the plan in force (a :class:`~uav_comm_planner.ros.progress.Segment`), cut after
+    ``slots_kept`` of its slots when the replan takes over.
+    """
+
+    position_m: tuple[float, float]
+    flown: FlownSlots
+    previous_q: object
+    segment: object
+    slots_kept: int
+
+
+@dataclass(frozen=True)
 class PlanRequest:
-    """What to plan, the settings to publish it with, and when the planned flight starts."""
+    """What to plan, the settings to publish it with, and its plan stamp.
+
+    start_ns: the plan stamp (node clock, nanoseconds) on every output of the plan; the
+    planned poses are stamped start_ns + their planned time. ``receding``: plan the rest of
+    the mission in flight instead of the whole mission from ``start_m``.
+    """
 
     scenario: Scenario
     settings: SolverSettings
     output: NodeSettings
     start_ns: int
     reason: str
+    receding: RecedingRequest | None = None
 
 
 @dataclass(frozen=True)
 class PlanOutcome:
-    """A finished request: its plan, or the reason it failed, and the mission file written."""
+    """A finished request: its plan, or the reason it failed, and the mission file written.
+
+    receding: for a replan of a mission in flight, what it promises for the whole mission.
+    """
 
     request: PlanRequest
     result: PlanResult | None = None
     error: str = ''
     mission_path: FilePath | None = None
     mission_error: str = ''
+    receding: RecedingPlan | None = None
 
-
-def remaining_scenario(scenario: Scenario, position: tuple[float, float],
-                       elapsed_s: float) -> Scenario:
-    """The rest of ``scenario`` flown from ``position`` after ``elapsed_s`` seconds.
-
-    Keeps the slot length; drops the slots whose waypoint time has passed. Raises
-    :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when none remains or the goal
-    is out of reach from ``position``.
-    """
-    passed = max(0, math.floor(elapsed_s / scenario.slot_s))
-    remaining = scenario.num_slots - passed
-    if remaining < 1:
-        raise InfeasibleHorizonError(
-            f'the mission horizon is over ({elapsed_s:.1f} s since the mission started, '
-            f'{scenario.num_slots} slots of {scenario.slot_s:g} s): call ~/replan to start '
-            f'a new mission')
-    return scenario.replace(start_m=position, num_slots=remaining,
-                            horizon_s=remaining * scenario.slot_s)
+    @property
+    def min_throughput(self) -> float:
+        """The min average throughput over the whole mission, bit/s."""
+        if self.receding is not None:
+            return self.receding.mission_min_throughput
+        return float(self.result.min_throughput)
 
 
 def write_mission(result: PlanResult, output: NodeSettings) -> FilePath:
@@ -117,15 +132,23 @@ def write_mission(result: PlanResult, output: NodeSettings) -> FilePath:
 
 def attempt(planner: Planner, request: PlanRequest) -> PlanOutcome:
     """Plan ``request`` and write its mission if asked; every failure becomes the outcome."""
+    receding = None
     try:
-        result = planner(request.scenario, request.settings)
+        if request.receding is None:
+            result = planner(request.scenario, request.settings)
+        else:
+            rest = request.receding
+            receding = replan(request.scenario, rest.position_m, rest.flown, request.settings,
+                              planner=planner, previous_q=rest.previous_q)
+            result = receding.result
     except PlannerError as exc:
         return PlanOutcome(request, error=str(exc))
     except Exception as exc:  # noqa: B902 - a failed plan must not end the worker thread
         return PlanOutcome(request, error=f'unexpected {type(exc).__name__}: {exc}')
     if not request.output.mission_file:
-        return PlanOutcome(request, result)
+        return PlanOutcome(request, result, receding=receding)
     try:
-        return PlanOutcome(request, result, mission_path=write_mission(result, request.output))
+        return PlanOutcome(request, result, mission_path=write_mission(result, request.output),
+                           receding=receding)
     except PlannerError as exc:
-        return PlanOutcome(request, result, mission_error=str(exc))
+        return PlanOutcome(request, result, mission_error=str(exc), receding=receding)
