@@ -19,3 +19,7 @@ class SolverError(PlannerError, RuntimeError):
 
 class MissionExportError(PlannerError):
     """A mission file could not be written; the previous file, if any, is left untouched."""
+
+
+class VehicleLinkError(PlannerError):
+    """The vehicle's MAVLink link failed or the vehicle refused what was sent; says which."""

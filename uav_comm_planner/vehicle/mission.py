@@ -1,39 +1,24 @@
 """MAVLink mission export: the planned flight as items an autopilot flies on the planned timing.
 
-The plan is a sequence of points P_0 = q0, P_m = q[m] (m = 1..M), P_{M+1} = qF, reached at
-t_m = m delta, in east-north metres from ``home`` at altitude H above it. The mission is
+The timing comes from :mod:`uav_comm_planner.vehicle.flyable`: stops where the plan hovers,
+legs of fly-through waypoints between them, one cruise speed per leg, holds shortened by what
+the vehicle's starts and stops cost. The mission is
 
 0. home (frame 0, absolute altitude), as QGroundControl and Mission Planner expect in row 0;
 1. NAV_TAKEOFF to H above home (the vehicle climbs where it stands);
-2. NAV_WAYPOINT at q0 (frame 3, relative altitude H). Reaching it starts the plan's clock:
-   the climb and the transit from home to q0 are outside the horizon and not timed;
-3. per stop, a DO_CHANGE_SPEED (ground speed) when the leg's speed differs from the one in
-   force, then NAV_WAYPOINT with param1 = hold time, seconds;
+2. NAV_WAYPOINT at q0 (frame 3, relative altitude H), param1 = the hold at q0. The plan's
+   clock starts when the vehicle holds there (with no hold: when it reaches q0); the climb
+   and the transit from home to q0 are outside the horizon and not timed;
+3. per leg, a DO_CHANGE_SPEED (ground speed) when its speed differs from the one in force,
+   its fly-through waypoints (param1 = 0), then the stop it ends at with its hold in param1
+   (seconds; whole seconds for ArduPilot, which stores a uint16: a longer hold repeats the
+   waypoint);
 4. NAV_LAND at qF, or NAV_RETURN_TO_LAUNCH.
-
-A stop is a run of consecutive plan points that all lie within ``merge_radius_m`` of each
-other: the UAV hovers there (the letter's hovering over a node), so one waypoint with a hold
-stands for the whole run. Its hold is the time the plan spends inside the run; the leg into it
-ends at the run's first planned time, the leg out of it starts at the run's last.
-
-Timing. Before each leg the UAV holds until the stop's planned departure; the leg then flies at
-the first of the speed in force, the plan's own speed for the leg, and the speed that lands
-exactly on the next planned arrival, that is on time within 5 % of a slot; so DO_CHANGE_SPEED
-appears only where the speed really changes. Speeds follow the replayed clock, not the plan's,
-so rounding never accumulates: a replay of the file (leg length / commanded speed, plus holds)
-reaches every waypoint at its planned time within that tolerance. Commanded speeds stay within
-[``min_speed_mps``, the plan's V]; a leg slower than ``min_speed_mps`` (autopilots do not hold a
-crawl of a few cm/s) is flown at that speed after holding at its start for the time left over.
-ArduPilot keeps a waypoint's hold in whole seconds (a uint16), so for ``firmware='ardupilot'``
-holds are whole seconds, rounded down unless within the tolerance of the next one, and the next
-leg slows down by the fraction. Holds shorter than the tolerance are dropped: any hold makes the
-vehicle stop at the waypoint. The replay is kinematic: the autopilot's acceleration and corner
-rounding are not modelled.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 import json
 import math
 import os
@@ -43,11 +28,13 @@ from typing import Callable, Sequence
 import numpy as np
 from pymavlink import mavutil, mavwp
 
-from uav_comm_planner.errors import MissionExportError
-from uav_comm_planner.files import write_with
-from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, Home
-from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.errors import InvalidScenarioError, MissionExportError
+from uav_comm_planner.files import write_with
+from uav_comm_planner.vehicle.flyable import (check_speed, MAX_HOLD_S, Schedule,
+                                              schedule_flight, VehiclePlan)
+from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, Home
+from uav_comm_planner.vehicle.limits import VehicleLimits
 
 MAV = mavutil.mavlink
 FRAME_GLOBAL = MAV.MAV_FRAME_GLOBAL                       # 0: absolute altitude (home row)
@@ -61,18 +48,8 @@ DO_CHANGE_SPEED = MAV.MAV_CMD_DO_CHANGE_SPEED
 SPEED_TYPE_GROUND = 1.0
 THROTTLE_UNCHANGED = -1.0
 
-#: Plan points closer than this are one stop. ArduCopter's default waypoint radius
-#: (WPNAV_RADIUS) is 2 m: the autopilot counts points this close as reached together anyway,
-#: and at H = 100 m a 2 m offset changes the channel gain by under 0.04 %.
-MERGE_RADIUS_M = 2.0
-#: Slowest commanded ground speed; slower legs become a hold plus a leg at this speed.
-MIN_SPEED_MPS = 0.5
-#: Speeds are written to 1 cm/s; the replayed clock absorbs the rounding.
-SPEED_DECIMALS = 2
 #: Latitude and longitude to 1e-8 degree (about 1 mm).
 DEGREE_DECIMALS = 8
-#: Keep the speed in force when it reaches the next stop within this fraction of a slot.
-TIMING_TOLERANCE_SLOTS = 0.05
 
 FIRMWARE_TYPES = {'ardupilot': MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 'px4': MAV.MAV_AUTOPILOT_PX4}
 MISSION_ENDS = ('land', 'rtl')
@@ -96,225 +73,85 @@ class MissionItem:
     autocontinue: bool = True
 
 
-@dataclass(frozen=True)
-class Stop:
-    """A waypoint of the timed part of the mission, in the planning frame.
-
-    position_m: (2,) east, north metres; plan_arrival_s, plan_departure_s: the planned times of
-    the first and last plan point the stop stands for; arrival_s: replayed arrival;
-    hold_s: the commanded hold; speed_mps: the speed commanded on the leg out of the stop
-    (None for the last stop).
-    """
-
-    position_m: np.ndarray
-    plan_arrival_s: float
-    plan_departure_s: float
-    arrival_s: float = 0.0
-    hold_s: float = 0.0
-    speed_mps: float | None = None
-    points: tuple[int, ...] = field(default=())
-
-
-def plan_points(result: PlanResult) -> tuple[np.ndarray, np.ndarray]:
-    """The flown path q0, q[1..M], qF: (M + 2, 2) metres, and its planned times (M + 2,) s."""
-    scenario = result.scenario
-    q = np.asarray(result.trajectory, dtype=float).reshape(-1, 2)
-    times = np.asarray(result.times, dtype=float).reshape(-1)
-    if len(times) != len(q) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(times))):
-        raise MissionExportError('the plan has no finite trajectory with one time per waypoint')
-    end_time = (len(q) + 1) * scenario.slot_s
-    return flown_path(q, scenario), np.concatenate([[0.0], times, [end_time]])
-
-
-def hover_runs(points: np.ndarray, merge_radius_m: float) -> list[tuple[int, int]]:
-    """Split points (K, 2) into maximal runs [i, j] whose points are all within the radius.
-
-    Greedy in time order: a run grows while the next point is within ``merge_radius_m`` of
-    every point already in it, so the run's diameter never exceeds the radius.
-    """
-    runs = []
-    first = 0
-    for index in range(1, len(points) + 1):
-        if index < len(points):
-            gaps = np.linalg.norm(points[first:index] - points[index], axis=1)
-            if gaps.max() <= merge_radius_m:
-                continue
-        runs.append((first, index - 1))
-        first = index
-    return runs
-
-
-def _representative(points: np.ndarray, first: int, last: int, count: int) -> int:
-    """The plan point that stands for run [first, last]: q0 or qF if inside, else its medoid."""
-    if first == 0:
-        return 0
-    if last == count - 1:
-        return last
-    run = points[first:last + 1]
-    spread = np.linalg.norm(run[:, None, :] - run[None, :, :], axis=-1).max(axis=1)
-    return first + int(np.argmin(spread))
-
-
-def group_stops(points: np.ndarray, times: np.ndarray, merge_radius_m: float) -> list[Stop]:
-    """The stops of a path: points (K, 2) metres reached at times (K,) seconds."""
-    return [Stop(position_m=points[_representative(points, i, j, len(points))].copy(),
-                 plan_arrival_s=float(times[i]), plan_departure_s=float(times[j]),
-                 points=tuple(range(i, j + 1)))
-            for i, j in hover_runs(points, merge_radius_m)]
-
-
-@dataclass(frozen=True)
-class Pace:
-    """How the stops are timed.
-
-    Commanded speeds stay in [min_speed_mps, max_speed_mps]; a speed is kept while it reaches
-    the next stop within ``tolerance_s`` of the planned time; holds are whole seconds when
-    ``whole_second_holds`` (ArduPilot), else hundredths of a second.
-    """
-
-    min_speed_mps: float
-    max_speed_mps: float
-    tolerance_s: float
-    whole_second_holds: bool = True
-
-    def bound(self, speed_mps: float) -> float:
-        """A speed rounded to 1 cm/s and clipped to the allowed range."""
-        return min(max(round(speed_mps, SPEED_DECIMALS), self.min_speed_mps),
-                   self.max_speed_mps)
-
-
-def schedule_stops(stops: Sequence[Stop], pace: Pace) -> list[Stop]:
-    """Give each stop its hold and the speed of the leg out of it, replaying the clock.
-
-    The clock is 0 at the first stop. Before each leg the UAV holds until the stop's planned
-    departure (plus, for a leg slower than the minimum speed, the time that leg would crawl);
-    the leg then flies at the first of: the speed in force, the plan's own speed for the leg,
-    the speed that lands exactly on the next planned arrival, that is on time.
-    """
-    scheduled: list[Stop] = []
-    clock = 0.0
-    in_force: float | None = None
-    for stop, following in zip(stops, list(stops[1:]) + [None]):
-        wait = max(0.0, stop.plan_departure_s - clock)
-        if following is None:
-            scheduled.append(replace(stop, arrival_s=clock, hold_s=_quantised_hold(wait, pace)))
-            break
-        length = float(np.linalg.norm(following.position_m - stop.position_m))
-        target = following.plan_arrival_s
-        hold = _hold_before_leg(length, clock + wait, target, pace) + wait
-        hold = _quantised_hold(hold, pace)
-        nominal = length / max(target - stop.plan_departure_s, 1e-9)
-        in_force = _leg_speed(length, clock + hold, target, (in_force, nominal), pace)
-        scheduled.append(replace(stop, arrival_s=clock, hold_s=hold, speed_mps=in_force))
-        clock += hold + length / in_force
-    return scheduled
-
-
-def _hold_before_leg(length_m: float, ready_s: float, target_s: float, pace: Pace) -> float:
-    """Extra hold so that a leg too slow to command is flown at the minimum speed instead."""
-    flight_s = target_s - ready_s
-    if flight_s <= 0.0:
-        raise MissionExportError(
-            f'cannot reach a waypoint {length_m:.1f} m away by t = {target_s:.2f} s: the '
-            f'mission clock is already at {ready_s:.2f} s; the plan breaks its speed limit')
-    return max(0.0, flight_s - length_m / pace.min_speed_mps)
-
-
-def _leg_speed(length_m: float, departure_s: float, target_s: float,
-               preferred: tuple[float | None, float], pace: Pace) -> float:
-    """The first preferred speed that is on time within the tolerance, else the exact one."""
-    def lateness(speed: float) -> float:
-        return abs(departure_s + length_m / speed - target_s)
-
-    in_force, nominal = preferred
-    for speed in (in_force, pace.bound(nominal)):
-        if speed is not None and lateness(speed) <= pace.tolerance_s:
-            return speed
-    remaining = target_s - departure_s
-    return pace.bound(length_m / remaining if remaining > 1e-9 else pace.max_speed_mps)
-
-
-def _quantised_hold(hold_s: float, pace: Pace) -> float:
-    """Hundredths of a second, or whole seconds (ArduPilot's resolution).
-
-    Whole seconds round to the nearest when that is within the tolerance (a clock a few ms
-    late must not cost a second of hovering), else down, so that the next leg can slow down
-    to absorb the fraction.
-    """
-    if hold_s <= pace.tolerance_s:
-        return 0.0  # any hold stops the vehicle; a few ms are not worth a stop
-    if not pace.whole_second_holds:
-        return round(hold_s, 2)
-    nearest = round(hold_s)
-    return float(nearest if abs(hold_s - nearest) <= pace.tolerance_s else math.floor(hold_s))
-
-
-def plan_stops(result: PlanResult, *, firmware: str = 'ardupilot',
-               merge_radius_m: float = MERGE_RADIUS_M,
-               min_speed_mps: float = MIN_SPEED_MPS) -> list[Stop]:
-    """The timed stops of a plan, in the planning frame (no geodesy, no I/O)."""
-    _check_firmware(firmware)
-    if not (math.isfinite(merge_radius_m) and merge_radius_m >= 0):
-        raise MissionExportError(f'merge_radius_m must be >= 0, got {merge_radius_m!r}')
-    scenario = result.scenario
-    if not (math.isfinite(min_speed_mps) and 0 < min_speed_mps < scenario.max_speed_mps):
-        raise MissionExportError(f'min_speed_mps must be in (0, max_speed_mps = '
-                                 f'{scenario.max_speed_mps}), got {min_speed_mps!r}')
-    pace = Pace(min_speed_mps=min_speed_mps, max_speed_mps=scenario.max_speed_mps,
-                tolerance_s=TIMING_TOLERANCE_SLOTS * scenario.slot_s,
-                whole_second_holds=firmware == 'ardupilot')
-    points, times = plan_points(result)
-    return schedule_stops(group_stops(points, times, merge_radius_m), pace)
-
-
 def _check_firmware(firmware: str) -> None:
     if firmware not in FIRMWARE_TYPES:
         raise MissionExportError(
             f'unknown firmware {firmware!r}: choose one of {", ".join(FIRMWARE_TYPES)}')
 
 
-def build_mission_items(result: PlanResult, home: Home, *, end: str = 'land',
-                        firmware: str = 'ardupilot', merge_radius_m: float = MERGE_RADIUS_M,
-                        min_speed_mps: float = MIN_SPEED_MPS) -> list[MissionItem]:
-    """The mission rows of a plan, home first (see the module docstring for their meaning)."""
+def _schedule(plan: PlanResult | VehiclePlan, firmware: str,
+              limits: VehicleLimits | None) -> Schedule:
+    """The timed flight of ``plan``: its own when it was made for a vehicle, else scheduled."""
+    if isinstance(plan, VehiclePlan):
+        if plan.schedule.firmware != firmware:
+            raise MissionExportError(f'the plan was timed for {plan.schedule.firmware}, not '
+                                     f'{firmware}: plan it again for {firmware}')
+        return plan.schedule
+    if not isinstance(plan, PlanResult):
+        raise MissionExportError(f'a mission is made from a plan, got {type(plan).__name__}')
+    limits = limits or VehicleLimits()
+    try:
+        check_speed(plan.scenario, limits)
+        return schedule_flight(plan, limits, firmware=firmware)
+    except InvalidScenarioError as exc:
+        raise MissionExportError(str(exc)) from None
+
+
+def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str = 'land',
+                        firmware: str = 'ardupilot',
+                        limits: VehicleLimits | None = None) -> list[MissionItem]:
+    """The mission rows of a plan, home first (see the module docstring for their meaning).
+
+    A :class:`~uav_comm_planner.vehicle.flyable.VehiclePlan` keeps its own timing; a plain
+    :class:`PlanResult` is timed here for ``limits`` (ArduCopter's defaults when None).
+    """
     if end not in MISSION_ENDS:
         raise MissionExportError(f'unknown mission end {end!r}: choose land or rtl')
-    stops = plan_stops(result, firmware=firmware, merge_radius_m=merge_radius_m,
-                       min_speed_mps=min_speed_mps)
+    _check_firmware(firmware)
+    schedule = _schedule(plan, firmware, limits)
+    scenario = (plan.ideal if isinstance(plan, VehiclePlan) else plan).scenario
     # PX4 reads a yaw of 0 as "face north"; NaN keeps its own heading mode. ArduCopter
     # ignores the waypoint yaw, and Mission Planner shows NaN as an error, so it gets 0.
     yaw = math.nan if firmware == 'px4' else 0.0
-    altitude = result.scenario.altitude_m
-    east = np.array([stop.position_m[0] for stop in stops])
-    north = np.array([stop.position_m[1] for stop in stops])
-    latitude, longitude, _ = enu_to_geodetic(east, north, 0.0, home)
-    latitude, longitude = latitude.round(DEGREE_DECIMALS), longitude.round(DEGREE_DECIMALS)
+    altitude = scenario.altitude_m
+
+    def waypoint(position: np.ndarray, hold_s: float) -> MissionItem:
+        latitude, longitude, _ = enu_to_geodetic(np.array([position[0]]),
+                                                 np.array([position[1]]), 0.0, home)
+        return MissionItem(NAV_WAYPOINT, FRAME_RELATIVE_ALT, (hold_s, 0.0, 0.0, yaw),
+                           round(float(latitude[0]), DEGREE_DECIMALS),
+                           round(float(longitude[0]), DEGREE_DECIMALS), altitude)
+
     items = [MissionItem(NAV_WAYPOINT, FRAME_GLOBAL, x=home.latitude_deg,
                          y=home.longitude_deg, z=home.altitude_m, current=True),
              MissionItem(NAV_TAKEOFF, FRAME_RELATIVE_ALT, (0.0, 0.0, 0.0, yaw),
                          home.latitude_deg, home.longitude_deg, altitude)]
-    items += _stop_items(stops, latitude, longitude, altitude, yaw)
+    in_force = None
+    for index, stop in enumerate(schedule.stops):
+        items += [waypoint(stop.position_m, hold) for hold in _holds(stop.hold_s, firmware)]
+        if index == len(schedule.legs):
+            break
+        leg = schedule.legs[index]
+        if leg.speed_mps != in_force:
+            in_force = leg.speed_mps
+            items.append(MissionItem(DO_CHANGE_SPEED, FRAME_MISSION,
+                                     (SPEED_TYPE_GROUND, in_force, THROTTLE_UNCHANGED, 0.0)))
+        items += [waypoint(vertex, 0.0) for vertex in leg.vertices[1:-1]]
+    last = items[-1]
     if end == 'land':
         items.append(MissionItem(NAV_LAND, FRAME_RELATIVE_ALT, (0.0, 0.0, 0.0, yaw),
-                                 float(latitude[-1]), float(longitude[-1]), 0.0))
+                                 last.x, last.y, 0.0))
     else:
         items.append(MissionItem(NAV_RETURN_TO_LAUNCH, FRAME_MISSION))
     return items
 
 
-def _stop_items(stops: Sequence[Stop], latitude: np.ndarray, longitude: np.ndarray,
-                altitude_m: float, yaw: float) -> list[MissionItem]:
-    """A waypoint per stop (latitude, longitude: (S,) degrees), each leg's speed before it."""
-    items = []
-    speed_in_force = None
-    for index, stop in enumerate(stops):
-        if index > 0 and stops[index - 1].speed_mps != speed_in_force:
-            speed_in_force = stops[index - 1].speed_mps
-            items.append(MissionItem(DO_CHANGE_SPEED, FRAME_MISSION,
-                                     (SPEED_TYPE_GROUND, speed_in_force, THROTTLE_UNCHANGED, 0.0)))
-        items.append(MissionItem(NAV_WAYPOINT, FRAME_RELATIVE_ALT, (stop.hold_s, 0.0, 0.0, yaw),
-                                 float(latitude[index]), float(longitude[index]), altitude_m))
-    return items
+def _holds(hold_s: float, firmware: str) -> list[float]:
+    """One waypoint's hold, split over repeated waypoints where the firmware stores less."""
+    longest = MAX_HOLD_S[firmware]
+    holds = [longest] * int(hold_s // longest)
+    rest = hold_s - longest * len(holds)
+    return holds + [rest] if rest > 0 or not holds else holds
 
 
 # Writers.
@@ -392,9 +229,9 @@ def write_plan(items: Sequence[MissionItem], path: Path, home: Home, *,
 MISSION_FORMATS = ('.waypoints', '.plan')
 
 
-def export_mission(result: PlanResult, path: str | os.PathLike, home: Home, *,
+def export_mission(plan: PlanResult | VehiclePlan, path: str | os.PathLike, home: Home, *,
                    end: str = 'land', firmware: str = 'ardupilot',
-                   merge_radius_m: float = MERGE_RADIUS_M) -> Path:
+                   limits: VehicleLimits | None = None) -> Path:
     """Write the plan as a mission file, format from the extension; return the path written.
 
     ``.waypoints``: QGC WPL 110 (QGroundControl, Mission Planner, MAVProxy); ``.plan``:
@@ -410,8 +247,7 @@ def export_mission(result: PlanResult, path: str | os.PathLike, home: Home, *,
     if not isinstance(home, Home):
         raise MissionExportError(f'home must be a Home(latitude, longitude, altitude), got '
                                  f'{home!r}')
-    items = build_mission_items(result, home, end=end, firmware=firmware,
-                                merge_radius_m=merge_radius_m)
+    items = build_mission_items(plan, home, end=end, firmware=firmware, limits=limits)
     if suffix == '.plan':
         def writer(temporary: Path) -> None:
             write_plan(items, temporary, home, firmware=firmware)
@@ -433,7 +269,6 @@ def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
 
 
 __all__ = [
-    'DEFAULT_HOME', 'Home', 'MERGE_RADIUS_M', 'MIN_SPEED_MPS', 'MissionItem', 'Pace', 'Stop',
-    'build_mission_items', 'export_mission', 'group_stops', 'hover_runs', 'plan_document',
-    'plan_points', 'plan_stops', 'schedule_stops', 'write_plan', 'write_waypoints',
+    'DEFAULT_HOME', 'Home', 'MissionItem', 'build_mission_items', 'export_mission',
+    'plan_document', 'write_plan', 'write_waypoints',
 ]

@@ -1,0 +1,233 @@
+"""ArduCopter software-in-the-loop for the tests: start it, fly a mission, record the flight.
+
+The binary is ``$UAV_COMM_PLANNER_SITL`` if set, else ``arducopter`` beside this checkout in
+``../shared/sitl/`` (with ArduPilot's ``copter.parm`` next to it), else ``arducopter`` on the
+PATH. Each vehicle runs in its own temporary folder on its own ``-I`` instance (TCP port
+5760 + 10 I), at a speedup, and is ended by its PID. Every time here is autopilot time
+(``time_boot_ms``), never the wall clock.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import os
+from pathlib import Path
+import shutil
+import socket
+import subprocess
+import time
+
+import numpy as np
+from pymavlink import mavutil
+
+from uav_comm_planner.vehicle.geodesy import Home
+from uav_comm_planner.vehicle.link import connect
+
+MAV = mavutil.mavlink
+REPO = Path(__file__).resolve().parents[1]
+SPEEDUP = 20
+BASE_PORT = 5760
+#: Commands ArduCopter refuses while its EKF and GPS settle are retried for this long.
+READY_TIMEOUT_S = 180.0
+COPTER_MODES = {'GUIDED': 4, 'AUTO': 3}
+
+
+def sitl_binary() -> Path | None:
+    """The ArduCopter SITL executable, or None when there is none to run."""
+    candidates = [os.environ.get('UAV_COMM_PLANNER_SITL'),
+                  REPO.parent / 'shared' / 'sitl' / 'arducopter', shutil.which('arducopter')]
+    for candidate in candidates:
+        if candidate and Path(candidate).is_file() and os.access(candidate, os.X_OK):
+            return Path(candidate)
+    return None
+
+
+def why_not_runnable() -> str:
+    """Empty when SITL can run here, else the reason (for a pytest skip)."""
+    binary = sitl_binary()
+    if binary is None:
+        return ('no ArduCopter SITL binary: set UAV_COMM_PLANNER_SITL or put arducopter in '
+                '../shared/sitl/ beside the checkout')
+    try:
+        subprocess.run([str(binary), '--help'], capture_output=True, timeout=20)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return f'{binary} cannot run on this machine: {exc}'
+    return ''
+
+
+def _port_free(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind(('127.0.0.1', port))
+        except OSError:
+            return False
+    return True
+
+
+def free_instance(first: int = 10) -> int:
+    """An instance number whose MAVLink port and its neighbours are free."""
+    start = first + os.getpid() % 40
+    for instance in list(range(start, 60)) + list(range(first, start)):
+        base = BASE_PORT + 10 * instance
+        if all(_port_free(base + offset) for offset in range(3)):
+            return instance
+    raise RuntimeError('no free SITL instance between 10 and 59')
+
+
+@dataclass
+class Sitl:
+    """A running ArduCopter SITL; ``url`` is its MAVLink TCP address."""
+
+    process: subprocess.Popen
+    instance: int
+    home: Home
+    folder: Path
+
+    @property
+    def url(self) -> str:
+        return f'tcp:127.0.0.1:{BASE_PORT + 10 * self.instance}'
+
+    def stop(self) -> None:
+        if self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(10)
+
+
+def start_sitl(folder: Path, home: Home, *, speedup: int = SPEEDUP) -> Sitl:
+    """Start ArduCopter in ``folder`` (wiped parameters, ArduPilot's copter defaults)."""
+    binary = sitl_binary()
+    instance = free_instance()
+    command = [str(binary), '--model', '+', '--speedup', str(speedup), '-w',
+               f'-I{instance}',
+               '--home', f'{home.latitude_deg},{home.longitude_deg},{home.altitude_m},0']
+    defaults = binary.parent / 'copter.parm'
+    if defaults.is_file():
+        command += ['--defaults', str(defaults)]
+    log = open(folder / 'sitl.log', 'wb')
+    process = subprocess.Popen(command, cwd=folder, stdout=log, stderr=subprocess.STDOUT)
+    return Sitl(process, instance, home, folder)
+
+
+def open_link(sitl: Sitl, timeout_s: float = 60.0):
+    """Connect to the SITL once its TCP port listens; returns a pymavlink connection."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        if sitl.process.poll() is not None:
+            raise RuntimeError(f'SITL exited with {sitl.process.returncode}; see '
+                               f'{sitl.folder / "sitl.log"}')
+        try:
+            with socket.create_connection(('127.0.0.1', BASE_PORT + 10 * sitl.instance), 1):
+                pass
+            break
+        except OSError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.2)
+    time.sleep(0.5)  # the probe above took the SITL's one connection; let it listen again
+    return connect(sitl.url, timeout_s=timeout_s)
+
+
+def set_parameter(link, name: str, value: float, timeout_s: float = 10.0) -> None:
+    """PARAM_SET until PARAM_VALUE confirms ``value``."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        link.mav.param_set_send(link.target_system, link.target_component, name.encode(),
+                                float(value), MAV.MAV_PARAM_TYPE_REAL32)
+        reply = link.recv_match(type='PARAM_VALUE', blocking=True, timeout=1.0)
+        if reply is not None and reply.param_id == name and abs(reply.param_value - value) < 1e-3:
+            return
+    raise RuntimeError(f'{name} was not set to {value}')
+
+
+def request_position_stream(link, rate_hz: float = 10.0) -> None:
+    for message_id in (MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, MAV.MAVLINK_MSG_ID_MISSION_CURRENT):
+        link.mav.command_long_send(link.target_system, link.target_component,
+                                   MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id,
+                                   1e6 / rate_hz, 0, 0, 0, 0, 0)
+
+
+def _command(link, command: int, *params: float, timeout_s: float = 3.0) -> int:
+    padded = list(params) + [0.0] * (7 - len(params))
+    link.mav.command_long_send(link.target_system, link.target_component, command, 0, *padded)
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        ack = link.recv_match(type='COMMAND_ACK', blocking=True, timeout=0.5)
+        if ack is not None and ack.command == command:
+            return ack.result
+    return -1
+
+
+def set_mode(link, mode: str) -> None:
+    link.mav.set_mode_send(link.target_system, MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                           COPTER_MODES[mode])
+
+
+def take_off(link, altitude_m: float) -> None:
+    """GUIDED, arm as soon as the autopilot allows, take off at once (idle disarms fast)."""
+    deadline = time.monotonic() + READY_TIMEOUT_S
+    while time.monotonic() < deadline:
+        set_mode(link, 'GUIDED')
+        if _command(link, MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1) == MAV.MAV_RESULT_ACCEPTED:
+            if _command(link, MAV.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0,
+                        altitude_m) == MAV.MAV_RESULT_ACCEPTED:
+                return
+        time.sleep(1.0)
+    raise RuntimeError(f'ArduCopter did not arm and take off within {READY_TIMEOUT_S:g} s')
+
+
+@dataclass
+class FlightRecord:
+    """What the vehicle did: positions east, north (K, 2) metres from home at times (K,) s.
+
+    ``reached`` maps a mission item's sequence number to the autopilot time (s) at which
+    ArduCopter announced it reached it ("Reached command #N").
+    """
+
+    times_s: np.ndarray
+    positions_m: np.ndarray
+    altitudes_m: np.ndarray
+    reached: dict[int, float] = field(default_factory=dict)
+
+
+def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRecord:
+    """Switch to AUTO and record GLOBAL_POSITION_INT until item ``last_item`` is reached.
+
+    ``timeout_s`` is autopilot time after the switch.
+    """
+    from uav_comm_planner.vehicle.geodesy import geodetic_to_enu
+
+    request_position_stream(link)
+    set_mode(link, 'AUTO')
+    times, latitudes, longitudes, altitudes = [], [], [], []
+    reached: dict[int, float] = {}
+    clock_s = None
+    started_s = None
+    while True:
+        message = link.recv_match(type=['GLOBAL_POSITION_INT', 'STATUSTEXT'], blocking=True,
+                                  timeout=10.0)
+        if message is None:
+            raise RuntimeError('the vehicle went silent during the flight')
+        if message.get_type() == 'STATUSTEXT':
+            text = message.text
+            if text.startswith('Reached command #') and clock_s is not None:
+                reached[int(text.split('#')[1].split()[0])] = clock_s
+            if last_item in reached:
+                break
+            continue
+        clock_s = message.time_boot_ms / 1000.0
+        started_s = clock_s if started_s is None else started_s
+        if clock_s - started_s > timeout_s:
+            raise RuntimeError(f'item {last_item} not reached {timeout_s:g} s after AUTO')
+        times.append(clock_s)
+        latitudes.append(message.lat / 1e7)
+        longitudes.append(message.lon / 1e7)
+        altitudes.append(message.relative_alt / 1000.0)
+    east, north, _ = geodetic_to_enu(np.array(latitudes), np.array(longitudes),
+                                     np.full(len(latitudes), home.altitude_m), home)
+    return FlightRecord(np.array(times), np.column_stack([east, north]), np.array(altitudes),
+                        reached)

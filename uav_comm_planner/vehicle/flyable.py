@@ -1,0 +1,267 @@
+"""Plans the vehicle flies as planned: the mission's timing and the plan it really delivers.
+
+The optimiser's plan (Algorithm 1) moves at any speed up to V from one slot to the next. An
+autopilot flies waypoints with a jerk-limited speed profile (:mod:`.timing`), so a mission that
+simply lists the plan's points arrives late and delivers less. Here the plan becomes a flight
+the autopilot keeps:
+
+1. **Stops.** Runs of plan points within ``merge_radius_m`` of each other that last at least
+   one slot are hovers: the vehicle stops there. q0 and qF are stops.
+2. **Legs.** The points between two stops become one leg, simplified to as few fly-through
+   waypoints as keep it within ``path_tolerance_m`` of the plan (a turn of a few degrees costs
+   no time), none closer than the distance the vehicle needs to reach its speed, since
+   ArduCopter caps a leg's speed by its length.
+3. **Timing.** A leg is flown at the speed that fits its S-curve (rest to rest, acceleration A,
+   jerk J) into the plan's time for it; when even the cruise speed does not fit, the leg is
+   centred on the plan's time and the holds on either side are shortened by what starting and
+   stopping cost. Holds are commanded in the firmware's resolution (ArduPilot: whole seconds)
+   on the predicted clock, so rounding never accumulates. A flight that cannot reach qF by the
+   end of the horizon is refused with the numbers.
+4. **The plan flown.** The predicted position at every slot time is the vehicle-aware plan's
+   trajectory, and its power schedule is the optimal one for those positions: the throughput
+   it states is what the nodes get when the vehicle flies the mission.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from uav_comm_planner.core.model import average_rates, flown_path
+from uav_comm_planner.core.optimizer import optimal_power, plan, PlanResult, Step
+from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.timing import (Dwell, Flight, Leg, LEG_LATENCY_S, Profile,
+                                             ramp_distance, speed_for_time)
+
+#: Plan points closer than this are one stop (ArduCopter's default WPNAV_RADIUS is 2 m).
+MERGE_RADIUS_M = 2.0
+#: A leg's fly-through waypoints keep it within this distance of the plan's points.
+PATH_TOLERANCE_M = 1.0
+#: Slowest commanded speed; a slower leg waits at its start instead.
+MIN_SPEED_MPS = 0.5
+#: A hover stop holds at least this long: with no hold the autopilot would fly through it.
+MIN_STOP_HOLD_S = 1.0
+#: Hold resolution per firmware: ArduPilot keeps whole seconds (a uint16), PX4 a float.
+HOLD_RESOLUTION_S = {'ardupilot': 1.0, 'px4': 0.01}
+#: The largest hold one ArduPilot waypoint stores; longer holds repeat the waypoint.
+MAX_HOLD_S = {'ardupilot': 65535.0, 'px4': 1e9}
+#: qF may be reached at most this share of a slot after the plan's end.
+GOAL_TOLERANCE_SLOTS = 0.25
+
+
+@dataclass(frozen=True)
+class Stop:
+    """A waypoint where the vehicle comes to rest and holds for ``hold_s`` (commanded)."""
+
+    position_m: np.ndarray
+    hold_s: float
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """A timed mission: stops[0] = q0, then for each leg its speed, its fly-through
+    waypoints and the stop it ends at. ``flight`` is where the vehicle is when, from the
+    moment it starts holding at q0."""
+
+    stops: tuple[Stop, ...]
+    legs: tuple[Leg, ...]
+    flight: Flight
+    firmware: str
+
+    @property
+    def arrival_s(self) -> float:
+        """Predicted arrival at qF, seconds from the start of the hold at q0."""
+        return self.flight.end_s
+
+
+@dataclass(frozen=True)
+class VehiclePlan:
+    """A plan made for a vehicle: the optimiser's plan, the mission, and what it delivers.
+
+    ``flown``: the plan as the vehicle flies it (trajectory = predicted positions at the slot
+    times, power optimal for them); its ``min_throughput`` is the one to state.
+    """
+
+    ideal: PlanResult
+    flown: PlanResult
+    schedule: Schedule
+    limits: VehicleLimits
+
+
+def hover_runs(points: np.ndarray, merge_radius_m: float) -> list[tuple[int, int]]:
+    """Split points (K, 2) into maximal runs [i, j] whose points are all within the radius."""
+    runs = []
+    first = 0
+    for index in range(1, len(points) + 1):
+        if index < len(points):
+            gaps = np.linalg.norm(points[first:index] - points[index], axis=1)
+            if gaps.max() <= merge_radius_m:
+                continue
+        runs.append((first, index - 1))
+        first = index
+    return runs
+
+
+def _stop_position(points: np.ndarray, first: int, last: int) -> np.ndarray:
+    if first == 0:
+        return points[0].copy()
+    if last == len(points) - 1:
+        return points[-1].copy()
+    run = points[first:last + 1]
+    spread = np.linalg.norm(run[:, None, :] - run[None, :, :], axis=-1).max(axis=1)
+    return run[int(np.argmin(spread))].copy()
+
+
+def _deviation(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance of each point (K, 2) from the segment a-b."""
+    ab = b - a
+    length2 = float(ab @ ab)
+    if length2 == 0.0:
+        return np.linalg.norm(points - a, axis=1)
+    t = np.clip((points - a) @ ab / length2, 0.0, 1.0)
+    return np.linalg.norm(points - (a + t[:, None] * ab), axis=1)
+
+
+def simplify(points: np.ndarray, tolerance_m: float) -> list[int]:
+    """Douglas-Peucker: indices of the points kept so every point is within the tolerance."""
+    keep = {0, len(points) - 1}
+    pending = [(0, len(points) - 1)]
+    while pending:
+        first, last = pending.pop()
+        if last - first < 2:
+            continue
+        inner = points[first + 1:last]
+        gaps = _deviation(inner, points[first], points[last])
+        worst = int(np.argmax(gaps))
+        if gaps[worst] > tolerance_m:
+            split = first + 1 + worst
+            keep.add(split)
+            pending += [(first, split), (split, last)]
+    return sorted(keep)
+
+
+def _drop_short_steps(points: np.ndarray, kept: list[int], min_step_m: float) -> list[int]:
+    """Remove fly-through waypoints that leave a step shorter than ``min_step_m``, the one
+    whose removal moves the line least first."""
+    kept = list(kept)
+    while len(kept) > 2:
+        steps = np.linalg.norm(np.diff(points[kept], axis=0), axis=1)
+        if steps.min() >= min_step_m:
+            break
+        short = int(np.argmin(steps))
+        candidates = [i for i in (short, short + 1) if 0 < i < len(kept) - 1]
+        cost = [float(_deviation(points[kept[i - 1]:kept[i + 1] + 1], points[kept[i - 1]],
+                                 points[kept[i + 1]]).max()) for i in candidates]
+        del kept[candidates[int(np.argmin(cost))]]
+    return kept
+
+
+def _quantise(hold_s: float, resolution_s: float) -> float:
+    return round(max(hold_s, 0.0) / resolution_s) * resolution_s
+
+
+def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str = 'ardupilot',
+                    merge_radius_m: float = MERGE_RADIUS_M,
+                    path_tolerance_m: float = PATH_TOLERANCE_M) -> Schedule:
+    """The timed mission that flies ``result`` with the vehicle's ``limits`` (see the module
+    docstring). Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when the
+    vehicle cannot reach qF by the end of the horizon."""
+    scenario = result.scenario
+    points = flown_path(np.asarray(result.trajectory, dtype=float), scenario)
+    times = scenario.slot_s * np.arange(len(points), dtype=float)
+    runs = [run for index, run in enumerate(hover_runs(points, merge_radius_m))
+            if run[1] > run[0] or run[0] == 0 or run[1] == len(points) - 1]
+    cruise = limits.cruise_speed_mps
+    accel, jerk = limits.max_accel_mpss, limits.ramp_jerk_mpsss
+    resolution = HOLD_RESOLUTION_S[firmware]
+
+    stops = []
+    legs = []
+    parts: list[Dwell | Leg] = []
+    clock = 0.0                      # the vehicle comes to rest at the current stop
+    for index, (first, last) in enumerate(runs):
+        here = _stop_position(points, first, last)
+        if index == len(runs) - 1:
+            stops.append(Stop(here, 0.0))
+            parts.append(Dwell(here, clock, clock))
+            break
+        following = runs[index + 1]
+        there = _stop_position(points, *following)
+        path = np.vstack([here, points[last + 1:following[0]], there])
+        planned_s = times[following[0]] - times[last]
+        length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+        speed = max(speed_for_time(length, planned_s, cruise, accel, jerk), MIN_SPEED_MPS)
+        speed = min(round(speed, 2), cruise)
+        kept = simplify(path, path_tolerance_m)
+        kept = _drop_short_steps(path, kept, 2.0 * ramp_distance(speed, accel, jerk))
+        profile = Profile.rest_to_rest(length_of(path[kept]), speed, accel, jerk)
+        # Centre the leg's motion on the plan's time for it; the last leg must end in time.
+        start = 0.5 * (times[last] + times[following[0]] - profile.duration_s)
+        if index == len(runs) - 2:
+            start = min(start, times[following[0]] - profile.duration_s - LEG_LATENCY_S / 2)
+        minimum = 0.0 if index == 0 else MIN_STOP_HOLD_S
+        hold = max(_quantise(start - LEG_LATENCY_S / 2 - clock, resolution), minimum)
+        stops.append(Stop(here, hold))
+        parts.append(Dwell(here, clock, clock + hold))
+        leg = Leg(path[kept], speed, clock + hold + LEG_LATENCY_S / 2, profile)
+        legs.append(leg)
+        parts.append(leg)
+        clock = leg.end_s + LEG_LATENCY_S / 2
+    schedule = Schedule(tuple(stops), tuple(legs), Flight(tuple(parts)), firmware)
+    end = times[-1]
+    if schedule.arrival_s > end + GOAL_TOLERANCE_SLOTS * scenario.slot_s:
+        raise InfeasibleHorizonError(
+            f'the vehicle cannot fly this plan on time: with cruise speed '
+            f'{limits.describe_cruise()}, acceleration {accel:g} m/s/s and jerk '
+            f'{limits.max_jerk_mpsss:g} m/s/s/s it reaches the goal at {schedule.arrival_s:.1f} s, the horizon ends at '
+            f'{end:g} s ({len(legs)} legs, {len(stops) - 2} hovers): lengthen horizon_s by '
+            f'{schedule.arrival_s - end:.0f} s or more, or plan with a lower max_speed_mps')
+    return schedule
+
+
+def length_of(vertices: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(vertices, axis=0), axis=1).sum())
+
+
+def check_speed(scenario: Scenario, limits: VehicleLimits) -> None:
+    """Refuse a planning speed above what the vehicle flies, with the numbers."""
+    if scenario.max_speed_mps > limits.cruise_speed_mps * (1 + 1e-9):
+        raise InfeasibleHorizonError(
+            f'max_speed_mps {scenario.max_speed_mps:g} m/s is faster than the vehicle flies: '
+            f'{limits.describe_cruise()}; plan with max_speed_mps <= '
+            f'{limits.cruise_speed_mps:g} or give the vehicle\'s real limits')
+
+
+def flown_result(ideal: PlanResult, schedule: Schedule) -> PlanResult:
+    """The plan as flown: predicted positions at the slot times, power optimal for them."""
+    scenario = ideal.scenario
+    q = schedule.flight.positions(scenario.times_s)
+    p = optimal_power(q, scenario)
+    rates = average_rates(q, p, scenario)
+    value = float(rates.min())
+    return PlanResult(
+        scenario=scenario, trajectory=q, times=scenario.times_s, power=p, rates=rates,
+        min_throughput=value, history=(Step('power', value),), baselines=ideal.baselines,
+        outer_iterations=ideal.outer_iterations, trajectory_steps=ideal.trajectory_steps,
+        converged=ideal.converged, solve_time_s=ideal.solve_time_s, start=ideal.start,
+        upper_bound=ideal.upper_bound, start_throughputs=ideal.start_throughputs)
+
+
+def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits(),
+                     settings: SolverSettings | None = None, *,
+                     firmware: str = 'ardupilot') -> VehiclePlan:
+    """Plan ``scenario`` for a vehicle with ``limits``: the mission and what it delivers.
+
+    Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the
+    planning speed exceeds the vehicle's, and after when the vehicle cannot keep the horizon.
+    """
+    if firmware not in HOLD_RESOLUTION_S:
+        raise InvalidScenarioError(f'unknown firmware {firmware!r}: choose one of '
+                                   f'{", ".join(HOLD_RESOLUTION_S)}')
+    check_speed(scenario, limits)
+    ideal = plan(scenario, settings)
+    schedule = schedule_flight(ideal, limits, firmware=firmware)
+    return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)

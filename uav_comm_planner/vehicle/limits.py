@@ -1,0 +1,119 @@
+"""The vehicle's horizontal motion limits, as the autopilot's own parameters state them.
+
+ArduCopter plans every waypoint leg with a jerk-limited speed profile (an S-curve) bounded by
+WPNAV_SPEED (cm/s), WPNAV_ACCEL (cm/s/s) and WPNAV_JERK (m/s/s/s); PX4 by MPC_XY_CRUISE (m/s),
+MPC_ACC_HOR (m/s/s) and MPC_JERK_AUTO (m/s/s/s). :class:`VehicleLimits` holds them in SI units
+with ArduCopter's defaults; :func:`read_parameter_file` reads them from a file as ground
+stations save parameters (``NAME VALUE``, ``NAME,VALUE`` or tab-separated lines; Mission
+Planner's ``.param`` and QGroundControl's ``.params`` both work).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+import os
+from pathlib import Path
+
+from uav_comm_planner.errors import InvalidScenarioError
+
+#: Per firmware: parameter name -> (VehicleLimits field, factor to SI units).
+FIRMWARE_PARAMETERS = {
+    'ardupilot': {'WPNAV_SPEED': ('max_speed_mps', 0.01),
+                  'WPNAV_ACCEL': ('max_accel_mpss', 0.01),
+                  'WPNAV_JERK': ('max_jerk_mpsss', 1.0),
+                  'ATC_INPUT_TC': ('jerk_time_s', 2.0)},
+    'px4': {'MPC_XY_CRUISE': ('max_speed_mps', 1.0),
+            'MPC_ACC_HOR': ('max_accel_mpss', 1.0),
+            'MPC_JERK_AUTO': ('max_jerk_mpsss', 1.0)},
+}
+
+
+@dataclass(frozen=True)
+class VehicleLimits:
+    """Horizontal motion limits of the vehicle that flies the plan.
+
+    max_speed_mps: the waypoint speed (WPNAV_SPEED, default 10 m/s; MPC_XY_CRUISE);
+    max_accel_mpss: the waypoint acceleration (WPNAV_ACCEL, 2.5 m/s/s; MPC_ACC_HOR);
+    max_jerk_mpsss: the waypoint jerk (WPNAV_JERK, 1 m/s/s/s; MPC_JERK_AUTO);
+    airframe_speed_mps: the fastest the airframe flies level at its lean limit, if known
+    (an ArduCopter quad reaches about 10.3 m/s at the default 30 degree ANGLE_MAX); the
+    vehicle cruises at the lesser of it and ``max_speed_mps``;
+    jerk_time_s: how long ArduCopter takes to build up the jerk, tj = 2 max(ATC_INPUT_TC, 0.1)
+    (0.3 s by default): the jerk rises and falls as a raised cosine over tj.
+    """
+
+    max_speed_mps: float = 10.0
+    max_accel_mpss: float = 2.5
+    max_jerk_mpsss: float = 1.0
+    airframe_speed_mps: float = math.inf
+    jerk_time_s: float = 0.3
+
+    def __post_init__(self) -> None:
+        for name in ('max_speed_mps', 'max_accel_mpss', 'max_jerk_mpsss'):
+            value = getattr(self, name)
+            if (isinstance(value, bool) or not isinstance(value, (int, float))
+                    or not math.isfinite(value) or value <= 0):
+                raise InvalidScenarioError(f'vehicle {name} must be a positive finite number, '
+                                           f'got {value!r}')
+        if (isinstance(self.jerk_time_s, bool) or not isinstance(self.jerk_time_s, (int, float))
+                or not 0 <= self.jerk_time_s < 10):
+            raise InvalidScenarioError(f'vehicle jerk_time_s must be in [0, 10) s, got '
+                                       f'{self.jerk_time_s!r}')
+        speed = self.airframe_speed_mps
+        if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not speed > 0:
+            raise InvalidScenarioError(f'vehicle airframe_speed_mps must be positive (inf: '
+                                       f'unknown), got {speed!r}')
+
+    @property
+    def cruise_speed_mps(self) -> float:
+        """The fastest the vehicle flies a waypoint leg: min(max_speed, airframe_speed)."""
+        return min(self.max_speed_mps, self.airframe_speed_mps)
+
+    @property
+    def ramp_jerk_mpsss(self) -> float:
+        """The constant jerk whose ramps take as long as the autopilot's: reaching speed V
+        takes V / A + A / J + tj (ArduPilot's SCurve), that is V / A + A / J' with this J'."""
+        return 1.0 / (1.0 / self.max_jerk_mpsss + self.jerk_time_s / self.max_accel_mpss)
+
+    def describe_cruise(self) -> str:
+        if self.airframe_speed_mps < self.max_speed_mps:
+            return f'{self.airframe_speed_mps:g} m/s (the airframe\'s top speed)'
+        return f'{self.max_speed_mps:g} m/s (the waypoint speed, WPNAV_SPEED / MPC_XY_CRUISE)'
+
+
+def read_parameter_file(path: str | os.PathLike, *, firmware: str = 'ardupilot',
+                        base: VehicleLimits = VehicleLimits()) -> VehicleLimits:
+    """The limits in a saved parameter file, the others from ``base``.
+
+    Lines are ``NAME VALUE``, ``NAME,VALUE`` or QGroundControl's tab-separated
+    ``SYSID COMPID NAME VALUE TYPE``; ``#`` starts a comment. Raises
+    :class:`~uav_comm_planner.errors.InvalidScenarioError` for an unreadable file, a malformed
+    value of a parameter it uses, or a file that sets none of them.
+    """
+    if firmware not in FIRMWARE_PARAMETERS:
+        raise InvalidScenarioError(f'unknown firmware {firmware!r}: choose one of '
+                                   f'{", ".join(FIRMWARE_PARAMETERS)}')
+    wanted = FIRMWARE_PARAMETERS[firmware]
+    try:
+        text = Path(path).read_text(encoding='utf-8', errors='strict')
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InvalidScenarioError(f'cannot read the parameter file {str(path)!r}: '
+                                   f'{exc}') from exc
+    values = {}
+    for number, line in enumerate(text.splitlines(), start=1):
+        fields = line.split('#', 1)[0].replace(',', ' ').split()
+        if len(fields) >= 4 and fields[2] in wanted:   # QGroundControl: sys comp name value type
+            fields = fields[2:4]
+        if len(fields) < 2 or fields[0] not in wanted:
+            continue
+        name, raw = fields[0], fields[1]
+        try:
+            value = float(raw) * wanted[name][1]
+        except ValueError:
+            raise InvalidScenarioError(f'{path}:{number}: {name} is {raw!r}, not a number') \
+                from None
+        values[wanted[name][0]] = value
+    if not values:
+        raise InvalidScenarioError(f'{path} sets none of {", ".join(wanted)} ({firmware})')
+    return VehicleLimits(**{**base.__dict__, **values})
