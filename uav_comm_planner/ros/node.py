@@ -62,17 +62,25 @@ from uav_comm_planner.ros.progress import MissionProgress, off_plan, planned_pos
 from uav_comm_planner.ros.publishing import PlanPublisher, summary_line, TOPIC_PATH
 from uav_comm_planner.ros.worker import (attempt, LatestOnlyWorker, Planner, PlanOutcome,
                                          PlanRequest, RecedingRequest, write_mission)
+from uav_comm_planner.vehicle.mission import build_mission_items
+from uav_comm_planner.vehicle.telemetry import (Event, LinkEvent, MissionProgressReport,
+                                                Position, VehicleBridge)
 
 NODE_NAME = 'uav_comm_planner'
 
 TOPIC_GROUND_NODES = 'ground_nodes'
 TOPIC_UAV_POSE = 'uav_pose'
+TOPIC_VEHICLE_POSE = 'vehicle_pose'
 SERVICE_REPLAN = '~/replan'
 SERVICE_START = '~/start'
 SERVICE_EXPORT_MISSION = '~/export_mission'
 #: The UAV is at q0, and the mission clock starts, within this distance of it (metres);
 #: ArduCopter counts a waypoint reached within WPNAV_RADIUS, 2 m by default.
 START_RADIUS_M = 2.5
+#: The mission item at q0 (0 home, 1 takeoff): a plan made in flight is flown from it.
+Q0_ITEM = 2
+#: Name of the telemetry as a position source.
+SOURCE_VEHICLE = 'vehicle'
 
 #: Volatile so that both volatile and transient-local publishers can send node sets.
 GROUND_NODES_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -117,6 +125,16 @@ class PlannerNode(Node):
         self._closing = False
         self._delivery = self.create_guard_condition(self._deliver)
 
+        self._vehicle: VehicleBridge | None = None
+        self._vehicle_events: deque[Event] = deque(maxlen=10_000)
+        self._vehicle_lock = threading.Lock()
+        self._vehicle_guard = self.create_guard_condition(self._drain_vehicle)
+        self._vehicle_time_s: float | None = None
+        self._upload_pending: int | None = None
+        self.uploads_verified = 0
+        self.mission_item: int | None = None
+        self._vehicle_pose = self.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE, UAV_POSE_QOS)
+
         self._publisher = PlanPublisher(self)
         self.create_subscription(PoseArray, TOPIC_GROUND_NODES, self._on_ground_nodes,
                                  GROUND_NODES_QOS)
@@ -127,6 +145,7 @@ class PlannerNode(Node):
 
         self._worker: LatestOnlyWorker[PlanRequest] = LatestOnlyWorker(
             self._plan_and_export, name='uav_comm_planner.worker')
+        self._connect_vehicle()
         self.request_plan('start')
 
     @property
@@ -167,6 +186,9 @@ class PlannerNode(Node):
     def _on_parameters(self, names: list[str]) -> None:
         """An accepted change: replan unless only output parameters changed."""
         planning = [name for name in names if name not in OUTPUT_ONLY]
+        if {'mavlink_url', 'home_latitude_deg', 'home_longitude_deg',
+                'home_altitude_m'} & set(names):
+            self._connect_vehicle()
         if not planning:
             self.get_logger().info(
                 f'parameters {", ".join(names)} set; they apply to the next plan (no replan)')
@@ -182,8 +204,10 @@ class PlannerNode(Node):
         self.on_position(self._clock_s(), message.pose.position.x, message.pose.position.y,
                          source=TOPIC_UAV_POSE)
 
-    def on_position(self, time_s: float, x_m: float, y_m: float, *, source: str) -> None:
-        """The UAV at (x, y) metres at ``time_s`` on the mission clock's time base."""
+    def on_position(self, time_s: float, x_m: float, y_m: float, *, source: str,
+                    height_m: float | None = None) -> None:
+        """The UAV at (x, y) metres (``height_m`` above the ground, when known) at ``time_s``
+        on the mission clock's time base."""
         if not (math.isfinite(x_m) and math.isfinite(y_m) and math.isfinite(time_s)):
             self._refuse(source, f'{source} refused: position ({x_m}, {y_m}) is not finite')
             return
@@ -192,8 +216,11 @@ class PlannerNode(Node):
         if segment is None:
             return
         if segment.start_s is None:
-            start = segment.result.scenario.start_m
-            if math.dist(start, (x_m, y_m)) <= START_RADIUS_M:
+            scenario = segment.result.scenario
+            climb = 0.0 if height_m is None else height_m - scenario.altitude_m
+            uploaded = self._vehicle is None or self._upload_pending is None
+            if uploaded and math.hypot(math.dist(scenario.start_m, (x_m, y_m)),
+                                       climb) <= START_RADIUS_M:
                 self._start_clock(time_s, f'the UAV reached q0 ({source})')
             return
         if self.progress.over(time_s):
@@ -254,6 +281,79 @@ class PlannerNode(Node):
         return response
 
     # Planning.
+
+    # The vehicle.
+
+    def _connect_vehicle(self) -> None:
+        """(Re)start the vehicle link for ``mavlink_url``; stop it when the URL is empty."""
+        if self._vehicle is not None:
+            self._vehicle.stop()
+            self._vehicle = None
+        output = self._config.node
+        self._vehicle_time_s = None
+        if output.mavlink_url:
+            self._vehicle = VehicleBridge(output.mavlink_url, output.home, self._queue_event)
+            self.get_logger().info(f'vehicle link: connecting to {output.mavlink_url}')
+
+    def _queue_event(self, event: Event) -> None:
+        """Link thread: hand an event to the executor."""
+        with self._vehicle_lock:
+            self._vehicle_events.append(event)
+        self._vehicle_guard.trigger()
+
+    def _drain_vehicle(self) -> None:
+        """Executor thread: positions, mission progress and link events from the vehicle."""
+        with self._vehicle_lock:
+            events = list(self._vehicle_events)
+            self._vehicle_events.clear()
+        for event in events:
+            if isinstance(event, Position):
+                self._vehicle_time_s = event.time_s
+                self._publish_vehicle_pose(event)
+                self.on_position(event.time_s, event.east_m, event.north_m,
+                                 source=SOURCE_VEHICLE, height_m=event.up_m)
+            elif isinstance(event, MissionProgressReport):
+                self.mission_item = event.seq
+            elif isinstance(event, LinkEvent):
+                self._on_link_event(event)
+
+    def _on_link_event(self, event: LinkEvent) -> None:
+        if event.kind == 'error':
+            if event.tag is not None and event.tag == self._upload_pending:
+                self._upload_pending = None
+            self._report_error(event.message)
+            return
+        if event.kind == 'uploaded':
+            self.uploads_verified += 1
+            if event.tag == self._upload_pending:
+                self._upload_pending = None
+        self.get_logger().info(event.message)
+
+    def _publish_vehicle_pose(self, event: Position) -> None:
+        message = PoseStamped()
+        message.header.frame_id = self._config.node.frame_id
+        message.header.stamp = self.get_clock().now().to_msg()
+        message.pose.position.x = event.east_m
+        message.pose.position.y = event.north_m
+        message.pose.position.z = event.up_m
+        message.pose.orientation.w = 1.0
+        self._vehicle_pose.publish(message)
+
+    def _upload(self, outcome: PlanOutcome) -> None:
+        """Put the plan on the vehicle; a plan made in flight is flown from its q0 item."""
+        output = outcome.request.output
+        try:
+            items = build_mission_items(outcome.result, output.home, end=output.mission_end,
+                                        firmware=output.mission_firmware)
+        except PlannerError as exc:
+            self._report_error(f'mission upload skipped, the plan cannot be flown: {exc}')
+            return
+        in_flight = outcome.request.receding is not None
+        self._upload_pending = outcome.request.start_ns
+        self._vehicle.upload(items, current_seq=Q0_ITEM if in_flight else None,
+                             tag=outcome.request.start_ns)
+
+    # The mission.
 
     def _start_clock(self, time_s: float, why: str) -> None:
         self.progress.start_clock(time_s)
@@ -352,6 +452,8 @@ class PlannerNode(Node):
             self.get_logger().info(line)
             self._publisher.publish(outcome)
             self.plans_published += 1
+            if self._vehicle is not None:
+                self._upload(outcome)
             if outcome.mission_error:
                 self._report_error(f'mission export failed, the plan is kept: '
                                    f'{outcome.mission_error}')
@@ -395,7 +497,10 @@ class PlannerNode(Node):
         return self.get_clock().now().nanoseconds
 
     def _clock_s(self) -> float:
-        """Now on the mission clock's time base, seconds."""
+        """Now on the mission clock's time base, seconds: the vehicle's time of its latest
+        position with a link (0 before any), the node's clock without."""
+        if self._vehicle is not None:
+            return self._vehicle_time_s if self._vehicle_time_s is not None else 0.0
         return self._now_ns() / 1e9
 
     def destroy_node(self) -> None:
@@ -403,6 +508,8 @@ class PlannerNode(Node):
         with self._outcomes_lock:
             self._closing = True
         self._worker.stop()
+        if self._vehicle is not None:
+            self._vehicle.stop()
         super().destroy_node()
 
 
