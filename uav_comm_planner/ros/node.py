@@ -24,8 +24,9 @@ Replanning:
   position by the receding horizon (:mod:`uav_comm_planner.core.receding`): the slots begun so
   far keep their power and the data they delivered (at the flown positions where a pose or
   telemetry has them, else as planned), the rest gets what is left of the budget;
-- a ``uav_pose`` replans the same way, only when the UAV is off the plan by more than
-  ``replan_distance_m`` or ``replan_delay_s`` and at most once every ``replan_interval_s``;
+- a ``uav_pose`` (or the vehicle's telemetry) replans the same way, only when the UAV is off
+  the plan by more than ``replan_distance_m`` or ``replan_delay_s``, at most once every
+  ``replan_interval_s``, and not when less than ``replan_interval_s`` of the mission is left;
 - output-only parameters (:data:`~uav_comm_planner.ros.params.OUTPUT_ONLY`: mission file,
   firmware, end, frame, home, link and replan settings) never replan.
 
@@ -227,6 +228,10 @@ class PlannerNode(Node):
             return
         output = self._config.node
         elapsed = time_s - segment.start_s
+        left_s = (self.progress.mission.num_slots - segment.first_slot
+                  - segment.slots_begun(time_s)) * segment.result.scenario.slot_s
+        if left_s < output.replan_interval_s:
+            return              # too late in the mission for a replan to be flown
         reason = off_plan(segment.result, elapsed, (x_m, y_m),
                           distance_m=output.replan_distance_m, delay_s=output.replan_delay_s)
         if not reason or time_s - self._last_pose_replan_s < output.replan_interval_s:
