@@ -35,6 +35,17 @@ _SCALAR_FLAGS = {
 }
 
 
+# VehicleLimits field -> (flag, help), over the parameter file.
+_VEHICLE_FLAGS = {
+    'max_speed_mps': ('--wp-speed', 'waypoint speed, m/s (WPNAV_SPEED / 100; default 10)'),
+    'max_accel_mpss': ('--wp-accel', 'waypoint acceleration, m/s/s (WPNAV_ACCEL / 100; 2.5)'),
+    'max_jerk_mpsss': ('--wp-jerk', 'waypoint jerk, m/s/s/s (WPNAV_JERK; default 1)'),
+    'airframe_speed_mps': ('--airframe-speed',
+                           'the top speed the airframe reaches, m/s, if below the waypoint '
+                           'speed'),
+}
+
+
 def _floats(text: str, count: int | None = None) -> list[float]:
     try:
         values = [float(v) for v in text.split(',')]
@@ -131,6 +142,35 @@ def format_plan(result: PlanResult) -> str:
     return '\n'.join(lines)
 
 
+def _vehicle_limits(args: argparse.Namespace):
+    """The vehicle's limits: a parameter file, then single flags over it; None if not asked."""
+    from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
+    limits = VehicleLimits()
+    if args.vehicle_params is not None:
+        limits = read_parameter_file(args.vehicle_params, firmware=args.firmware)
+    changes = {field: getattr(args, field) for field in _VEHICLE_FLAGS
+               if getattr(args, field) is not None}
+    return VehicleLimits(**{**limits.__dict__, **changes})
+
+
+def _vehicle_asked(args: argparse.Namespace) -> bool:
+    return (args.vehicle or args.mission is not None or args.vehicle_params is not None
+            or any(getattr(args, field) is not None for field in _VEHICLE_FLAGS))
+
+
+def format_flown(vehicle_plan) -> str:
+    """The vehicle-aware lines under the plan's table."""
+    flown, ideal, schedule = vehicle_plan.flown, vehicle_plan.ideal, vehicle_plan.schedule
+    limits = vehicle_plan.limits
+    lines = [f'{"as the vehicle flies it (the plan to state)":<42}'
+             f'{flown.min_throughput:>28.4f}',
+             f'vehicle: cruise {limits.describe_cruise()}, acceleration '
+             f'{limits.max_accel_mpss:g} m/s/s, jerk {limits.max_jerk_mpsss:g} m/s/s/s; '
+             f'{len(schedule.legs)} legs, {len(schedule.stops) - 2} stops, qF reached at '
+             f'{schedule.arrival_s:.1f} s of {ideal.scenario.slot_s * (ideal.scenario.num_slots + 1):g}']
+    return '\n'.join(lines)
+
+
 def _check_output_folders(*paths: Path | None) -> None:
     """Fail before planning, not after, when an output file cannot be placed."""
     for path in paths:
@@ -145,8 +185,18 @@ def _command_plan(args: argparse.Namespace) -> int:
         if args.mission.suffix.lower() not in MISSION_FORMATS:
             raise PlannerError(f'unknown mission format for {str(args.mission)!r}: use a '
                                f'.waypoints or .plan file')
-    result = plan(_scenario(args), _settings(args))
-    print(format_plan(result))
+    scenario, settings = _scenario(args), _settings(args)
+    vehicle_plan = None
+    if _vehicle_asked(args):
+        from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+        vehicle_plan = plan_for_vehicle(scenario, _vehicle_limits(args), settings,
+                                        firmware=args.firmware)
+        print(format_plan(vehicle_plan.ideal))
+        print(format_flown(vehicle_plan))
+        result = vehicle_plan.flown
+    else:
+        result = plan(scenario, settings)
+        print(format_plan(result))
     if args.json is not None:
         text = json.dumps(result_to_dict(result), indent=1)
         print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
@@ -155,7 +205,7 @@ def _command_plan(args: argparse.Namespace) -> int:
         print(f'wrote {plan_figure(result, args.figure)}')
     if args.mission is not None:
         from uav_comm_planner.vehicle.mission import export_mission
-        written = export_mission(result, args.mission, args.home, end=args.mission_end,
+        written = export_mission(vehicle_plan, args.mission, args.home, end=args.mission_end,
                                  firmware=args.firmware)
         print(f'wrote {written}')
     return 0
@@ -221,6 +271,18 @@ def build_parser() -> argparse.ArgumentParser:
                              help='land at the goal or return to launch (default land)')
     plan_parser.add_argument('--firmware', choices=['ardupilot', 'px4'], default='ardupilot',
                              help='autopilot the mission is for (default ardupilot)')
+    vehicle = plan_parser.add_argument_group(
+        'vehicle', 'plan for the vehicle that flies it (implied by --mission or any option '
+        "here): the plan as the vehicle flies it, with the autopilot's S-curve legs, is the "
+        'one stated and written; defaults are ArduCopter\'s')
+    vehicle.add_argument('--vehicle', action='store_true',
+                         help='plan for the vehicle even without a mission file')
+    vehicle.add_argument('--vehicle-params', type=Path, metavar='FILE',
+                         help='parameter file saved by a ground station (NAME,VALUE or NAME '
+                              'VALUE lines): WPNAV_SPEED, WPNAV_ACCEL, WPNAV_JERK, ATC_INPUT_TC '
+                              '(ardupilot) or MPC_XY_CRUISE, MPC_ACC_HOR, MPC_JERK_AUTO (px4)')
+    for field, (flag, text) in _VEHICLE_FLAGS.items():
+        vehicle.add_argument(flag, dest=field, type=float, help=text)
     plan_parser.set_defaults(handler=_command_plan)
 
     sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')

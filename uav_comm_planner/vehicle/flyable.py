@@ -6,7 +6,10 @@ simply lists the plan's points arrives late and delivers less. Here the plan bec
 the autopilot keeps:
 
 1. **Stops.** Runs of plan points within ``merge_radius_m`` of each other that last at least
-   one slot are hovers: the vehicle stops there. q0 and qF are stops.
+   a slot, and at least as long as a stop costs (V / A + A / J' and the leg latency, 7.5 s at
+   ArduCopter's defaults), are hovers: the vehicle stops there; a shorter hover is flown
+   through slowly. q0 and qF are stops, and so is a turn sharper
+   than ``MAX_TURN_DEG``, which the autopilot would cut.
 2. **Legs.** The points between two stops become one leg, simplified to as few fly-through
    waypoints as keep it within ``path_tolerance_m`` of the plan (a turn of a few degrees costs
    no time), none closer than the distance the vehicle needs to reach its speed, since
@@ -25,6 +28,7 @@ the autopilot keeps:
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -34,7 +38,7 @@ from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.timing import (Dwell, Flight, Leg, LEG_LATENCY_S, Profile,
-                                             ramp_distance, speed_for_time)
+                                             ramp_distance, ramp_time, speed_for_time)
 
 #: Plan points closer than this are one stop (ArduCopter's default WPNAV_RADIUS is 2 m).
 MERGE_RADIUS_M = 2.0
@@ -48,6 +52,12 @@ MIN_STOP_HOLD_S = 1.0
 HOLD_RESOLUTION_S = {'ardupilot': 1.0, 'px4': 0.01}
 #: The largest hold one ArduPilot waypoint stores; longer holds repeat the waypoint.
 MAX_HOLD_S = {'ardupilot': 65535.0, 'px4': 1e9}
+#: Sharper turns are stops: ArduCopter cuts a fly-through corner by up to WPNAV_RADIUS (2 m),
+#: and by less below about 20 degrees (at 10 m/s and its default acceleration and jerk).
+MAX_TURN_DEG = 20.0
+#: When the vehicle cannot fly a plan on time, plan again this much slower (share of the
+#: planning speed), leaving time for its starts and stops; at most this many times.
+SLOWER_PLANNING = (0.9, 0.8, 0.7)
 #: qF may be reached at most this share of a slot after the plan's end.
 GOAL_TOLERANCE_SLOTS = 0.25
 
@@ -159,66 +169,109 @@ def _drop_short_steps(points: np.ndarray, kept: list[int], min_step_m: float) ->
     return kept
 
 
+def turn_angles_deg(vertices: np.ndarray) -> np.ndarray:
+    """The heading change at each inner vertex of a polyline (V, 2), degrees (V - 2,)."""
+    steps = np.diff(vertices, axis=0)
+    headings = np.arctan2(steps[:, 1], steps[:, 0])
+    return np.degrees(np.abs((np.diff(headings) + np.pi) % (2 * np.pi) - np.pi))
+
+
+def _stop_runs(points: np.ndarray, slot_s: float, merge_radius_m: float,
+               path_tolerance_m: float, min_step_m: float,
+               min_hover_s: float) -> list[tuple[int, int]]:
+    """Index runs [i, j] of the points where the vehicle stops: q0, every hover that lasts at
+    least ``min_hover_s`` (and a slot), every turn sharper than ``MAX_TURN_DEG``, and qF."""
+    runs = [run for run in hover_runs(points, merge_radius_m)
+            if (run[1] - run[0]) * slot_s >= min_hover_s - 1e-9 or run[0] == 0 or run[1] == len(points) - 1]
+    stops = []
+    for run, following in zip(runs, runs[1:] + [None]):
+        stops.append(run)
+        if following is None:
+            break
+        chain = np.arange(run[1], following[0] + 1)
+        kept = _drop_short_steps(points[chain], simplify(points[chain], path_tolerance_m),
+                                 min_step_m)
+        sharp = turn_angles_deg(points[chain[kept]]) > MAX_TURN_DEG
+        stops += [(int(chain[k]), int(chain[k])) for k, turn in zip(kept[1:-1], sharp) if turn]
+    return stops
+
+
 def _quantise(hold_s: float, resolution_s: float) -> float:
     return round(max(hold_s, 0.0) / resolution_s) * resolution_s
 
 
 def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str = 'ardupilot',
                     merge_radius_m: float = MERGE_RADIUS_M,
-                    path_tolerance_m: float = PATH_TOLERANCE_M) -> Schedule:
+                    path_tolerance_m: float = PATH_TOLERANCE_M,
+                    stop_at_hovers: bool = True) -> Schedule:
     """The timed mission that flies ``result`` with the vehicle's ``limits`` (see the module
-    docstring). Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when the
-    vehicle cannot reach qF by the end of the horizon."""
+    docstring); with ``stop_at_hovers`` False it stops only at q0, qF and sharp turns.
+    Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when the vehicle cannot
+    reach qF by the end of the horizon."""
     scenario = result.scenario
     points = flown_path(np.asarray(result.trajectory, dtype=float), scenario)
     times = scenario.slot_s * np.arange(len(points), dtype=float)
-    runs = [run for index, run in enumerate(hover_runs(points, merge_radius_m))
-            if run[1] > run[0] or run[0] == 0 or run[1] == len(points) - 1]
     cruise = limits.cruise_speed_mps
     accel, jerk = limits.max_accel_mpss, limits.ramp_jerk_mpsss
+    runs = _stop_runs(points, scenario.slot_s, merge_radius_m, path_tolerance_m,
+                      2.0 * ramp_distance(cruise, accel, jerk),
+                      max(scenario.slot_s, ramp_time(cruise, accel, jerk) + LEG_LATENCY_S)
+                      if stop_at_hovers else math.inf)
     resolution = HOLD_RESOLUTION_S[firmware]
 
-    stops = []
-    legs = []
-    parts: list[Dwell | Leg] = []
-    clock = 0.0                      # the vehicle comes to rest at the current stop
-    for index, (first, last) in enumerate(runs):
-        here = _stop_position(points, first, last)
-        if index == len(runs) - 1:
-            stops.append(Stop(here, 0.0))
-            parts.append(Dwell(here, clock, clock))
-            break
-        following = runs[index + 1]
-        there = _stop_position(points, *following)
-        path = np.vstack([here, points[last + 1:following[0]], there])
-        planned_s = times[following[0]] - times[last]
-        length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
-        speed = max(speed_for_time(length, planned_s, cruise, accel, jerk), MIN_SPEED_MPS)
+    positions = [_stop_position(points, first, last) for first, last in runs]
+    shapes = []                      # per leg: vertices, speed, profile
+    for (_, last), (following, _), here, there in zip(runs, runs[1:], positions,
+                                                      positions[1:]):
+        path = np.vstack([here, points[last + 1:following], there])
+        planned_s = times[following] - times[last]
+        speed = max(speed_for_time(length_of(path), planned_s, cruise, accel, jerk),
+                    MIN_SPEED_MPS)
         speed = min(round(speed, 2), cruise)
-        kept = simplify(path, path_tolerance_m)
-        kept = _drop_short_steps(path, kept, 2.0 * ramp_distance(speed, accel, jerk))
-        profile = Profile.rest_to_rest(length_of(path[kept]), speed, accel, jerk)
-        # Centre the leg's motion on the plan's time for it; the last leg must end in time.
-        start = 0.5 * (times[last] + times[following[0]] - profile.duration_s)
-        if index == len(runs) - 2:
-            start = min(start, times[following[0]] - profile.duration_s - LEG_LATENCY_S / 2)
-        minimum = 0.0 if index == 0 else MIN_STOP_HOLD_S
-        hold = max(_quantise(start - LEG_LATENCY_S / 2 - clock, resolution), minimum)
-        stops.append(Stop(here, hold))
-        parts.append(Dwell(here, clock, clock + hold))
-        leg = Leg(path[kept], speed, clock + hold + LEG_LATENCY_S / 2, profile)
+        kept = _drop_short_steps(path, simplify(path, path_tolerance_m),
+                                 2.0 * ramp_distance(speed, accel, jerk))
+        shapes.append((path[kept], speed,
+                       Profile.rest_to_rest(length_of(path[kept]), speed, accel, jerk)))
+    # Centre each leg's motion on the plan's time for it, but start it no later than lets
+    # every later leg, with the shortest holds, reach qF by the end of the horizon.
+    minimum_holds = [0.0] + [MIN_STOP_HOLD_S] * (len(shapes) - 1)
+    latest = times[-1]
+    latest_starts = []
+    for (_, _, profile), shortest in zip(reversed(shapes), reversed(minimum_holds)):
+        latest -= profile.duration_s + LEG_LATENCY_S
+        latest_starts.append(latest)
+        latest -= shortest
+    latest_starts.reverse()
+
+    stops, legs, parts = [], [], []
+    clock = 0.0                      # the vehicle comes to rest at the current stop
+    for index, (vertices, speed, profile) in enumerate(shapes):
+        first, last = runs[index][1], runs[index + 1][0]
+        centred = 0.5 * (times[first] + times[last] - profile.duration_s) - LEG_LATENCY_S / 2
+        wanted = min(centred, latest_starts[index]) - clock
+        hold = max(_quantise(wanted, resolution), minimum_holds[index])
+        if hold > wanted + 1e-9 and hold - resolution >= minimum_holds[index]:
+            hold -= resolution       # round towards the earlier start when late
+        stops.append(Stop(positions[index], hold))
+        parts.append(Dwell(positions[index], clock, clock + hold))
+        leg = Leg(vertices, speed, clock + hold + LEG_LATENCY_S / 2, profile)
         legs.append(leg)
         parts.append(leg)
         clock = leg.end_s + LEG_LATENCY_S / 2
+    # A plan that never leaves its first stop holds there for the whole horizon.
+    final_hold = 0.0 if shapes else _quantise(times[-1], resolution)
+    stops.append(Stop(positions[-1], final_hold))
+    parts.append(Dwell(positions[-1], clock, clock + final_hold))
     schedule = Schedule(tuple(stops), tuple(legs), Flight(tuple(parts)), firmware)
     end = times[-1]
     if schedule.arrival_s > end + GOAL_TOLERANCE_SLOTS * scenario.slot_s:
         raise InfeasibleHorizonError(
             f'the vehicle cannot fly this plan on time: with cruise speed '
             f'{limits.describe_cruise()}, acceleration {accel:g} m/s/s and jerk '
-            f'{limits.max_jerk_mpsss:g} m/s/s/s it reaches the goal at {schedule.arrival_s:.1f} s, the horizon ends at '
-            f'{end:g} s ({len(legs)} legs, {len(stops) - 2} hovers): lengthen horizon_s by '
-            f'{schedule.arrival_s - end:.0f} s or more, or plan with a lower max_speed_mps')
+            f'{limits.max_jerk_mpsss:g} m/s/s/s it reaches the goal at '
+            f'{schedule.arrival_s:.1f} s, the horizon ends at {end:g} s ({len(legs)} legs, '
+            f'{len(stops) - 2} stops): lengthen horizon_s by '
+            f'{math.ceil(schedule.arrival_s - end)} s or more')
     return schedule
 
 
@@ -255,13 +308,31 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
                      firmware: str = 'ardupilot') -> VehiclePlan:
     """Plan ``scenario`` for a vehicle with ``limits``: the mission and what it delivers.
 
-    Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the
-    planning speed exceeds the vehicle's, and after when the vehicle cannot keep the horizon.
+    When the vehicle cannot fly the plan by the end of the horizon (too little hovering to
+    absorb its starts and stops), it flies through the hovers instead of stopping; if that
+    is still too slow, plans again at 90, 80 and 70 % of ``max_speed_mps`` (the ideal plan
+    returned then carries the slower scenario). Raises
+    :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
+    speed exceeds the vehicle's, and when no attempt can keep the horizon.
     """
     if firmware not in HOLD_RESOLUTION_S:
         raise InvalidScenarioError(f'unknown firmware {firmware!r}: choose one of '
                                    f'{", ".join(HOLD_RESOLUTION_S)}')
     check_speed(scenario, limits)
-    ideal = plan(scenario, settings)
-    schedule = schedule_flight(ideal, limits, firmware=firmware)
-    return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
+    first_error = None
+    for share in (1.0,) + SLOWER_PLANNING:
+        try:
+            slower = scenario if share == 1.0 else scenario.replace(
+                max_speed_mps=share * scenario.max_speed_mps)
+            ideal = plan(slower, settings)
+        except InfeasibleHorizonError:
+            continue
+        for stop_at_hovers in (True, False):
+            try:
+                schedule = schedule_flight(ideal, limits, firmware=firmware,
+                                           stop_at_hovers=stop_at_hovers)
+            except InfeasibleHorizonError as exc:
+                first_error = first_error or exc
+                continue
+            return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
+    raise first_error
