@@ -5,27 +5,50 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml) \
+# Present after `make dev`: every (re)install is then editable, so edits to the sources
+# take effect without reinstalling.
+EDITABLE := $(VENV)/.editable
+# The mode of the last install; a change of mode (make dev, or removing .editable) reinstalls.
+MODE_STAMP := $(VENV)/.mode-$(if $(wildcard $(EDITABLE)),editable,normal)
+SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml launch/*.py rviz/*.rviz) \
            $(wildcard uav_comm_planner/*.py uav_comm_planner/*/*.py) resource/uav_comm_planner
 
 # One DDS domain per run, discovery on this machine only, so that test runs
 # and planners on a shared machine do not hear each other.
 ROS_ENV := ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST AMENT_PREFIX_PATH=$(abspath $(VENV))
 
-.PHONY: install run test bench figures clean
+.PHONY: install dev run test bench figures docs clean
 
 install: $(STAMP)
 
-$(STAMP): $(SOURCES)
+$(MODE_STAMP):
+	mkdir -p $(VENV)
+	rm -f $(VENV)/.mode-*
+	touch $@
+
+$(STAMP): $(SOURCES) $(MODE_STAMP)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade 'pip>=23'
-	$(BIN)/python -m pip install --quiet '.[ros,plots,test]'
+	$(BIN)/python -m pip install --quiet $(if $(wildcard $(EDITABLE)),--editable )'.[ros,plots,test]'
 	@# `ros2 run uav_comm_planner planner` looks for lib/<package>/<executable>;
 	@# pip puts console scripts in bin/, so link them where ros2 run looks.
 	mkdir -p $(VENV)/lib/uav_comm_planner
 	for exe in planner send_ground_nodes uav-comm-planner; do \
 		ln -sf ../../bin/$$exe $(VENV)/lib/uav_comm_planner/$$exe; done
+	@# An editable install leaves out setup.py's data_files (the ament index marker, package.xml,
+	@# config, launch, rviz): copy them where a normal install puts them.
+	if test -e $(EDITABLE); then \
+		mkdir -p $(VENV)/share/ament_index/resource_index/packages $(VENV)/share/uav_comm_planner && \
+		cp resource/uav_comm_planner $(VENV)/share/ament_index/resource_index/packages/ && \
+		cp -r package.xml config launch rviz $(VENV)/share/uav_comm_planner/; fi
 	touch $(STAMP)
+
+# Editable install: the commands and imports run the checkout's sources, not a copy.
+# `rm .venv/.editable && make install` (or `make clean`) goes back to a normal install.
+dev:
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	touch $(EDITABLE)
+	$(MAKE) install
 
 run: $(STAMP)
 	$(ROS_ENV) ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-0} $(BIN)/planner $(ARGS)
@@ -45,6 +68,10 @@ figures: $(STAMP)
 	$(BIN)/uav-comm-planner sweep --case II --budgets 0.5,1,2,5,10,20 --figure docs/fig2_sweep_case_II.png
 	$(BIN)/uav-comm-planner plan --case I --bandwidth 1e6 --beta0 1e-6 --budget 0.5 \
 		--figure docs/fig1_case_I_low_snr.png
+
+# The parameter tables of docs/node.md, from the node's own parameter descriptors.
+docs: $(STAMP)
+	$(BIN)/python -m uav_comm_planner.ros.docgen docs/node.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -13,12 +13,16 @@ ROS_JAZZY = [
 
 setup(
     name=PACKAGE,
+    # Keep equal to package.xml's <version> (a test checks); `uav-comm-planner --version`
+    # reads it back from the installed metadata.
     version='0.1.0',
     packages=find_packages(exclude=['test']),
     data_files=[
         ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
         (f'share/{PACKAGE}', ['package.xml']),
         (f'share/{PACKAGE}/config', glob('config/*.yaml')),
+        (f'share/{PACKAGE}/launch', glob('launch/*.launch.py')),
+        (f'share/{PACKAGE}/rviz', glob('rviz/*.rviz')),
     ],
     python_requires='>=3.10',
     install_requires=[
@@ -34,7 +38,9 @@ setup(
         # outside one, the PyPI wheels of Jazzy provide them.
         'ros': ROS_JAZZY,
         'plots': ['matplotlib>=3.8,<4'],
-        'test': ['pytest>=8,<10'],
+        # PyYAML (RViz configuration and launch parameters in the tests) also comes with
+        # the ROS wheels; named here so that the tests do not rely on that.
+        'test': ['pytest>=8,<10', 'pyyaml>=6,<7'],
     },
     zip_safe=True,
     maintainer='uav_comm_planner maintainers',

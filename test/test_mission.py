@@ -20,14 +20,24 @@ from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, geod
 from uav_comm_planner.vehicle.mission import build_mission_items, export_mission
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.vehicle.evaluation import distance_to_polyline
+from uav_comm_planner.vehicle.flyable import (MERGE_RADIUS_M, MIN_SPEED_MPS, PATH_TOLERANCE_M,
+                                              plan_for_vehicle, schedule_flight)
+from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.timing import ramp_time
 
 WAYPOINT, TAKEOFF, LAND, RTL, CHANGE_SPEED = 16, 22, 21, 20, 178
 POSITION_TOLERANCE_M = 0.5
 
 
+def multirotor_case_one() -> Scenario:
+    """The letter's case I at a multirotor's 10 m/s: 400 s in 100 slots of 4 s."""
+    return paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0, num_slots=100)
+
+
 @pytest.fixture(scope='module')
 def case_one() -> PlanResult:
-    return plan(paper_scenario('I'))
+    return plan(multirotor_case_one())
 
 
 @pytest.fixture(scope='module')
@@ -65,49 +75,6 @@ def to_enu(item, home: Home) -> np.ndarray:
     return np.array([east, north])
 
 
-def replay(items, home: Home) -> list[tuple[np.ndarray, float, float]]:
-    """(position, arrival, hold) of every waypoint from q0 on; the clock is 0 at q0."""
-    first = next(i for i, item in enumerate(items) if item.command == TAKEOFF) + 1
-    clock, speed, here, stops = 0.0, None, None, []
-    for item in items[first:]:
-        if item.command == CHANGE_SPEED:
-            speed = item.param2
-        elif item.command == WAYPOINT:
-            position = to_enu(item, home)
-            if here is not None:
-                clock += float(np.linalg.norm(position - here)) / speed
-            stops.append((position, clock, item.param1))
-            clock += item.param1
-            here = position
-    return stops
-
-
-def track(stops, t: float) -> np.ndarray:
-    """Where the replayed UAV is at time t: holding at a waypoint or on a straight leg."""
-    for (position, arrival, hold), following in zip(stops, stops[1:] + [None]):
-        if t <= arrival + hold or following is None:
-            return position
-        next_position, next_arrival, _ = following
-        if t <= next_arrival:
-            fraction = (t - arrival - hold) / max(next_arrival - arrival - hold, 1e-12)
-            return position + np.clip(fraction, 0, 1) * (next_position - position)
-    raise AssertionError('unreachable')
-
-
-def planned_arrivals(stops, path, times, radius) -> list[float]:
-    """Each waypoint's planned arrival: the first plan point (in order) it stands for."""
-    arrivals, cursor = [], 0
-    for position, _, _ in stops:
-        near = np.linalg.norm(path - position, axis=1) <= radius
-        m = cursor + int(np.argmax(near[cursor:]))
-        assert near[m], f'waypoint {position} stands for no plan point after t = {times[cursor]}'
-        arrivals.append(times[m])
-        while m + 1 < len(path) and near[m + 1]:
-            m += 1
-        cursor = m + 1 if m + 1 < len(path) else m
-    return arrivals
-
-
 def written(result, tmp_path, home, name='m.waypoints', **options):
     target = export_mission(result, tmp_path / name, home, **options)
     assert target == tmp_path / name
@@ -143,73 +110,98 @@ def test_every_waypoint_lies_on_the_plan_and_covers_it(case_one, home, tmp_path)
     waypoints = np.array([to_enu(item, home) for item in items[2:] if item.command == WAYPOINT])
     gaps = np.linalg.norm(waypoints[:, None, :] - path[None, :, :], axis=-1)
     assert gaps.min(axis=1).max() <= POSITION_TOLERANCE_M
-    # Every plan point is stood for by a waypoint within the merge radius.
-    assert gaps.min(axis=0).max() <= mission.MERGE_RADIUS_M + POSITION_TOLERANCE_M
+    # Every plan point lies near the line the mission flies: a hover within the merge radius
+    # of its stop, a point in flight within the path tolerance of its leg.
+    line = distance_to_polyline(path, waypoints)
+    assert line.max() <= MERGE_RADIUS_M + PATH_TOLERANCE_M + POSITION_TOLERANCE_M
     assert np.allclose(waypoints[0], case_one.scenario.start_m, atol=POSITION_TOLERANCE_M)
     assert np.allclose(waypoints[-1], case_one.scenario.goal_m, atol=POSITION_TOLERANCE_M)
     land = to_enu(items[-1], home)
     assert np.allclose(land, case_one.scenario.goal_m, atol=POSITION_TOLERANCE_M)
 
 
-def check_timing(result, items, home):
-    """Replay: planned arrival at every waypoint within one slot; on the plan at every slot."""
-    delta = result.scenario.slot_s
-    stops = replay(items, home)
-    path, times = planned_path(result)
-    radius = mission.MERGE_RADIUS_M + POSITION_TOLERANCE_M
-    expected = planned_arrivals(stops, path, times, radius)
-    errors = [abs(arrival - planned) for (_, arrival, _), planned in zip(stops, expected)]
-    assert max(errors) <= delta, f'worst arrival error {max(errors):.3f} s > one slot'
-    assert stops[-1][1] == pytest.approx(times[-1], abs=delta)
-    # Where the replayed UAV is at each planned time, against where the plan puts it.
-    drift = [np.linalg.norm(track(stops, t) - point) for t, point in zip(times, path)]
-    return max(errors), max(drift)
-
-
 @pytest.mark.parametrize('firmware', ['ardupilot', 'px4'])
-def test_replay_reaches_every_waypoint_on_the_planned_time(case_one, home, tmp_path, firmware):
+def test_the_file_holds_the_schedule(case_one, home, tmp_path, firmware):
+    """Waypoints, holds and speeds are the schedule's, in order; speeds change only where a
+    leg starts, right after the stop it leaves."""
+    schedule = schedule_flight(case_one, VehicleLimits(), firmware=firmware)
     items = load(written(case_one, tmp_path, home, firmware=firmware))
-    worst_arrival, worst_drift = check_timing(case_one, items, home)
-    # The exporter keeps a speed that is on time within 5 % of a slot; the file's 6 decimals
-    # of a degree (0.1 m) add at most a millisecond per leg at these speeds.
-    delta = case_one.scenario.slot_s
-    assert worst_arrival <= mission.TIMING_TOLERANCE_SLOTS * delta + 0.01
-    assert worst_drift <= mission.MERGE_RADIUS_M + POSITION_TOLERANCE_M
+    timed = items[2:-1]
+    expected, in_force = [], None
+    for index, stop in enumerate(schedule.stops):
+        expected.append((WAYPOINT, tuple(stop.position_m), stop.hold_s))
+        if index < len(schedule.legs):
+            leg = schedule.legs[index]
+            if leg.speed_mps != in_force:
+                in_force = leg.speed_mps
+                expected.append((CHANGE_SPEED, None, in_force))
+            expected += [(WAYPOINT, tuple(vertex), 0.0) for vertex in leg.vertices[1:-1]]
+    assert len(timed) == len(expected)
+    for item, (command, position, value) in zip(timed, expected):
+        assert item.command == command
+        if command == CHANGE_SPEED:
+            assert (item.param1, item.param2, item.param3) == pytest.approx((1.0, value, -1.0))
+        else:
+            assert item.param1 == pytest.approx(value, abs=0.005)
+            assert to_enu(item, home) == pytest.approx(position, abs=POSITION_TOLERANCE_M)
+    if firmware == 'ardupilot':
+        assert all(float(item.param1).is_integer() for item in timed if item.command == WAYPOINT)
 
 
 def test_hover_holds_where_the_plan_hovers(case_one, home, tmp_path):
+    """Each node gets one stop whose hold is its planned hover less what a stop costs."""
     items = load(written(case_one, tmp_path, home))
     path, _ = planned_path(case_one)
     delta = case_one.scenario.slot_s
     legs = np.linalg.norm(np.diff(path, axis=0), axis=1)
     waypoints = [(to_enu(item, home), item.param1) for item in items[2:]
                  if item.command == WAYPOINT]
+    limits = VehicleLimits()
+    stop_cost = ramp_time(limits.cruise_speed_mps, limits.max_accel_mpss,
+                          limits.ramp_jerk_mpsss) + 1.0
     for node in case_one.scenario.nodes:
         near = np.linalg.norm(path - node, axis=1) < 25.0
-        hovering = (legs < 0.5) & near[:-1] & near[1:]
-        assert hovering.sum() >= 3, 'case I hovers over every node'
-        holds = sum(hold for position, hold in waypoints
-                    if np.linalg.norm(position - node) < 25.0)
-        assert holds == pytest.approx(hovering.sum() * delta, abs=delta)
+        hovering = ((legs < 0.5) & near[:-1] & near[1:]).sum() * delta
+        assert hovering >= 30.0, 'case I hovers over every node'
+        holds = [hold for position, hold in waypoints if np.linalg.norm(position - node) < 25.0]
+        assert len(holds) == 1
+        assert hovering - 2 * stop_cost - 1.0 <= holds[0] <= hovering
 
 
-def test_speed_changes_precede_the_legs_whose_speed_changes(case_one, home, tmp_path):
+def test_speeds_stay_within_the_vehicles(case_one, home, tmp_path):
     items = load(written(case_one, tmp_path, home))
-    timed = items[next(i for i, item in enumerate(items) if item.command == TAKEOFF) + 1:]
-    assert timed[0].command == WAYPOINT and timed[1].command == CHANGE_SPEED
-    speeds, in_force = [], None
-    for previous, item in zip(timed, timed[1:]):
-        if item.command == CHANGE_SPEED:
-            assert previous.command == WAYPOINT
-            assert (item.param1, item.param3) == (1.0, -1.0)
-            assert item.param2 != in_force, 'a speed change that changes nothing'
-            in_force = item.param2
-        elif item.command == WAYPOINT:
-            speeds.append(in_force)
-    assert min(speeds) >= mission.MIN_SPEED_MPS
-    assert max(speeds) <= case_one.scenario.max_speed_mps * 1.02
-    # The letter's case I flies 100 m/s between nodes, slower into and out of each hover.
-    assert len({round(s) for s in speeds}) >= 4
+    speeds = [item.param2 for item in items if item.command == CHANGE_SPEED]
+    assert speeds and max(speeds) <= VehicleLimits().cruise_speed_mps
+    assert min(speeds) >= MIN_SPEED_MPS
+
+
+def test_a_plan_faster_than_the_vehicle_is_refused_before_any_file(home, tmp_path):
+    fast = plan(paper_scenario('I'))                      # the letter's 100 m/s
+    with pytest.raises(MissionExportError, match=r'100 m/s is faster than the vehicle flies'):
+        export_mission(fast, tmp_path / 'm.waypoints', home)
+    assert list(tmp_path.iterdir()) == []
+    quick = VehicleLimits(max_speed_mps=100.0, max_accel_mpss=50.0, max_jerk_mpsss=500.0,
+                          jerk_time_s=0.0)
+    assert export_mission(fast, tmp_path / 'm.waypoints', home, limits=quick).is_file()
+
+
+def test_a_vehicle_plan_exports_its_own_schedule_for_its_firmware(home, tmp_path):
+    vehicle_plan = plan_for_vehicle(multirotor_case_one(), firmware='px4')
+    written(vehicle_plan, tmp_path, home, name='m.plan', firmware='px4')
+    with pytest.raises(MissionExportError, match='timed for px4, not ardupilot'):
+        export_mission(vehicle_plan, tmp_path / 'm.waypoints', home)
+
+
+def test_holds_beyond_what_ardupilot_stores_repeat_the_waypoint(home, tmp_path):
+    # A plan that never moves holds for the whole 200 000 s horizon: ArduPilot keeps a
+    # waypoint's hold in 16 bits, so the hold is split over repeated waypoints.
+    result = synthetic_result([(0.5, 0.0)] * 4, goal=(0.0, 0.5), horizon_s=200000.0)
+    items = load(written(result, tmp_path, home))
+    holds = [item.param1 for item in items if item.command == WAYPOINT][1:]
+    assert max(holds) <= 65535 and sum(holds) == pytest.approx(250000.0)
+    px4 = build_mission_items(result, home, firmware='px4')
+    assert [item.params[0] for item in px4 if item.command == WAYPOINT][1:] == \
+        pytest.approx([250000.0])
 
 
 def test_rtl_ends_the_mission_when_asked(case_one, home, tmp_path):
@@ -217,34 +209,6 @@ def test_rtl_ends_the_mission_when_asked(case_one, home, tmp_path):
     assert items[-1].command == RTL
     assert items[-2].command == WAYPOINT
     assert np.allclose(to_enu(items[-2], home), case_one.scenario.goal_m, atol=0.5)
-
-
-# Plans that are not the letter's: slow crawls, zero-length legs, a start away from home.
-
-def crawl_plan(slot_s: float) -> PlanResult:
-    """Start 40 m east of home, crawl 3 m per slot, hover 3 slots, then fly to the goal."""
-    crawl = [(40.0 + 3.0 * k, 0.0) for k in range(1, 6)]
-    hover = [(55.0, 0.0)] * 3
-    dash = [(55.0 + 8.0 * k * slot_s, 0.0) for k in range(1, 4)]
-    goal = (dash[-1][0] + 8.0 * slot_s, 0.0)
-    return synthetic_result(crawl + hover + dash, start=(40.0, 0.0), goal=goal,
-                            horizon_s=slot_s * 11)
-
-
-@pytest.mark.parametrize('slot_s', [10.0, 1.5, 0.5])
-@pytest.mark.parametrize('firmware', ['ardupilot', 'px4'])
-def test_slow_legs_become_holds_and_timing_survives(home, tmp_path, slot_s, firmware):
-    result = crawl_plan(slot_s)
-    items = load(written(result, tmp_path, home, firmware=firmware))
-    speeds = [item.param2 for item in items if item.command == CHANGE_SPEED]
-    assert min(speeds) >= mission.MIN_SPEED_MPS
-    check_timing(result, items, home)
-    waypoints = [item for item in items[2:] if item.command == WAYPOINT]
-    assert np.allclose(to_enu(waypoints[0], home), (40.0, 0.0), atol=0.5)
-    holds = [item.param1 for item in waypoints]
-    if firmware == 'ardupilot':
-        assert all(float(hold).is_integer() for hold in holds)
-    assert sum(holds) >= 3 * slot_s - 1.0
 
 
 def test_a_plan_that_never_moves_is_one_hold_then_land(home, tmp_path):
@@ -375,7 +339,7 @@ def test_rewriting_keeps_the_file_mode(case_one, home, tmp_path):
 @pytest.mark.parametrize('options, message', [
     ({'end': 'hover'}, 'unknown mission end'),
     ({'firmware': 'inav'}, 'unknown firmware'),
-    ({'merge_radius_m': -1.0}, 'merge_radius_m'),
+    ({'limits': (10.0, 2.5)}, 'limits must be VehicleLimits'),
 ])
 def test_bad_options_are_refused(case_one, home, tmp_path, options, message):
     with pytest.raises(MissionExportError, match=message):
@@ -436,21 +400,44 @@ def test_items_need_no_file(case_one, home):
 def test_command_line_writes_a_mission_that_pymavlink_loads(tmp_path, capsys):
     from uav_comm_planner.tools import cli
     target = tmp_path / 'm.waypoints'
-    status = cli.main(['plan', '--case', 'I', '--mission', str(target),
-                       '--home', '47.397742,8.545594,488'])
+    status = cli.main(['plan', '--case', 'I', '--speed', '10', '--horizon', '400', '--slots',
+                       '100', '--mission', str(target), '--home', '47.397742,8.545594,488'])
     out = capsys.readouterr().out
-    assert status == 0 and f'wrote {target}' in out
+    assert status == 0 and f'wrote {target}' in out and 'as the vehicle flies it' in out
     items = load(target)
     assert [items[0].command, items[1].command, items[-1].command] == [WAYPOINT, TAKEOFF, LAND]
-    result = plan(paper_scenario('I'))
-    check_timing(result, items, Home(*DEFAULT_HOME))
+    expected = build_mission_items(plan_for_vehicle(multirotor_case_one()), Home(*DEFAULT_HOME))
+    assert [item.command for item in items] == [item.command for item in expected]
+
+
+def test_command_line_refuses_what_the_vehicle_cannot_fly(tmp_path, capsys):
+    from uav_comm_planner.tools import cli
+    target = tmp_path / 'm.waypoints'
+    assert cli.main(['plan', '--case', 'I', '--mission', str(target)]) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and '100 m/s is faster than the vehicle flies: 10 m/s' in err
+    assert cli.main(['plan', '--case', 'I', '--speed', '10', '--horizon', '201', '--slots',
+                     '201', '--mission', str(target)]) == 2
+    assert 'reaches the goal at' in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_command_line_plans_with_a_parameter_file(tmp_path, capsys):
+    from uav_comm_planner.tools import cli
+    parameters = tmp_path / 'copter.param'
+    parameters.write_text('WPNAV_SPEED,1500\nWPNAV_ACCEL,400\n')
+    assert cli.main(['plan', '--case', 'I', '--speed', '15', '--horizon', '300', '--slots',
+                     '100', '--vehicle-params', str(parameters), '--wp-jerk', '2']) == 0
+    out = capsys.readouterr().out
+    assert 'cruise 15 m/s' in out and 'acceleration 4 m/s/s, jerk 2 m/s/s/s' in out
 
 
 def test_command_line_writes_a_px4_plan_that_returns_to_launch(tmp_path, capsys):
     from uav_comm_planner.tools import cli
     target = tmp_path / 'm.plan'
     # A southern latitude starts with '-', so argparse needs it attached with '='.
-    status = cli.main(['plan', '--case', 'II', '--mission', str(target),
+    status = cli.main(['plan', '--case', 'II', '--speed', '10', '--horizon', '400',
+                       '--slots', '100', '--mission', str(target),
                        '--home=-35.363261,149.165230,584', '--mission-end', 'rtl',
                        '--firmware', 'px4'])
     assert status == 0

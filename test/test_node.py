@@ -39,6 +39,7 @@ from uav_comm_planner.ros.node import (GROUND_NODES_QOS, NODE_NAME, PlannerNode,
 from uav_comm_planner.ros.publishing import (OUTPUT_QOS, TOPIC_MARKERS, TOPIC_MIN_THROUGHPUT,
                                              TOPIC_PATH, TOPIC_POWER)
 from uav_comm_planner.ros.send_ground_nodes import describe, GroundNodesSender
+from uav_comm_planner.vehicle.flyable import plan_for_vehicle
 
 DEADLINE_S = 30.0
 PROCESS_DEADLINE_S = 90.0
@@ -62,7 +63,10 @@ class Harness:
     """The node under test, a probe node that talks to it, and one executor for both."""
 
     def __init__(self, context, *, planner=plan, **parameters) -> None:
-        values = {'num_slots': SLOTS, 'horizon_s': HORIZON_S, **parameters}
+        # The letter's own speed, planned as the optimiser plans it: these tests are about the
+        # node's mechanics; the vehicle-aware plan has tests of its own below.
+        values = {'num_slots': SLOTS, 'horizon_s': HORIZON_S, 'max_speed_mps': 100.0,
+                  'vehicle_aware': False, **parameters}
         self.node = PlannerNode(context=context, planner=planner, parameter_overrides=[
             Parameter(name, value=value) for name, value in values.items()])
         self.probe = Node('planner_test_probe', context=context)
@@ -363,9 +367,30 @@ def test_solver_failure_is_logged_and_the_last_plan_stays(harness):
     assert h.node.plans_run == 2 and h.node.plans_published == 1
 
 
+MULTIROTOR = {'max_speed_mps': 10.0, 'horizon_s': 400.0, 'num_slots': 100,
+              'vehicle_aware': True}
+
+
+def test_vehicle_aware_node_publishes_the_plan_as_flown(harness):
+    h = harness(**MULTIROTOR)
+    h.published(1)
+    path = h.latest(TOPIC_PATH)
+    expected = plan_for_vehicle(paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0,
+                                               num_slots=100)).flown
+    poses = np.array([(pose.pose.position.x, pose.pose.position.y) for pose in path.poses])
+    assert np.allclose(poses[1:-1], expected.trajectory, atol=1e-6)
+    assert h.received[TOPIC_MIN_THROUGHPUT][-1].data == pytest.approx(expected.min_throughput,
+                                                                       rel=1e-9)
+    # A planning speed above the vehicle's is refused as a parameter, with the numbers.
+    answer = h.call('set_parameters', SetParameters.Request(
+        parameters=[Parameter('max_speed_mps', value=12.0).to_parameter_msg()]))
+    assert not answer.results[0].successful
+    assert 'faster than the vehicle flies: 10 m/s' in answer.results[0].reason
+
+
 def test_mission_written_on_every_plan_and_on_demand(harness, tmp_path):
     mission = tmp_path / 'flight.waypoints'
-    h = harness(mission_file=str(mission))
+    h = harness(mission_file=str(mission), **MULTIROTOR)
     h.published(1)
     assert mission.read_text().startswith('QGC WPL 110')
     mission.unlink()

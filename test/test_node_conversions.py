@@ -15,6 +15,7 @@ from uav_comm_planner import (InfeasibleHorizonError, InvalidScenarioError, pape
                               plan, Scenario, SolverSettings)
 from uav_comm_planner.ros.publishing import summary_line
 from uav_comm_planner.ros.worker import LatestOnlyWorker
+from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.ros.messages import (ground_nodes_of, headings, marker_array,
                                            nanoseconds_of, path_message, pose_array,
@@ -28,7 +29,8 @@ WAIT_S = 30.0
 
 def test_every_settings_field_is_a_parameter():
     exposed = {(spec.owner, spec.field) for spec in parameter_specs()}
-    wanted = {(owner, f.name) for owner in (Scenario, SolverSettings, NodeSettings)
+    wanted = {(owner, f.name) for owner in (Scenario, SolverSettings, NodeSettings,
+                                            VehicleLimits)
               for f in fields(owner)}
     assert exposed == wanted
     names = [spec.name for spec in parameter_specs()]
@@ -36,9 +38,11 @@ def test_every_settings_field_is_a_parameter():
     assert 'ground_nodes' in names and PARAMETER_NAMES['ground_nodes_m'] == 'ground_nodes'
 
 
-def test_defaults_are_the_letters_case_one():
+def test_defaults_are_the_letters_case_one_flown_by_a_multirotor():
     config = config_from_parameters({})
-    assert config.scenario == paper_scenario('I')
+    assert config.scenario == paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0,
+                                             num_slots=100)
+    assert config.vehicle == VehicleLimits() and config.node.vehicle_aware
     assert config.settings == SolverSettings()
     assert config.node == NodeSettings()
     assert config.node.frame_id == 'map' and config.node.mission_file == ''

@@ -26,13 +26,16 @@ Notation: p (N, k) watts, positions (k, 2) metres, D (N,) bits.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+import math
 from typing import Callable, Sequence
 
 import numpy as np
 
 from uav_comm_planner.core.model import leg_lengths, snr_per_watt
-from uav_comm_planner.core.optimizer import plan, PlanResult
+from uav_comm_planner.core.optimizer import offset_rates, optimal_power, plan, PlanResult, Step
+from uav_comm_planner.core.power import checked_offsets
 from uav_comm_planner.core.scenario import DUPLICATE_NODE_DISTANCE_M, Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 
@@ -169,6 +172,22 @@ class RecedingPlan:
 Planner = Callable[..., PlanResult]
 
 
+def as_flown(result: PlanResult, offsets: np.ndarray | None) -> PlanResult:
+    """``result`` (a plan at the positions a vehicle will fly, with the letter's power for
+    them) with the power that is optimal there for the offsets o (N,) instead, and its rates
+    counting them: R_n = (B/N) (o_n + mean_m log2(1 + p_n[m] a_n[m])). Without offsets (or
+    all zero) ``result`` itself."""
+    offsets = checked_offsets(offsets, result.scenario.num_nodes)
+    if offsets is None:
+        return result
+    p = optimal_power(result.trajectory, result.scenario, offsets=offsets)
+    rates = offset_rates(result.trajectory, p, result.scenario, offsets)
+    value = float(rates.min())
+    return dataclasses.replace(result, power=p, rates=rates, min_throughput=value,
+                               history=result.history + (Step('power', value),),
+                               upper_bound=math.inf, offsets=offsets)
+
+
 #: Name of the start that continues the previous plan (see :func:`replan`).
 PREVIOUS_PLAN_START = 'previous'
 
@@ -216,6 +235,6 @@ def mission_rates_flown(mission: Scenario, power_w: np.ndarray,
     return delivered_bits(mission, flown) / mission.horizon_s
 
 
-__all__ = ['PREVIOUS_PLAN_START', 'FlownSlots', 'RecedingPlan', 'delivered_bits',
+__all__ = ['PREVIOUS_PLAN_START', 'FlownSlots', 'RecedingPlan', 'as_flown', 'delivered_bits',
            'mission_rates_flown', 'power_for_nodes', 'replan', 'rest_of_mission',
            'within_speed_limit']

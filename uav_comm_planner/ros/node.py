@@ -276,7 +276,7 @@ class PlannerNode(Node):
             response.message = 'no plan yet'
         else:
             try:
-                written = write_mission(self.current_plan.result, output)
+                written = write_mission(self.current_plan, output)
             except PlannerError as exc:
                 self._report_error(f'mission export failed: {exc}')
                 response.message = str(exc)
@@ -348,8 +348,10 @@ class PlannerNode(Node):
         """Put the plan on the vehicle; a plan made in flight is flown from its q0 item."""
         output = outcome.request.output
         try:
-            items = build_mission_items(outcome.result, output.home, end=output.mission_end,
-                                        firmware=output.mission_firmware)
+            items = build_mission_items(outcome.vehicle_plan or outcome.result, output.home,
+                                        end=output.mission_end,
+                                        firmware=output.mission_firmware,
+                                        limits=outcome.request.vehicle)
         except PlannerError as exc:
             self._report_error(f'mission upload skipped, the plan cannot be flown: {exc}')
             return
@@ -415,7 +417,7 @@ class PlannerNode(Node):
                 receding: RecedingRequest | None = None) -> None:
         config = self._config
         request = PlanRequest(scenario, config.settings, config.node, self._now_ns(), reason,
-                              receding)
+                              config.vehicle, receding)
         self.requests_made += 1
         if self._worker.submit(request):
             self.get_logger().debug(f'{reason}: replaces a request still waiting')

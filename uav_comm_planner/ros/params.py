@@ -1,14 +1,17 @@
 """ROS parameters <-> the planner's settings dataclasses.
 
 Every field of :class:`~uav_comm_planner.core.scenario.Scenario`,
-:class:`~uav_comm_planner.core.scenario.SolverSettings` and :class:`NodeSettings` becomes one ROS
-parameter of the same name (``ground_nodes_m`` is published as ``ground_nodes``), typed from
+:class:`~uav_comm_planner.core.scenario.SolverSettings`, :class:`NodeSettings` and
+:class:`~uav_comm_planner.vehicle.limits.VehicleLimits` becomes one ROS parameter of the same
+name (``ground_nodes_m`` is published as ``ground_nodes``, the vehicle's limits with the prefix
+``vehicle_``), typed from
 the field's annotation: ``float`` -> double, ``int`` -> integer, ``bool``, ``str``, a tuple
 of strings -> a string array, a point ``(x, y)`` -> a double array of two values, a tuple
 of points -> a flat double array ``x1, y1, x2, y2, ...``. A field of any other type is not
-exposed and keeps its default. Defaults are the letter's case I for the scenario and the
-dataclasses' own for the rest. :func:`config_from_parameters` is the one way back from
-parameter values to validated dataclasses.
+exposed and keeps its default. Defaults are the letter's case I at a multirotor's 10 m/s
+(:data:`DEFAULT_SCENARIO`) for the scenario and the dataclasses' own for the rest.
+:func:`config_from_parameters` is the one way back from parameter values to validated
+dataclasses.
 """
 
 from __future__ import annotations
@@ -21,10 +24,12 @@ from typing import Any, Mapping, Sequence
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
-from uav_comm_planner.errors import InvalidScenarioError
-from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
-from uav_comm_planner.vehicle.mission import FIRMWARE_TYPES, MISSION_ENDS, MISSION_FORMATS
 from uav_comm_planner.core.scenario import paper_scenario, Point, Scenario, SolverSettings
+from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.vehicle.flyable import check_speed
+from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
+from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
+from uav_comm_planner.vehicle.mission import FIRMWARE_TYPES, MISSION_ENDS, MISSION_FORMATS
 
 MISSION_FIRMWARES = tuple(FIRMWARE_TYPES)
 #: Node settings that take one of a few names, and the names.
@@ -36,6 +41,10 @@ ParameterValue = typing.Union[bool, int, float, str, list]
 @dataclass(frozen=True)
 class NodeSettings:
     """How the node labels its output and where it writes the flight as a mission file.
+
+    ``vehicle_aware`` plans for the vehicle's limits (the ``vehicle_*`` parameters, or the
+    limits a ground station's parameter file ``vehicle_params_file`` sets) and publishes the
+    plan as the vehicle flies it; off, the node publishes the optimiser's plan as is.
 
     ``mission_file`` empty means no mission is written; its extension chooses the format
     (``.waypoints`` or ``.plan``). The home position anchors the planning frame's origin
@@ -57,6 +66,8 @@ class NodeSettings:
     replan_distance_m: float = 20.0
     replan_delay_s: float = 5.0
     replan_interval_s: float = 10.0
+    vehicle_aware: bool = True
+    vehicle_params_file: str = ''
 
     def __post_init__(self) -> None:
         if not self.frame_id.strip():
@@ -88,15 +99,22 @@ class NodeSettings:
 
 @dataclass(frozen=True)
 class PlannerConfig:
-    """Everything the node's parameters say: what to plan, how, and how to publish it."""
+    """Everything the node's parameters say: what to plan, how, for which vehicle, and how
+    to publish it."""
 
     scenario: Scenario
     settings: SolverSettings
     node: NodeSettings
+    vehicle: VehicleLimits = VehicleLimits()
 
 
 #: ROS names of fields whose parameter is not named like the field.
 PARAMETER_NAMES = {'ground_nodes_m': 'ground_nodes'}
+#: The vehicle's limits are parameters named vehicle_<field>.
+PREFIXES = {VehicleLimits: 'vehicle_'}
+#: What the node plans when no parameter says otherwise: the letter's case I (nodes, radio,
+#: start and goal) at a multirotor's 10 m/s, so over 400 s in 100 slots of 4 s.
+DEFAULT_SCENARIO = paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0, num_slots=100)
 
 DESCRIPTIONS = {
     'ground_nodes_m': 'ground node positions w_n in frame_id as a flat list x1, y1, x2, y2, '
@@ -134,6 +152,17 @@ DESCRIPTIONS = {
     'replan_delay_s': 'replan from uav_pose when the UAV is this far behind or ahead of the '
                       'planned time (s)',
     'replan_interval_s': 'at most one replan from uav_pose in this many seconds',
+    'vehicle_aware': 'plan for the vehicle_* limits and publish the plan as the vehicle flies '
+                     'it (S-curve legs, holds shortened by starts and stops)',
+    'vehicle_params_file': 'ground-station parameter file (NAME,VALUE lines) whose WPNAV_* / '
+                           'MPC_* values replace the vehicle_* parameters; empty: none',
+    'vehicle_max_speed_mps': 'waypoint speed of the vehicle (WPNAV_SPEED / 100, MPC_XY_CRUISE; '
+                             'm/s)',
+    'vehicle_max_accel_mpss': 'waypoint acceleration (WPNAV_ACCEL / 100, MPC_ACC_HOR; m/s/s)',
+    'vehicle_max_jerk_mpsss': 'waypoint jerk (WPNAV_JERK, MPC_JERK_AUTO; m/s/s/s)',
+    'vehicle_airframe_speed_mps': 'top speed the airframe reaches, if below the waypoint '
+                                  'speed (m/s; .inf: unknown)',
+    'vehicle_jerk_time_s': 'time the jerk takes to build up: 2 ATC_INPUT_TC (s)',
 }
 
 #: Parameters that change only what is done with a plan, never the plan: changing one never
@@ -195,7 +224,8 @@ class ParameterSpec:
         """The descriptor the node declares: description with units, and range if any."""
         descriptor = ParameterDescriptor(
             name=self.name,
-            description=DESCRIPTIONS.get(self.field, f'{self.owner.__name__}.{self.field}'))
+            description=DESCRIPTIONS.get(self.name) or DESCRIPTIONS.get(
+                self.field, f'{self.owner.__name__}.{self.field}'))
         if self.field in CHOICES:
             descriptor.additional_constraints = f'one of {", ".join(CHOICES[self.field])}'
         elif self.kind == 'pair':
@@ -245,7 +275,7 @@ def from_parameter_value(name: str, value: Any, kind: str) -> Any:
 
 
 def _defaults(owner: type) -> Any:
-    return paper_scenario('I') if owner is Scenario else owner()
+    return DEFAULT_SCENARIO if owner is Scenario else owner()
 
 
 def _specs_of(owner: type) -> list[ParameterSpec]:
@@ -256,16 +286,20 @@ def _specs_of(owner: type) -> list[ParameterSpec]:
         kind = _kind(hints[field.name])
         if kind is None:
             continue
+        name = PREFIXES.get(owner, '') + PARAMETER_NAMES.get(field.name, field.name)
         specs.append(ParameterSpec(
-            name=PARAMETER_NAMES.get(field.name, field.name), owner=owner, field=field.name,
+            name=name, owner=owner, field=field.name,
             kind=kind, default=to_parameter_value(getattr(defaults, field.name), kind)))
     return specs
 
 
+OWNERS = (Scenario, SolverSettings, NodeSettings, VehicleLimits)
+
+
 def parameter_specs() -> tuple[ParameterSpec, ...]:
-    """Every parameter of the node, in declaration order: scenario, solver, node settings."""
-    return tuple(spec for owner in (Scenario, SolverSettings, NodeSettings)
-                 for spec in _specs_of(owner))
+    """Every parameter of the node, in declaration order: scenario, solver, node settings,
+    vehicle."""
+    return tuple(spec for owner in OWNERS for spec in _specs_of(owner))
 
 
 def config_from_parameters(values: Mapping[str, Any]) -> PlannerConfig:
@@ -274,14 +308,21 @@ def config_from_parameters(values: Mapping[str, Any]) -> PlannerConfig:
     Raises :class:`~uav_comm_planner.errors.InvalidScenarioError` (or its subclass
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError`) with the reason.
     """
-    chosen: dict[type, dict[str, Any]] = {Scenario: {}, SolverSettings: {}, NodeSettings: {}}
+    chosen: dict[type, dict[str, Any]] = {owner: {} for owner in OWNERS}
     for spec in parameter_specs():
         value = values.get(spec.name, spec.default)
         chosen[spec.owner][spec.field] = from_parameter_value(spec.name, value, spec.kind)
     scenario = Scenario(**chosen[Scenario])
     settings = SolverSettings(**chosen[SolverSettings])
     settings.check(scenario)
-    return PlannerConfig(scenario, settings, NodeSettings(**chosen[NodeSettings]))
+    node = NodeSettings(**chosen[NodeSettings])
+    vehicle = VehicleLimits(**chosen[VehicleLimits])
+    if node.vehicle_params_file:
+        vehicle = read_parameter_file(node.vehicle_params_file,
+                                      firmware=node.mission_firmware, base=vehicle)
+    if node.vehicle_aware:
+        check_speed(scenario, vehicle)
+    return PlannerConfig(scenario, settings, node, vehicle)
 
 
 def flat_pairs(points: Sequence[Sequence[float]]) -> list[float]:

@@ -6,16 +6,19 @@ which runs :func:`attempt` on its own thread and hands back a :class:`PlanOutcom
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+import functools
 from pathlib import Path as FilePath
 import threading
 from typing import Callable, Generic, TypeVar
 
 from uav_comm_planner.core.optimizer import PlanResult
-from uav_comm_planner.core.receding import FlownSlots, RecedingPlan, replan
+from uav_comm_planner.core.receding import as_flown, FlownSlots, RecedingPlan, replan
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.ros.params import NodeSettings
+from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
+from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mission import export_mission
 
 #: How long shutting down waits for a plan in progress before leaving it to its daemon thread.
@@ -99,6 +102,7 @@ class PlanRequest:
     output: NodeSettings
     start_ns: int
     reason: str
+    vehicle: VehicleLimits = VehicleLimits()
     receding: RecedingRequest | None = None
 
 
@@ -106,11 +110,14 @@ class PlanRequest:
 class PlanOutcome:
     """A finished request: its plan, or the reason it failed, and the mission file written.
 
+    ``result`` is the plan to publish: as the vehicle flies it when the request is
+    vehicle-aware (``vehicle_plan`` then holds the optimiser's plan and the mission's timing).
     receding: for a replan of a mission in flight, what it promises for the whole mission.
     """
 
     request: PlanRequest
     result: PlanResult | None = None
+    vehicle_plan: VehiclePlan | None = None
     error: str = ''
     mission_path: FilePath | None = None
     mission_error: str = ''
@@ -124,31 +131,62 @@ class PlanOutcome:
         return float(self.result.min_throughput)
 
 
-def write_mission(result: PlanResult, output: NodeSettings) -> FilePath:
-    """Write ``result`` to ``output.mission_file``; raises MissionExportError on failure."""
-    return export_mission(result, output.mission_file, output.home, end=output.mission_end,
-                          firmware=output.mission_firmware)
+def write_mission(outcome: PlanOutcome, output: NodeSettings) -> FilePath:
+    """Write an outcome's plan to ``output.mission_file``; raises MissionExportError."""
+    return export_mission(outcome.vehicle_plan or outcome.result, output.mission_file,
+                          output.home, end=output.mission_end,
+                          firmware=output.mission_firmware, limits=outcome.request.vehicle)
+
+
+def _plan_whole(planner: Planner,
+                request: PlanRequest) -> tuple[VehiclePlan | None, PlanResult]:
+    """The whole mission: for the vehicle (its plan as flown) or the optimiser's plan."""
+    if not request.output.vehicle_aware:
+        return None, planner(request.scenario, request.settings)
+    vehicle_plan = plan_for_vehicle(request.scenario, request.vehicle, request.settings,
+                                    firmware=request.output.mission_firmware, planner=planner)
+    return vehicle_plan, vehicle_plan.flown
+
+
+def _plan_rest(planner: Planner, request: PlanRequest, planned: list, scenario: Scenario,
+               settings: SolverSettings | None, *, offsets=None,
+               extra_starts=None) -> PlanResult:
+    """The rest of a mission in flight, as :func:`~uav_comm_planner.core.receding.replan`
+    asks for it: with the offsets; for the vehicle, the plan as flown with its power for the
+    offsets (the vehicle plan is appended to ``planned``)."""
+    optimiser = functools.partial(planner, offsets=offsets, extra_starts=extra_starts)
+    if not request.output.vehicle_aware:
+        return optimiser(scenario, settings)
+    vehicle_plan = plan_for_vehicle(scenario, request.vehicle, settings,
+                                    firmware=request.output.mission_firmware,
+                                    planner=optimiser)
+    planned.append(vehicle_plan)
+    return as_flown(vehicle_plan.flown, offsets)
 
 
 def attempt(planner: Planner, request: PlanRequest) -> PlanOutcome:
     """Plan ``request`` and write its mission if asked; every failure becomes the outcome."""
+    vehicle_plan = None
     receding = None
     try:
         if request.receding is None:
-            result = planner(request.scenario, request.settings)
+            vehicle_plan, result = _plan_whole(planner, request)
         else:
             rest = request.receding
+            planned: list[VehiclePlan] = []
             receding = replan(request.scenario, rest.position_m, rest.flown, request.settings,
-                              planner=planner, previous_q=rest.previous_q)
+                              planner=functools.partial(_plan_rest, planner, request, planned),
+                              previous_q=rest.previous_q)
             result = receding.result
+            vehicle_plan = planned[-1] if planned else None
     except PlannerError as exc:
         return PlanOutcome(request, error=str(exc))
     except Exception as exc:  # noqa: B902 - a failed plan must not end the worker thread
         return PlanOutcome(request, error=f'unexpected {type(exc).__name__}: {exc}')
+    outcome = PlanOutcome(request, result, vehicle_plan, receding=receding)
     if not request.output.mission_file:
-        return PlanOutcome(request, result, receding=receding)
+        return outcome
     try:
-        return PlanOutcome(request, result, mission_path=write_mission(result, request.output),
-                           receding=receding)
+        return replace(outcome, mission_path=write_mission(outcome, request.output))
     except PlannerError as exc:
-        return PlanOutcome(request, result, mission_error=str(exc), receding=receding)
+        return replace(outcome, mission_error=str(exc))

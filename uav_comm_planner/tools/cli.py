@@ -18,9 +18,14 @@ from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import write_text_atomic
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 from uav_comm_planner.core.optimizer import plan, PlanResult
-from uav_comm_planner.tools.plots import METHOD_LABELS
+from uav_comm_planner.tools.plots import check_figure_path, METHOD_LABELS
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
-from uav_comm_planner.tools.serialize import result_to_dict, scenario_from_dict
+from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
+                                              scenario_from_dict, scenario_to_dict,
+                                              settings_from_dict)
+
+#: The budgets of the letter's Fig. 2, watts.
+SWEEP_BUDGETS_W = (0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
 
 # Scenario field -> (flag, help) for the single-value overrides.
 _SCALAR_FLAGS = {
@@ -96,13 +101,19 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
                              'hover-and-fly starts, relative tolerance 1e-4)')
 
 
+def _scenario_file(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text(encoding='utf-8'))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise PlannerError(f'cannot read scenario file {str(path)!r}: {exc}')
+    if not isinstance(data, dict):
+        raise PlannerError(f'scenario file {str(path)!r} must hold a JSON object')
+    return data
+
+
 def _scenario(args: argparse.Namespace) -> Scenario:
     if args.scenario is not None:
-        try:
-            data = json.loads(args.scenario.read_text(encoding='utf-8'))
-        except (OSError, json.JSONDecodeError) as exc:
-            raise PlannerError(f'cannot read scenario file {str(args.scenario)!r}: {exc}')
-        base = scenario_from_dict(data)
+        base = scenario_from_dict(_scenario_file(args.scenario))
     else:
         base = paper_scenario(args.case)
     changes = {field: getattr(args, field) for field in _SCALAR_FLAGS
@@ -121,6 +132,11 @@ def _settings(args: argparse.Namespace) -> SolverSettings:
         changes['max_nodes'] = args.max_nodes
     if args.letter:
         return SolverSettings.letter(**changes)
+    if args.scenario is not None:
+        # A result file records the settings it was made with: run it again with them.
+        data = _scenario_file(args.scenario)
+        if 'settings' in data:
+            return settings_from_dict({**data['settings'], **changes})
     return SolverSettings(**changes)
 
 
@@ -178,8 +194,14 @@ def _check_output_folders(*paths: Path | None) -> None:
             raise PlannerError(f'folder {str(path.parent)!r} for {str(path)!r} does not exist')
 
 
+def _check_figure(path: Path | None) -> None:
+    if path is not None:
+        check_figure_path(path)
+
+
 def _command_plan(args: argparse.Namespace) -> int:
     _check_output_folders(args.json, args.figure, args.mission)
+    _check_figure(args.figure)
     if args.mission is not None:
         from uav_comm_planner.vehicle.mission import MISSION_FORMATS
         if args.mission.suffix.lower() not in MISSION_FORMATS:
@@ -198,7 +220,7 @@ def _command_plan(args: argparse.Namespace) -> int:
         result = plan(scenario, settings)
         print(format_plan(result))
     if args.json is not None:
-        text = json.dumps(result_to_dict(result), indent=1)
+        text = json.dumps(result_to_dict(result, settings=_settings(args)), indent=1)
         print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
     if args.figure is not None:
         from uav_comm_planner.tools.plots import plan_figure
@@ -211,12 +233,29 @@ def _command_plan(args: argparse.Namespace) -> int:
     return 0
 
 
+def _sweep_budgets(args: argparse.Namespace) -> list[float]:
+    """--budgets, else the budgets of a sweep file given as --scenario, else the letter's."""
+    if args.budgets is not None:
+        return args.budgets
+    if args.scenario is not None:
+        recorded = _scenario_file(args.scenario).get('budgets_w')
+        if recorded is not None:
+            try:
+                return [float(v) for v in recorded]
+            except (TypeError, ValueError):
+                raise PlannerError(f'budgets_w in {str(args.scenario)!r} must be a list of '
+                                   f'numbers, got {recorded!r}') from None
+    return list(SWEEP_BUDGETS_W)
+
+
 def _command_sweep(args: argparse.Namespace) -> int:
     _check_output_folders(args.json, args.figure)
+    _check_figure(args.figure)
     scenario, settings = _scenario(args), _settings(args)
     rows: dict[str, list[float]] = {'proposed': [], 'straight': [], 'static': []}
     print(f'{"P_T (W)":>8}{"proposed":>12}{"straight":>12}{"static":>12}{"time (s)":>10}')
-    for budget in args.budgets:
+    budgets = _sweep_budgets(args)
+    for budget in budgets:
         result = plan(scenario.replace(power_budget_w=budget), settings)
         values = [result.min_throughput, result.baselines['straight'], result.baselines['static']]
         for key, value in zip(rows, values):
@@ -224,11 +263,13 @@ def _command_sweep(args: argparse.Namespace) -> int:
         print(f'{budget:>8g}' + ''.join(f'{v:>12.4f}' for v in values)
               + f'{result.solve_time_s:>10.2f}')
     if args.json is not None:
-        text = json.dumps({'budgets_w': args.budgets, 'min_throughput': rows}, indent=1)
+        record = {'budgets_w': budgets, 'min_throughput': rows,
+                  'scenario': scenario_to_dict(scenario), **run_record(settings)}
+        text = json.dumps(record, indent=1)
         print(f'wrote {write_text_atomic(args.json, text + chr(10))}')
     if args.figure is not None:
         from uav_comm_planner.tools.plots import sweep_figure
-        print(f'wrote {sweep_figure(args.budgets, rows, args.figure)}')
+        print(f'wrote {sweep_figure(budgets, rows, args.figure, scenario=scenario)}')
     return 0
 
 
@@ -252,13 +293,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='uav-comm-planner',
         description='Joint transmit-power and trajectory planning for a communication UAV.')
+    parser.add_argument('--version', action='version', version=f'%(prog)s {package_version()}')
     commands = parser.add_subparsers(dest='command', required=True)
 
     plan_parser = commands.add_parser('plan', help='plan one scenario and print the table')
     _add_scenario_arguments(plan_parser)
     plan_parser.add_argument('--json', type=Path, metavar='FILE.json', help='write the plan')
     plan_parser.add_argument('--figure', type=Path, metavar='FILE.png',
-                             help="draw the letter's Fig. 1 for this plan")
+                             help="draw the letter's Fig. 1 for this plan (.png, .pdf or .svg)")
     plan_parser.add_argument('--mission', type=Path, metavar='FILE.waypoints|FILE.plan',
                              help='write a MAVLink mission: QGC WPL 110 or QGroundControl .plan')
     plan_parser.add_argument('--home', type=_home, default=Home(*DEFAULT_HOME),
@@ -287,11 +329,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')
     _add_scenario_arguments(sweep_parser)
-    sweep_parser.add_argument('--budgets', type=_floats, default=[0.5, 1, 2, 5, 10, 20],
-                              metavar='W,W,...', help='power budgets P_T, watts')
+    sweep_parser.add_argument('--budgets', type=_floats, default=None, metavar='W,W,...',
+                              help='power budgets P_T, watts (default: those of a sweep file '
+                                   "given as --scenario, else the letter's %s)"
+                                   % ','.join(f'{b:g}' for b in SWEEP_BUDGETS_W))
     sweep_parser.add_argument('--json', type=Path, metavar='FILE.json', help='write the table')
     sweep_parser.add_argument('--figure', type=Path, metavar='FILE.png',
-                              help="draw the letter's Fig. 2")
+                              help="draw the letter's Fig. 2 (.png, .pdf or .svg)")
     sweep_parser.set_defaults(handler=_command_sweep)
 
     upload_parser = commands.add_parser(

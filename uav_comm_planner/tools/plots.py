@@ -1,18 +1,121 @@
-"""Figures of the letter's evaluation; matplotlib is imported only when a figure is drawn."""
+"""Figures of the letter's evaluation, fit for a paper; matplotlib is imported only when drawing.
+
+The file's suffix chooses the format (``.png``, ``.pdf`` or ``.svg``). Titles name the case
+(or what differs from it) and P_T, and give rates in scaled units (bit/s, kbit/s, Mbit/s...);
+legends sit outside the axes. The files carry no date and no software version, and SVG ids
+come from a fixed salt, so drawing the same plan twice writes the same bytes and
+``make figures`` leaves unchanged figures unchanged.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
 from pathlib import Path
 from typing import Sequence
 
-from uav_comm_planner.files import write_with
 from uav_comm_planner.core.model import flown_path, speeds
 from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.scenario import paper_scenario, Scenario
+from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.files import write_with
 
 METHOD_LABELS = {'proposed': 'proposed (joint power and trajectory)',
                  'straight': 'straight line, optimal power',
                  'static': 'static access point, optimal power'}
+
+#: Suffix -> what the file omits so that the same figure gives the same bytes.
+FIGURE_METADATA = {
+    'png': {'Software': None},
+    'pdf': {'Creator': None, 'Producer': None, 'CreationDate': None},
+    'svg': {'Creator': None, 'Date': None},
+}
+FIGURE_FORMATS = tuple(FIGURE_METADATA)
+#: Salt of the ids in SVG files (matplotlib draws a random one otherwise).
+SVG_HASH_SALT = 'uav_comm_planner'
+DPI = 150
+
+_RATE_UNITS = ((1e12, 'Tbit/s'), (1e9, 'Gbit/s'), (1e6, 'Mbit/s'), (1e3, 'kbit/s'),
+               (1.0, 'bit/s'))
+_FREQUENCY_UNITS = ((1e9, 'GHz'), (1e6, 'MHz'), (1e3, 'kHz'), (1.0, 'Hz'))
+
+
+def _scaled(value: float, units: Sequence[tuple[float, str]]) -> tuple[float, str]:
+    """(factor, unit) of the largest unit not above |value| (the smallest unit below it)."""
+    for factor, unit in units:
+        if abs(value) >= factor:
+            return factor, unit
+    return units[-1]
+
+
+def rate_unit(value_bps: float) -> tuple[float, str]:
+    """(factor, unit) to show ``value_bps``: 841201.7 -> (1e3, 'kbit/s')."""
+    return _scaled(value_bps, _RATE_UNITS)
+
+
+def format_rate(value_bps: float) -> str:
+    """A rate with four significant digits in its unit: 841201.683 -> '841.2 kbit/s'."""
+    rounded = float(f'{value_bps:.4g}')   # 999.95 is shown as 1 kbit/s, not 1000 bit/s
+    factor, unit = rate_unit(rounded)
+    return f'{rounded / factor:.4g} {unit}'
+
+
+def _frequency(value_hz: float) -> str:
+    factor, unit = _scaled(value_hz, _FREQUENCY_UNITS)
+    return f'{value_hz / factor:g} {unit}'
+
+
+def _point(point: Sequence[float]) -> str:
+    return f'({point[0]:g}, {point[1]:g}) m'
+
+
+#: How a setting that differs from the letter's case is named in a title.
+_SETTING_TEXT = {
+    'altitude_m': lambda v: f'H = {v:g} m',
+    'max_speed_mps': lambda v: f'V = {v:g} m/s',
+    'horizon_s': lambda v: f'T = {v:g} s',
+    'num_slots': lambda v: f'M = {v}',
+    'bandwidth_hz': lambda v: f'B = {_frequency(v)}',
+    'noise_psd_dbm_per_hz': lambda v: f'$\\sigma^2$ = {v:g} dBm/Hz',
+    'reference_gain': lambda v: f'$\\beta_0$ = {10 * math.log10(v):.3g} dB',
+    'start_m': lambda v: f'$q_0$ = {_point(v)}',
+    'goal_m': lambda v: f'$q_F$ = {_point(v)}',
+}
+
+
+def scenario_label(scenario: Scenario) -> str:
+    """'case I', 'case II', 'case I, B = 1 MHz, beta0 = -60 dB' or 'N nodes, M slots'.
+
+    The letter's case whose settings differ least (P_T aside, which titles give apart) names
+    the scenario when the ground nodes are the letter's; the differing settings follow.
+    """
+    best = None
+    for case in ('I', 'II'):
+        reference = paper_scenario(case, power_budget_w=scenario.power_budget_w)
+        if reference.ground_nodes_m != scenario.ground_nodes_m:
+            continue
+        changed = [name for name in _SETTING_TEXT
+                   if getattr(reference, name) != getattr(scenario, name)]
+        unnamed = [f.name for f in dataclasses.fields(Scenario)
+                   if f.name not in _SETTING_TEXT and f.name != 'ground_nodes_m'
+                   and getattr(reference, f.name) != getattr(scenario, f.name)]
+        if not unnamed and (best is None or len(changed) < len(best[1])):
+            best = (case, changed)
+    if best is None:
+        return f'{scenario.num_nodes} ground nodes, M = {scenario.num_slots}'
+    case, changed = best
+    named = [_SETTING_TEXT[name](getattr(scenario, name)) for name in changed]
+    return ', '.join([f'case {case}', *named])
+
+
+def check_figure_path(path: str | os.PathLike) -> str:
+    """The format named by the suffix of ``path``; a PlannerError for any other suffix."""
+    suffix = Path(path).suffix.lower().lstrip('.')
+    if suffix not in FIGURE_FORMATS:
+        raise PlannerError(f'unknown figure format for {str(path)!r}: use a '
+                           f'{", ".join("." + s for s in FIGURE_FORMATS)} file')
+    return suffix
 
 
 def _pyplot():
@@ -22,59 +125,111 @@ def _pyplot():
     return plt
 
 
-def _save(figure, path: str | os.PathLike) -> Path:
-    fmt = Path(path).suffix.lstrip('.') or 'png'
-    written = write_with(path, lambda temporary: figure.savefig(temporary, format=fmt, dpi=120))
+def save_figure(figure, path: str | os.PathLike) -> Path:
+    """Write ``figure`` atomically in the format of the suffix, without date or version."""
+    import matplotlib
+
+    fmt = check_figure_path(path)
+    with matplotlib.rc_context({'svg.hashsalt': SVG_HASH_SALT}):
+        written = write_with(path, lambda temporary: figure.savefig(
+            temporary, format=fmt, dpi=DPI, metadata=FIGURE_METADATA[fmt]))
     _pyplot().close(figure)
     return written
 
 
-def plan_figure(result: PlanResult, path: str | os.PathLike, *, title: str = '') -> Path:
-    """The letter's Fig. 1 for one plan: trajectory, speed per leg, power per node per slot."""
+def _legend_below(ax, columns: int = 1) -> None:
+    ax.legend(loc='upper center', bbox_to_anchor=(0.5, -0.13), ncol=columns, fontsize=8,
+              frameon=False)
+
+
+def draw_plan(result: PlanResult, *, title: str = ''):
+    """The letter's Fig. 1 for one plan: trajectory, speed per leg, power per node per slot.
+
+    Returns the matplotlib figure; :func:`plan_figure` draws and saves it.
+    """
     plt = _pyplot()
     scenario = result.scenario
-    figure, (ax_path, ax_speed, ax_power) = plt.subplots(1, 3, figsize=(16, 4.6))
+    figure, (ax_path, ax_speed, ax_power) = plt.subplots(1, 3, figsize=(15, 5.2),
+                                                         layout='constrained')
     path_xy = flown_path(result.trajectory, scenario)
-    ax_path.plot(path_xy[:, 0], path_xy[:, 1], '.-', color='tab:blue', label='UAV path')
+    ax_path.plot(path_xy[:, 0], path_xy[:, 1], '.-', color='tab:blue', markersize=4,
+                 label='UAV path')
     w = scenario.nodes
     ax_path.plot(w[:, 0], w[:, 1], '^', color='tab:red', markersize=10, label='ground nodes')
     for n, (x, y) in enumerate(w, start=1):
-        ax_path.annotate(f'node {n}', (x, y), textcoords='offset points', xytext=(6, 6))
-    ax_path.plot(*scenario.start_m, 's', color='k', markersize=9, label='start')
-    ax_path.plot(*scenario.goal_m, '*', color='k', markersize=13, label='end')
+        ax_path.annotate(f'node {n}', (x, y), textcoords='offset points', xytext=(0, -16),
+                         ha='center', va='top', fontsize=8,
+                         bbox={'boxstyle': 'round,pad=0.2', 'fc': 'white', 'ec': 'none',
+                               'alpha': 0.85})
+    ax_path.plot(*scenario.start_m, 's', color='k', markersize=8, label='start $q_0$')
+    ax_path.plot(*scenario.goal_m, '*', color='k', markersize=12, label='end $q_F$')
     ax_path.set(xlabel='x (m)', ylabel='y (m)', title='trajectory')
     ax_path.set_aspect('equal', adjustable='datalim')
-    ax_path.legend(loc='best', fontsize=8)
+    ax_path.margins(0.08)
+    _legend_below(ax_path, columns=2)
 
     leg_end_times = scenario.path_times_s[1:]
-    ax_speed.step(leg_end_times, speeds(result.trajectory, scenario), where='pre')
-    ax_speed.axhline(scenario.max_speed_mps, color='grey', linestyle=':', label='V')
+    ax_speed.step(leg_end_times, speeds(result.trajectory, scenario), where='pre',
+                  label='speed per leg')
+    ax_speed.axhline(scenario.max_speed_mps, color='grey', linestyle=':',
+                     label=f'speed limit V = {scenario.max_speed_mps:g} m/s')
+    ax_speed.set_ylim(0.0, 1.12 * scenario.max_speed_mps)
     ax_speed.set(xlabel='time (s)', ylabel='speed (m/s)', title='speed')
-    ax_speed.legend(loc='best', fontsize=8)
+    _legend_below(ax_speed)
 
+    watts = 1.0 if result.power.max(initial=0.0) >= 0.1 else 1e-3
     styles = ('o-', 's--', '^:', 'd-.', 'v-')
     for n, p_n in enumerate(result.power, start=1):
-        ax_power.plot(result.times, p_n, styles[(n - 1) % len(styles)], markersize=3,
+        ax_power.plot(result.times, p_n / watts, styles[(n - 1) % len(styles)], markersize=3,
                       label=f'node {n}')
-    ax_power.set(xlabel='time (s)', ylabel='transmit power (W)', title='transmit power')
-    ax_power.legend(loc='best', fontsize=8)
-    figure.suptitle(title or f'min average throughput {result.min_throughput:.3f} bit/s')
-    figure.tight_layout()
-    return _save(figure, path)
+    ax_power.set(xlabel='time (s)', ylabel=f'transmit power ({"W" if watts == 1 else "mW"})',
+                 title='transmit power')
+    _legend_below(ax_power, columns=min(scenario.num_nodes, 5))
+    figure.suptitle(title or f'{scenario_label(scenario)}, $P_T$ = '
+                             f'{scenario.power_budget_w:g} W: min average throughput '
+                             f'{format_rate(result.min_throughput)}')
+    return figure
+
+
+def plan_figure(result: PlanResult, path: str | os.PathLike, *, title: str = '') -> Path:
+    """Draw :func:`draw_plan` into ``path`` (.png, .pdf or .svg) atomically."""
+    check_figure_path(path)
+    return save_figure(draw_plan(result, title=title), path)
+
+
+def draw_sweep(budgets_w: Sequence[float], rows: dict[str, Sequence[float]], *,
+               scenario: Scenario | None = None, title: str = ''):
+    """The letter's Fig. 2: minimum average throughput against the power budget P_T.
+
+    ``rows`` maps a method ('proposed', 'straight', 'static') to its min throughput at each
+    budget, bit/s; the axis ticks are the budgets swept. Returns the matplotlib figure.
+    """
+    from matplotlib.ticker import FuncFormatter, NullLocator
+
+    plt = _pyplot()
+    figure, ax = plt.subplots(figsize=(6.4, 5.0), layout='constrained')
+    largest = max((abs(v) for values in rows.values() for v in values), default=1.0)
+    factor, unit = rate_unit(largest)
+    markers = {'proposed': 'o-', 'straight': 's--', 'static': '^:'}
+    for name, values in rows.items():
+        ax.plot(budgets_w, [v / factor for v in values], markers.get(name, '.-'),
+                label=METHOD_LABELS.get(name, name))
+    ax.set_xscale('log')
+    ax.set_xticks(list(budgets_w))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f'{value:g}'))
+    ax.xaxis.set_minor_locator(NullLocator())
+    label = scenario_label(scenario) if scenario is not None else ''
+    ax.set(xlabel='power budget $P_T$ (W)', ylabel=f'min average throughput ({unit})',
+           title=title or (f'{label}: ' if label else '')
+           + 'min average throughput versus $P_T$')
+    ax.grid(True, alpha=0.3)
+    _legend_below(ax)
+    return figure
 
 
 def sweep_figure(budgets_w: Sequence[float], rows: dict[str, Sequence[float]],
-                 path: str | os.PathLike, *, title: str = '') -> Path:
-    """The letter's Fig. 2: minimum average throughput against the power budget P_T."""
-    plt = _pyplot()
-    figure, ax = plt.subplots(figsize=(6.4, 4.6))
-    markers = {'proposed': 'o-', 'straight': 's--', 'static': '^:'}
-    for name, values in rows.items():
-        ax.plot(budgets_w, values, markers.get(name, '.-'), label=METHOD_LABELS.get(name, name))
-    ax.set_xscale('log')
-    ax.set(xlabel='power budget $P_T$ (W)', ylabel='min average throughput (bit/s)',
-           title=title or 'min average throughput versus power budget')
-    ax.grid(True, which='both', alpha=0.3)
-    ax.legend(loc='best', fontsize=8)
-    figure.tight_layout()
-    return _save(figure, path)
+                 path: str | os.PathLike, *, scenario: Scenario | None = None,
+                 title: str = '') -> Path:
+    """Draw :func:`draw_sweep` into ``path`` (.png, .pdf or .svg) atomically."""
+    check_figure_path(path)
+    return save_figure(draw_sweep(budgets_w, rows, scenario=scenario, title=title), path)

@@ -3,11 +3,36 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib.metadata
+from pathlib import Path
+import re
 from typing import Any, Mapping
 
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.core.optimizer import PlanResult
-from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.core.scenario import Scenario, SolverSettings
+
+DISTRIBUTION = 'uav_comm_planner'
+
+
+def package_version() -> str:
+    """The installed package's version; from a source tree not installed, package.xml's.
+
+    Installed (pip, ``make dev``, ``colcon build``) the version comes from the package's
+    metadata; a checkout used through ``PYTHONPATH`` reads the ``<version>`` of the
+    package.xml beside the sources; otherwise ``'unknown'``.
+    """
+    try:
+        return importlib.metadata.version(DISTRIBUTION)
+    except importlib.metadata.PackageNotFoundError:
+        pass
+    package_xml = Path(__file__).resolve().parents[2] / 'package.xml'
+    try:
+        found = re.search(r'<version>\s*([^<\s]+)\s*</version>',
+                          package_xml.read_text(encoding='utf-8'))
+    except OSError:
+        found = None
+    return found.group(1) if found else 'unknown'
 
 
 def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
@@ -38,9 +63,43 @@ def scenario_from_dict(data: Mapping[str, Any], base: Scenario | None = None) ->
     return base.replace(**data)
 
 
-def result_to_dict(result: PlanResult) -> dict[str, Any]:
+def settings_to_dict(settings: SolverSettings) -> dict[str, Any]:
+    """Every field of the solver settings, ``starts`` as a list."""
+    data = dataclasses.asdict(settings)
+    data['starts'] = list(settings.starts)
+    return data
+
+
+def settings_from_dict(data: Mapping[str, Any]) -> SolverSettings:
+    """Solver settings from a dictionary of SolverSettings fields (a result file's
+    'settings' also works); missing fields take the defaults, unknown keys are an error."""
+    if 'settings' in data and isinstance(data['settings'], Mapping):
+        data = data['settings']
+    known = {f.name for f in dataclasses.fields(SolverSettings)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise InvalidScenarioError(
+            f'unknown solver setting(s) {unknown}; known settings: {sorted(known)}')
+    values = dict(data)
+    if 'starts' in values and isinstance(values['starts'], list):
+        values['starts'] = tuple(values['starts'])
+    return SolverSettings(**values)
+
+
+def run_record(settings: SolverSettings | None) -> dict[str, Any]:
+    """What a result file needs to be made again: the package version and the settings."""
+    record: dict[str, Any] = {'version': package_version()}
+    if settings is not None:
+        record['settings'] = settings_to_dict(settings)
+    return record
+
+
+def result_to_dict(result: PlanResult, *,
+                   settings: SolverSettings | None = None) -> dict[str, Any]:
     """The plan with the keys trajectory, times, power, rates, min_throughput, baselines,
-    history and scenario (units: metres, seconds, watts, bit/s), plus how it was solved."""
+    history and scenario (units: metres, seconds, watts, bit/s), plus how it was solved:
+    the package ``version`` and, when given, the solver ``settings`` it ran with, so that
+    ``uav-comm-planner plan --scenario FILE`` runs it again."""
     return {
         'trajectory': result.trajectory.tolist(),
         'times': result.times.tolist(),
@@ -57,4 +116,5 @@ def result_to_dict(result: PlanResult) -> dict[str, Any]:
         'trajectory_steps': result.trajectory_steps,
         'start': result.start,
         'upper_bound': result.upper_bound,
+        **run_record(settings),
     }

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+from typing import Callable
 
 import numpy as np
 
@@ -182,7 +183,8 @@ def _stop_runs(points: np.ndarray, slot_s: float, merge_radius_m: float,
     """Index runs [i, j] of the points where the vehicle stops: q0, every hover that lasts at
     least ``min_hover_s`` (and a slot), every turn sharper than ``MAX_TURN_DEG``, and qF."""
     runs = [run for run in hover_runs(points, merge_radius_m)
-            if (run[1] - run[0]) * slot_s >= min_hover_s - 1e-9 or run[0] == 0 or run[1] == len(points) - 1]
+            if (run[1] - run[0]) * slot_s >= min_hover_s - 1e-9
+            or run[0] == 0 or run[1] == len(points) - 1]
     stops = []
     for run, following in zip(runs, runs[1:] + [None]):
         stops.append(run)
@@ -304,14 +306,16 @@ def flown_result(ideal: PlanResult, schedule: Schedule) -> PlanResult:
 
 
 def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits(),
-                     settings: SolverSettings | None = None, *,
-                     firmware: str = 'ardupilot') -> VehiclePlan:
+                     settings: SolverSettings | None = None, *, firmware: str = 'ardupilot',
+                     planner: Callable[[Scenario, SolverSettings | None], PlanResult] = plan,
+                     ) -> VehiclePlan:
     """Plan ``scenario`` for a vehicle with ``limits``: the mission and what it delivers.
 
     When the vehicle cannot fly the plan by the end of the horizon (too little hovering to
     absorb its starts and stops), it flies through the hovers instead of stopping; if that
     is still too slow, plans again at 90, 80 and 70 % of ``max_speed_mps`` (the ideal plan
-    returned then carries the slower scenario). Raises
+    returned then carries the slower scenario). ``planner`` is the optimiser (the core's
+    :func:`~uav_comm_planner.core.optimizer.plan`). Raises
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
     speed exceeds the vehicle's, and when no attempt can keep the horizon.
     """
@@ -324,7 +328,7 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
         try:
             slower = scenario if share == 1.0 else scenario.replace(
                 max_speed_mps=share * scenario.max_speed_mps)
-            ideal = plan(slower, settings)
+            ideal = planner(slower, settings)
         except InfeasibleHorizonError:
             continue
         for stop_at_hovers in (True, False):

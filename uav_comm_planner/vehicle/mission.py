@@ -48,7 +48,10 @@ DO_CHANGE_SPEED = MAV.MAV_CMD_DO_CHANGE_SPEED
 SPEED_TYPE_GROUND = 1.0
 THROTTLE_UNCHANGED = -1.0
 
-#: Latitude and longitude to 1e-8 degree (about 1 mm).
+#: Latitude and longitude are rounded to 1e-8 degree (about 1 mm), as the .plan file keeps
+#: them. The .waypoints file holds 6 decimals, because pymavlink's mavwp writes every field
+#: with %f: steps of 1e-6 degree (0.11 m of latitude), so a point moves by at most 6 cm, far
+#: inside the 2 m waypoint radius.
 DEGREE_DECIMALS = 8
 
 FIRMWARE_TYPES = {'ardupilot': MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 'px4': MAV.MAV_AUTOPILOT_PX4}
@@ -89,7 +92,9 @@ def _schedule(plan: PlanResult | VehiclePlan, firmware: str,
         return plan.schedule
     if not isinstance(plan, PlanResult):
         raise MissionExportError(f'a mission is made from a plan, got {type(plan).__name__}')
-    limits = limits or VehicleLimits()
+    limits = VehicleLimits() if limits is None else limits
+    if not isinstance(limits, VehicleLimits):
+        raise MissionExportError(f'limits must be VehicleLimits, got {limits!r}')
     try:
         check_speed(plan.scenario, limits)
         return schedule_flight(plan, limits, firmware=firmware)
