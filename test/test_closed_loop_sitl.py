@@ -12,7 +12,6 @@ import threading
 import time
 
 import numpy as np
-from pymavlink import mavutil
 import pytest
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node

@@ -24,7 +24,6 @@ from uav_comm_planner.vehicle.mission import export_mission
 from uav_comm_planner.vehicle.upload import read_waypoints
 
 HOME = Home(-35.363262, 149.165237, 584.0)
-MAV = mavutil.mavlink
 CLI = [sys.executable, '-m', 'uav_comm_planner.tools.cli']
 
 needs_sitl = pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())

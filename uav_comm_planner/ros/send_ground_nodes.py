@@ -63,7 +63,7 @@ class GroundNodesSender:
             if status.name != STATUS_NAME or status.level != DiagnosticStatus.ERROR:
                 continue
             values = {pair.key: pair.value for pair in status.values}
-            if 'nodes' in values:
+            if values.get('request') == TOPIC_GROUND_NODES and 'nodes' in values:
                 self.refusals[values['nodes']] = status.message
 
     def refusal(self, points: Sequence[Point]) -> str | None:
