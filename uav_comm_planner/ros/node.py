@@ -186,7 +186,9 @@ class PlannerNode(Node):
 
     def _on_parameters(self, names: list[str]) -> None:
         """An accepted change: replan unless only output parameters changed."""
-        planning = [name for name in names if name not in OUTPUT_ONLY]
+        planning = [name for name in names if name not in OUTPUT_ONLY
+                    # A plan for the vehicle is timed for its firmware (hold resolution).
+                    or (name == 'mission_firmware' and self._config.node.vehicle_aware)]
         if {'mavlink_url', 'home_latitude_deg', 'home_longitude_deg',
                 'home_altitude_m'} & set(names):
             self._connect_vehicle()
