@@ -57,8 +57,11 @@ test: $(STAMP)
 	$(ROS_ENV) ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-$$(( 100 + $$$$ % 100 ))} \
 		$(BIN)/python -m pytest $(PYTEST_ARGS)
 
+# The flight section flies on ArduCopter SITL: $(SITL), or $$UAV_COMM_PLANNER_SITL if unset.
+SITL ?= $(wildcard ../shared/sitl/arducopter)
+
 bench: $(STAMP)
-	$(BIN)/uav-comm-planner bench $(ARGS)
+	$(BIN)/uav-comm-planner bench $(if $(SITL),--sitl $(SITL)) $(ARGS)
 
 figures: $(STAMP)
 	mkdir -p docs

@@ -2,9 +2,16 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
 from typing import Iterator
 
 import pytest
+
+#: Where CI keeps its ArduCopter SITL binary: ../shared/sitl/ beside the checkout.
+CHECKOUT_SITL = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'arducopter'
+if 'UAV_COMM_PLANNER_SITL' not in os.environ and CHECKOUT_SITL.is_file():
+    os.environ['UAV_COMM_PLANNER_SITL'] = str(CHECKOUT_SITL)
 
 
 @pytest.fixture

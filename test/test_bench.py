@@ -17,7 +17,8 @@ def output():
 
     buffer = io.StringIO()
     with contextlib.redirect_stdout(buffer):
-        assert cli.main(['bench', '--quick']) == 0
+        # The flights are test_sitl_flight.py's: here only the solver's sections.
+        assert cli.main(['bench', '--quick', '--no-flights']) == 0
     return buffer.getvalue()
 
 
@@ -32,6 +33,7 @@ def test_every_section_is_printed(output):
     for title in ('Speed:', 'Scaling:', 'Quality:', 'Quality, low SNR:'):
         assert f'\n== {title}' in output
     assert output.count('\n== Scaling:') == 2
+    assert '\n== Flown:' not in output
 
 
 def test_speed_table_shows_both_paths_reaching_the_same_objective(output):

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import ast
 from pathlib import Path
 import re
 import shutil
 
 import pytest
+import yaml
 
 from uav_comm_planner.ros import docgen
 from uav_comm_planner.ros.params import parameter_specs
@@ -33,10 +33,9 @@ def test_every_parameter_has_a_row_with_its_type_and_default():
         row = next(line for line in tables.splitlines() if line.startswith(f'| `{spec.name}` |'))
         cells = [cell.strip() for cell in row.strip('|').split(' | ')]
         assert cells[1] == docgen.ROS_TYPES[spec.kind]
-        assert ast.literal_eval(cells[2].strip('`').replace('true', 'True')
-                                .replace('false', 'False')) == spec.default
+        assert yaml.safe_load(cells[2].strip('`')) == spec.default
         assert cells[3].startswith(spec.descriptor().description.replace('|', '\\|'))
-    assert '| `num_slots` | integer | `50` |' in tables
+    assert '| `num_slots` | integer | `100` |' in tables
     assert 'range 1 to 100000' in tables
 
 
@@ -44,7 +43,7 @@ def test_a_stale_table_is_found_and_rewritten(tmp_path, capsys):
     copy = tmp_path / 'node.md'
     shutil.copy(NODE_DOC, copy)
     text = copy.read_text()
-    copy.write_text(text.replace('| `num_slots` | integer | `50` |',
+    copy.write_text(text.replace('| `num_slots` | integer | `100` |',
                                  '| `num_slots` | integer | `60` |'))
     assert docgen.main(['--check', str(copy)]) == 1
     assert 'differ from the code' in capsys.readouterr().err

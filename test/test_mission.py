@@ -467,3 +467,16 @@ def test_command_line_refuses_a_bad_home(tmp_path, capsys, home_text, message):
         cli.main(['plan', '--mission', str(tmp_path / 'm.waypoints'), '--home', home_text])
     assert stop.value.code == 2 and message in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_px4_exports_a_plan_whose_slots_are_shorter_than_the_merge_radius(tmp_path, capsys):
+    """V delta = 2 m: points within the 2 m merge radius once made PX4 legs faster than V."""
+    from uav_comm_planner.tools import cli
+    target = tmp_path / 'm.plan'
+    assert cli.main(['plan', '--nodes', '40,60;120,-30;200,50', '--speed', '10', '--slots',
+                     '400', '--horizon', '80', '--goal', '250,0', '--mission', str(target),
+                     '--firmware', 'px4']) == 0
+    items = json.loads(target.read_text())['mission']['items']
+    speeds = [item['params'][1] for item in items if item['command'] == CHANGE_SPEED]
+    assert speeds and max(speeds) <= 10.0
+    assert 'as the vehicle flies it' in capsys.readouterr().out

@@ -220,7 +220,7 @@ def _decimals(text: str) -> int:
 
 def test_mission_coordinates_have_the_precision_the_comment_states(tmp_path):
     """.waypoints: 6 decimals (pymavlink's %f); .plan: the items' 1e-8 degree rounding."""
-    result = plan(small_scenario())
+    result = plan(paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0, num_slots=100))
     home = Home(*DEFAULT_HOME)
     waypoints = export_mission(result, tmp_path / 'm.waypoints', home)
     rows = [line.split('\t') for line in waypoints.read_text().splitlines()[1:]]

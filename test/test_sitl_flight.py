@@ -21,18 +21,13 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import paper_scenario, Scenario
-from uav_comm_planner.vehicle.evaluation import evaluate_flight
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle
 from uav_comm_planner.vehicle.geodesy import Home
-from uav_comm_planner.vehicle.link import upload_and_verify, VehicleLinkError
-from uav_comm_planner.vehicle.mission import build_mission_items, NAV_WAYPOINT
+from uav_comm_planner.vehicle.sitl import fly_plan, why_not_runnable
 
-import sitl
-
-pytestmark = pytest.mark.skipif(bool(sitl.why_not_runnable()), reason=sitl.why_not_runnable())
+pytestmark = pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())
 
 HOME = Home(-35.363262, 149.165237, 584.0)
-UPLOAD_ATTEMPTS = 10
 
 
 def random_six_nodes(seed: int = 1) -> Scenario:
@@ -50,47 +45,16 @@ SCENARIOS = {
 }
 
 
-def upload(link, items) -> None:
-    """Upload and verify; ArduCopter refuses a mission right after connecting, so retry."""
-    for attempt in range(UPLOAD_ATTEMPTS):
-        try:
-            upload_and_verify(link, items)
-            return
-        except VehicleLinkError:
-            if attempt == UPLOAD_ATTEMPTS - 1:
-                raise
-
-
-def fly(scenario: Scenario, folder):
-    vehicle_plan = plan_for_vehicle(scenario)
-    items = build_mission_items(vehicle_plan, HOME)
-    last_waypoint = max(i for i, item in enumerate(items) if item.command == NAV_WAYPOINT)
-    vehicle = sitl.start_sitl(folder, HOME)
-    try:
-        link = sitl.open_link(vehicle)
-        sitl.set_parameter(link, 'FENCE_ENABLE', 0)
-        upload(link, items)
-        sitl.take_off(link, scenario.altitude_m)
-        horizon_s = scenario.slot_s * (scenario.num_slots + 1)
-        record = sitl.fly_auto(link, HOME, last_item=last_waypoint, timeout_s=2 * horizon_s + 300)
-        link.close()
-    finally:
-        vehicle.stop()
-    start_s = record.reached[2] - items[2].params[0]     # the hold at q0 began
-    report = evaluate_flight(vehicle_plan.flown, vehicle_plan.schedule.flight.track(),
-                             record.times_s, record.positions_m, start_s)
-    return vehicle_plan, report, record.reached[last_waypoint] - start_s
-
-
 @pytest.fixture(scope='module', params=list(SCENARIOS))
 def flight(request, tmp_path_factory):
     name = request.param
-    vehicle_plan, report, arrival_s = fly(SCENARIOS[name], tmp_path_factory.mktemp('sitl'))
+    vehicle_plan = plan_for_vehicle(SCENARIOS[name])
+    flown = fly_plan(vehicle_plan, tmp_path_factory.mktemp('sitl'), home=HOME)
     scenario = vehicle_plan.ideal.scenario
-    print(f'\n{name}: {report.summary()}; qF reached at {arrival_s:.1f} s, planned '
-          f'{scenario.slot_s * (scenario.num_slots + 1):g} s; baselines '
+    print(f'\n{name}: {flown.report.summary()}; qF reached at {flown.arrival_s:.1f} s, '
+          f'planned {scenario.slot_s * (scenario.num_slots + 1):g} s; baselines '
           + ', '.join(f'{key} {value:.6g}' for key, value in vehicle_plan.ideal.baselines.items()))
-    return vehicle_plan, report
+    return vehicle_plan, flown.report
 
 
 def test_every_planned_point_is_reached_on_time(flight):

@@ -12,6 +12,7 @@ lives beside the node because the descriptors are ROS messages.
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 import sys
 from typing import Sequence
@@ -20,6 +21,7 @@ from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import write_text_atomic
 from uav_comm_planner.ros.params import NodeSettings, parameter_specs, ParameterSpec
+from uav_comm_planner.vehicle.limits import VehicleLimits
 
 BEGIN = ('<!-- BEGIN parameters: generated from the code by '
          '`python -m uav_comm_planner.ros.docgen`; do not edit by hand -->')
@@ -30,9 +32,10 @@ DEFAULT_FILE = Path('docs') / 'node.md'
 ROS_TYPES = {'float': 'double', 'int': 'integer', 'bool': 'boolean', 'str': 'string',
              'pair': 'double array', 'pairs': 'double array', 'strings': 'string array'}
 #: Heading of each group of parameters; a group not named here is headed by its class name.
-HEADINGS = {Scenario: "Scenario (what is flown; defaults: the letter's case I)",
+HEADINGS = {Scenario: "Scenario (what is flown; defaults: the letter's case I at 10 m/s)",
             SolverSettings: 'Solver (how Algorithm 1 is run)',
-            NodeSettings: 'Node (frame and mission file)'}
+            NodeSettings: 'Node (frame, mission file, vehicle-aware planning)',
+            VehicleLimits: "Vehicle (the autopilot's waypoint limits; defaults: ArduCopter's)"}
 
 
 def _literal(value: object) -> str:
@@ -42,6 +45,8 @@ def _literal(value: object) -> str:
         return f"'{value}'"
     if isinstance(value, list):
         return '[' + ', '.join(_literal(v) for v in value) + ']'
+    if isinstance(value, float) and math.isinf(value):
+        return '.inf' if value > 0 else '-.inf'     # as YAML parameter files write it
     return repr(value)
 
 

@@ -37,6 +37,8 @@ import numpy as np
 from uav_comm_planner.core.fast_trajectory import cone_layout
 from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
+from uav_comm_planner.tools.flights import flight_cases, fly_case, format_flights
+from uav_comm_planner.vehicle.sitl import why_not_runnable
 
 REFERENCE = dict(power_method='conic', trajectory_method='cvxpy')
 FAST = dict(power_method='waterfilling', trajectory_method='clarabel')
@@ -264,9 +266,14 @@ DESCRIPTION = ("time the reference and fast paths; compare the default plan with
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The benchmark's options, shared by ``python -m uav_comm_planner.tools.bench`` and the CLI."""
+    """The benchmark's options, for ``python -m uav_comm_planner.tools.bench`` and the CLI."""
     parser.add_argument('--quick', action='store_true',
                         help='small sizes and few runs (a smoke test, not the documented run)')
+    parser.add_argument('--sitl', metavar='ARDUCOPTER',
+                        help='ArduCopter SITL binary for the flight section (default: '
+                             '$UAV_COMM_PLANNER_SITL, else arducopter on the PATH)')
+    parser.add_argument('--no-flights', action='store_true',
+                        help='leave out the flights on ArduCopter SITL')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -276,7 +283,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def run(quick: bool = False, out: TextIO | None = None) -> None:
+def run(quick: bool = False, out: TextIO | None = None, *, flights: bool = True,
+        sitl: str | None = None) -> None:
     """Run every section and print its table to ``out`` (standard output by default)."""
     out = out or sys.stdout
 
@@ -304,11 +312,20 @@ def run(quick: bool = False, out: TextIO | None = None) -> None:
             "letter's radio settings", format_quality(compare_quality(cases, {})))
     section('Quality, low SNR: B = 1 MHz, beta0 = -60 dB',
             format_quality(compare_quality(cases, LOW_SNR)))
+    if flights:
+        title = ('Flown: vehicle-aware plans on ArduCopter SITL, autopilot time; the plan '
+                 'states the throughput of its predicted flight')
+        reason = why_not_runnable(sitl)
+        if reason:
+            section(title, f'skipped: {reason}')
+        else:
+            rows = [(case, *fly_case(case, sitl)) for case in flight_cases(quick)]
+            section(title, format_flights(rows))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    run(quick=args.quick)
+    run(quick=args.quick, flights=not args.no_flights, sitl=args.sitl)
     return 0
 
 

@@ -274,7 +274,7 @@ def _command_sweep(args: argparse.Namespace) -> int:
 
 
 def _command_bench(args: argparse.Namespace) -> int:
-    bench.run(quick=args.quick)
+    bench.run(quick=args.quick, flights=not args.no_flights, sitl=args.sitl)
     return 0
 
 

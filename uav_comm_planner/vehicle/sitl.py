@@ -1,10 +1,12 @@
-"""ArduCopter software-in-the-loop for the tests: start it, fly a mission, record the flight.
+"""ArduCopter software-in-the-loop: start it, fly a mission, record the flight.
 
-The binary is ``$UAV_COMM_PLANNER_SITL`` if set, else ``arducopter`` beside this checkout in
-``../shared/sitl/`` (with ArduPilot's ``copter.parm`` next to it), else ``arducopter`` on the
-PATH. Each vehicle runs in its own temporary folder on its own ``-I`` instance (TCP port
-5760 + 10 I), at a speedup, and is ended by its PID. Every time here is autopilot time
-(``time_boot_ms``), never the wall clock.
+For the flight tests and the benchmark, and for an integrator who wants to see a plan flown
+before a real vehicle flies it. The binary is ArduPilot's ``arducopter`` built for the SITL
+board (``./waf configure --board sitl && ./waf copter``): the path given, else
+``$UAV_COMM_PLANNER_SITL``, else ``arducopter`` on the PATH; ArduPilot's ``copter.parm``
+beside it is loaded as defaults when present. Each vehicle runs in its own folder on its own
+``-I`` instance (TCP port 5760 + 10 I), at a speedup, and is ended by its PID. Every time here
+is autopilot time (``time_boot_ms``), never the wall clock.
 """
 
 from __future__ import annotations
@@ -20,11 +22,15 @@ import time
 import numpy as np
 from pymavlink import mavutil
 
-from uav_comm_planner.vehicle.geodesy import Home
-from uav_comm_planner.vehicle.link import connect
+from uav_comm_planner.errors import VehicleLinkError
+from uav_comm_planner.vehicle.evaluation import evaluate_flight, FlightReport
+from uav_comm_planner.vehicle.flyable import VehiclePlan
+from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
+from uav_comm_planner.vehicle.link import connect, upload_and_verify
+from uav_comm_planner.vehicle.mission import build_mission_items, NAV_WAYPOINT
 
 MAV = mavutil.mavlink
-REPO = Path(__file__).resolve().parents[1]
+ENVIRONMENT_VARIABLE = 'UAV_COMM_PLANNER_SITL'
 SPEEDUP = 20
 BASE_PORT = 5760
 #: Commands ArduCopter refuses while its EKF and GPS settle are retried for this long.
@@ -32,22 +38,21 @@ READY_TIMEOUT_S = 180.0
 COPTER_MODES = {'GUIDED': 4, 'AUTO': 3}
 
 
-def sitl_binary() -> Path | None:
+def sitl_binary(path: str | os.PathLike | None = None) -> Path | None:
     """The ArduCopter SITL executable, or None when there is none to run."""
-    candidates = [os.environ.get('UAV_COMM_PLANNER_SITL'),
-                  REPO.parent / 'shared' / 'sitl' / 'arducopter', shutil.which('arducopter')]
+    candidates = [path, os.environ.get(ENVIRONMENT_VARIABLE), shutil.which('arducopter')]
     for candidate in candidates:
         if candidate and Path(candidate).is_file() and os.access(candidate, os.X_OK):
             return Path(candidate)
     return None
 
 
-def why_not_runnable() -> str:
-    """Empty when SITL can run here, else the reason (for a pytest skip)."""
-    binary = sitl_binary()
+def why_not_runnable(path: str | os.PathLike | None = None) -> str:
+    """Empty when SITL can run here, else the reason."""
+    binary = sitl_binary(path)
     if binary is None:
-        return ('no ArduCopter SITL binary: set UAV_COMM_PLANNER_SITL or put arducopter in '
-                '../shared/sitl/ beside the checkout')
+        return (f'no ArduCopter SITL binary: set {ENVIRONMENT_VARIABLE} or put arducopter on '
+                f'the PATH')
     try:
         subprocess.run([str(binary), '--help'], capture_output=True, timeout=20)
     except (OSError, subprocess.TimeoutExpired) as exc:
@@ -72,7 +77,7 @@ def free_instance(first: int = 10) -> int:
         base = BASE_PORT + 10 * instance
         if all(_port_free(base + offset) for offset in range(3)):
             return instance
-    raise RuntimeError('no free SITL instance between 10 and 59')
+    raise VehicleLinkError('no free SITL instance between 10 and 59')
 
 
 @dataclass
@@ -98,9 +103,12 @@ class Sitl:
                 self.process.wait(10)
 
 
-def start_sitl(folder: Path, home: Home, *, speedup: int = SPEEDUP) -> Sitl:
+def start_sitl(folder: Path, home: Home, *, speedup: int = SPEEDUP,
+               binary: str | os.PathLike | None = None) -> Sitl:
     """Start ArduCopter in ``folder`` (wiped parameters, ArduPilot's copter defaults)."""
-    binary = sitl_binary()
+    binary = sitl_binary(binary)
+    if binary is None:
+        raise VehicleLinkError(why_not_runnable())
     instance = free_instance()
     command = [str(binary), '--model', '+', '--speedup', str(speedup), '-w',
                f'-I{instance}',
@@ -118,8 +126,8 @@ def open_link(sitl: Sitl, timeout_s: float = 60.0):
     deadline = time.monotonic() + timeout_s
     while True:
         if sitl.process.poll() is not None:
-            raise RuntimeError(f'SITL exited with {sitl.process.returncode}; see '
-                               f'{sitl.folder / "sitl.log"}')
+            raise VehicleLinkError(f'SITL exited with {sitl.process.returncode}; see '
+                                   f'{sitl.folder / "sitl.log"}')
         try:
             with socket.create_connection(('127.0.0.1', BASE_PORT + 10 * sitl.instance), 1):
                 pass
@@ -141,7 +149,7 @@ def set_parameter(link, name: str, value: float, timeout_s: float = 10.0) -> Non
         reply = link.recv_match(type='PARAM_VALUE', blocking=True, timeout=1.0)
         if reply is not None and reply.param_id == name and abs(reply.param_value - value) < 1e-3:
             return
-    raise RuntimeError(f'{name} was not set to {value}')
+    raise VehicleLinkError(f'{name} was not set to {value}')
 
 
 def request_position_stream(link, rate_hz: float = 10.0) -> None:
@@ -177,7 +185,7 @@ def take_off(link, altitude_m: float) -> None:
                         altitude_m) == MAV.MAV_RESULT_ACCEPTED:
                 return
         time.sleep(1.0)
-    raise RuntimeError(f'ArduCopter did not arm and take off within {READY_TIMEOUT_S:g} s')
+    raise VehicleLinkError(f'ArduCopter did not arm and take off within {READY_TIMEOUT_S:g} s')
 
 
 @dataclass
@@ -199,8 +207,6 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
 
     ``timeout_s`` is autopilot time after the switch.
     """
-    from uav_comm_planner.vehicle.geodesy import geodetic_to_enu
-
     request_position_stream(link)
     set_mode(link, 'AUTO')
     times, latitudes, longitudes, altitudes = [], [], [], []
@@ -211,7 +217,7 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
         message = link.recv_match(type=['GLOBAL_POSITION_INT', 'STATUSTEXT'], blocking=True,
                                   timeout=10.0)
         if message is None:
-            raise RuntimeError('the vehicle went silent during the flight')
+            raise VehicleLinkError('the vehicle went silent during the flight')
         if message.get_type() == 'STATUSTEXT':
             text = message.text
             if text.startswith('Reached command #') and clock_s is not None:
@@ -222,7 +228,7 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
         clock_s = message.time_boot_ms / 1000.0
         started_s = clock_s if started_s is None else started_s
         if clock_s - started_s > timeout_s:
-            raise RuntimeError(f'item {last_item} not reached {timeout_s:g} s after AUTO')
+            raise VehicleLinkError(f'item {last_item} not reached {timeout_s:g} s after AUTO')
         times.append(clock_s)
         latitudes.append(message.lat / 1e7)
         longitudes.append(message.lon / 1e7)
@@ -231,3 +237,59 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
                                      np.full(len(latitudes), home.altitude_m), home)
     return FlightRecord(np.array(times), np.column_stack([east, north]), np.array(altitudes),
                         reached)
+
+
+#: ArduCopter refuses a mission right after connecting: the upload is tried this many times.
+UPLOAD_ATTEMPTS = 10
+
+
+def upload(link, items) -> None:
+    """Upload and verify, retrying while the autopilot is still busy starting up."""
+    for attempt in range(UPLOAD_ATTEMPTS):
+        try:
+            upload_and_verify(link, items)
+            return
+        except VehicleLinkError:
+            if attempt == UPLOAD_ATTEMPTS - 1:
+                raise
+            time.sleep(1.0)
+
+
+@dataclass(frozen=True)
+class SitlFlight:
+    """A vehicle plan flown in SITL: the report against the plan, and qF's arrival time (s
+    after the plan's clock started)."""
+
+    report: FlightReport
+    arrival_s: float
+    record: FlightRecord
+
+
+def fly_plan(vehicle_plan: VehiclePlan, folder: Path, *, home: Home,
+             parameters: dict[str, float] | None = None,
+             binary: str | os.PathLike | None = None) -> SitlFlight:
+    """Fly ``vehicle_plan``'s mission on a fresh ArduCopter SITL in ``folder``.
+
+    ``parameters`` are set before the upload (FENCE_ENABLE is always 0: copter.parm's fence
+    would end a mission that goes further than 150 m). The plan's clock starts when the
+    vehicle starts holding at q0: ArduCopter announces the q0 waypoint when its hold ends.
+    """
+    scenario = vehicle_plan.ideal.scenario
+    items = build_mission_items(vehicle_plan, home, firmware=vehicle_plan.schedule.firmware)
+    last_waypoint = max(i for i, item in enumerate(items) if item.command == NAV_WAYPOINT)
+    vehicle = start_sitl(folder, home, binary=binary)
+    try:
+        link = open_link(vehicle)
+        for name, value in {'FENCE_ENABLE': 0, **(parameters or {})}.items():
+            set_parameter(link, name, value)
+        upload(link, items)
+        take_off(link, scenario.altitude_m)
+        horizon_s = scenario.slot_s * (scenario.num_slots + 1)
+        record = fly_auto(link, home, last_item=last_waypoint, timeout_s=2 * horizon_s + 300)
+        link.close()
+    finally:
+        vehicle.stop()
+    start_s = record.reached[2] - items[2].params[0]
+    report = evaluate_flight(vehicle_plan.flown, vehicle_plan.schedule.flight.track(),
+                             record.times_s, record.positions_m, start_s)
+    return SitlFlight(report, record.reached[last_waypoint] - start_s, record)
