@@ -17,13 +17,14 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from sitl import (open_link, request_position_stream, set_mode, set_parameter, start_sitl,
-                  take_off, why_not_runnable)
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.core.receding import mission_rates_flown
 from uav_comm_planner.ros.messages import pose_array
 from uav_comm_planner.ros.node import GROUND_NODES_QOS, PlannerNode, TOPIC_GROUND_NODES
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
+from uav_comm_planner.vehicle.sitl import (open_link, request_position_stream, set_mode,
+                                           set_parameter, start_sitl, take_off,
+                                           why_not_runnable)
 
 HOME = Home(-35.363262, 149.165237, 584.0)
 SPEED_MPS = 10.0
