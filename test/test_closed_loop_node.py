@@ -12,6 +12,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 import numpy as np
+import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
@@ -186,3 +187,24 @@ def test_a_20_hz_pose_stream_replans_a_bounded_number_of_times(harness):
     assert 1 <= replans <= seconds / interval_s + 1
     h.published(h.node.plans_published)
     assert h.node.current_plan.receding is not None
+
+
+def test_a_replan_in_flight_is_planned_for_the_vehicle(harness):
+    h = harness(vehicle_aware=True, max_speed_mps=10.0, horizon_s=400.0, num_slots=50)
+    h.published(1)
+    assert h.node.current_plan.vehicle_plan is not None
+    assert h.call('start', Trigger.Request()).success
+    answer = h.call('set_parameters', SetParameters.Request(
+        parameters=[Parameter('power_budget_w', value=4.0).to_parameter_msg()]))
+    assert answer.results[0].successful
+    h.published(2)
+    outcome = h.node.current_plan
+    assert outcome.receding is not None and outcome.vehicle_plan is not None
+    # The published plan is the one the vehicle flies: its trajectory is the schedule's.
+    scenario = outcome.result.scenario
+    np.testing.assert_allclose(
+        outcome.vehicle_plan.schedule.flight.positions(scenario.times_s),
+        outcome.result.trajectory)
+    assert outcome.receding.mission_energy_w <= 4.0 * (1 + 1e-9)
+    rates = outcome.receding.mission_rates
+    assert rates.min() == pytest.approx(outcome.min_throughput, rel=1e-12)
