@@ -11,6 +11,7 @@ from __future__ import annotations
 import threading
 import time
 
+from geometry_msgs.msg import PoseStamped
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor
@@ -20,7 +21,8 @@ from rclpy.parameter import Parameter
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.core.receding import mission_rates_flown
 from uav_comm_planner.ros.messages import pose_array
-from uav_comm_planner.ros.node import GROUND_NODES_QOS, PlannerNode, TOPIC_GROUND_NODES
+from uav_comm_planner.ros.node import (GROUND_NODES_QOS, PlannerNode, TOPIC_GROUND_NODES,
+                                       TOPIC_VEHICLE_POSE)
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.sitl import (open_link, request_position_stream, set_mode,
                                            set_parameter, start_sitl, take_off,
@@ -83,6 +85,8 @@ def test_the_node_flies_a_changing_mission_within_budget(ros_context, tmp_path):
         probe = Node('closed_loop_probe', context=ros_context)
         nodes_pub = probe.create_publisher(type(pose_array([], 'map')), TOPIC_GROUND_NODES,
                                            GROUND_NODES_QOS)
+        vehicle_poses: list[PoseStamped] = []
+        probe.create_subscription(PoseStamped, TOPIC_VEHICLE_POSE, vehicle_poses.append, 10)
         executor = SingleThreadedExecutor(context=ros_context)
         executor.add_node(node)
         executor.add_node(probe)
@@ -118,6 +122,11 @@ def test_the_node_flies_a_changing_mission_within_budget(ros_context, tmp_path):
                 break
         assert node.uploads_verified >= 2
         assert node.error_count == 0, node.last_error
+        # The replan was flown from its q0 item on: the vehicle never went back to the takeoff.
+        assert node.mission_item is not None and node.mission_item > 2
+        assert vehicle_poses, 'no vehicle_pose published'
+        last = vehicle_poses[-1].pose.position
+        assert abs(last.z - 100.0) < 5.0
 
         outcome = node.current_plan
         assert outcome.receding is not None

@@ -89,6 +89,9 @@ GROUND_NODES_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
 #: Best effort accepts pose streams of either reliability; only the latest pose matters.
 UAV_POSE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
                           durability=DurabilityPolicy.VOLATILE)
+#: Reliable, so that subscribers of either reliability hear the vehicle's pose.
+VEHICLE_POSE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                              durability=DurabilityPolicy.VOLATILE)
 
 
 class PlannerNode(Node):
@@ -134,7 +137,8 @@ class PlannerNode(Node):
         self._upload_pending: int | None = None
         self.uploads_verified = 0
         self.mission_item: int | None = None
-        self._vehicle_pose = self.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE, UAV_POSE_QOS)
+        self._vehicle_pose = self.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE,
+                                                   VEHICLE_POSE_QOS)
 
         self._publisher = PlanPublisher(self)
         self.create_subscription(PoseArray, TOPIC_GROUND_NODES, self._on_ground_nodes,
