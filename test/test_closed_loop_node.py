@@ -5,6 +5,7 @@ only off the plan and at a bounded rate."""
 from __future__ import annotations
 
 import os
+import socket
 import subprocess
 import sys
 import threading
@@ -208,3 +209,22 @@ def test_a_replan_in_flight_is_planned_for_the_vehicle(harness):
     assert outcome.receding.mission_energy_w <= 4.0 * (1 + 1e-9)
     rates = outcome.receding.mission_rates
     assert rates.min() == pytest.approx(outcome.min_throughput, rel=1e-12)
+
+
+def test_an_unreachable_vehicle_is_said_once_and_start_is_left_to_the_link(harness):
+    with socket.create_server(('127.0.0.1', 0)) as unused:
+        port = unused.getsockname()[1]
+    h = harness(mavlink_url=f'tcp:127.0.0.1:{port}')
+    h.published(1)
+
+    def link_errors() -> list[str]:
+        return [line for line in h.error_logs if 'retrying' in line]
+    h.spin_until(lambda: link_errors(), 'link error on /rosout')
+    assert f'cannot open {h.node.get_parameter("mavlink_url").value!r}' in link_errors()[0]
+    began = time.monotonic()
+    while time.monotonic() - began < 3.0:          # several reconnection attempts
+        h.executor.spin_once(timeout_sec=0.05)
+    assert len(link_errors()) == 1
+    answer = h.call('start', Trigger.Request())
+    assert not answer.success and 'mavlink_url' in answer.message
+    assert not h.node.progress.started

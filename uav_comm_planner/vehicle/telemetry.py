@@ -116,13 +116,17 @@ class VehicleBridge:
         self._thread.join(timeout_s)
 
     def _run(self) -> None:
+        refused = ''
         while not self._stop.is_set():
             try:
                 link = connect(self.url, timeout_s=self._connect_timeout_s)
             except VehicleLinkError as exc:
-                self._on_event(LinkEvent('error', str(exc)))
+                if str(exc) != refused:            # said once, not at every retry
+                    refused = str(exc)
+                    self._on_event(LinkEvent('error', f'{exc}; retrying'))
                 self._stop.wait(RECONNECT_PAUSE_S)
                 continue
+            refused = ''
             try:
                 self._on_event(LinkEvent('connected', f'vehicle link up on {self.url}'))
                 self._serve(link)
