@@ -21,7 +21,7 @@ from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.link import download_mission, mismatches
 from uav_comm_planner.vehicle.mission import export_mission
 from uav_comm_planner.vehicle.sitl import open_link, start_sitl, why_not_runnable
-from uav_comm_planner.vehicle.upload import read_waypoints
+from uav_comm_planner.vehicle.upload import read_mission_file, read_waypoints
 
 HOME = Home(-35.363262, 149.165237, 584.0)
 CLI = [sys.executable, '-m', 'uav_comm_planner.tools.cli']
@@ -66,6 +66,20 @@ def test_upload_puts_the_mission_on_the_vehicle_and_reads_it_back(vehicle, missi
     stored = download_mission(link)
     assert mismatches(items, stored) == []
     assert len(stored) == len(items) > 5
+
+
+@needs_sitl
+def test_a_qgroundcontrol_plan_file_uploads_the_same_mission(vehicle, mission_file):
+    link, url, _ = vehicle
+    plan_file = mission_file.with_suffix('.plan')
+    scenario = paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0, num_slots=50)
+    export_mission(plan(scenario, SolverSettings(compute_baselines=False)), plan_file, HOME)
+    done = upload(plan_file, url)
+    assert done.returncode == 0, done.stderr
+    items = read_mission_file(plan_file)
+    assert [item.command for item in items] == [
+        item.command for item in read_mission_file(mission_file)]
+    assert mismatches(items, download_mission(link)) == []
 
 
 def refused_item_file(mission_file: Path, folder: Path) -> Path:
@@ -151,5 +165,9 @@ def test_no_vehicle_and_bad_files_are_one_line_and_exit_2(tmp_path, mission_file
     text.write_text('not a mission')
     done = upload(text, 'tcp:127.0.0.1:1')
     assert done.returncode == 2 and '.waypoints' in done.stderr
+    broken = tmp_path / 'broken.plan'
+    broken.write_text('{"mission": {}}')
+    done = upload(broken, 'tcp:127.0.0.1:1')
+    assert done.returncode == 2 and 'not a QGroundControl .plan' in done.stderr
     done = upload(tmp_path / 'missing.waypoints', 'tcp:127.0.0.1:1')
     assert done.returncode == 2 and 'no such mission file' in done.stderr

@@ -339,8 +339,8 @@ def build_parser() -> argparse.ArgumentParser:
     sweep_parser.set_defaults(handler=_command_sweep)
 
     upload_parser = commands.add_parser(
-        'upload', help='upload a .waypoints mission over MAVLink and verify it by reading back')
-    upload_parser.add_argument('mission', type=Path, metavar='MISSION.waypoints')
+        'upload', help='upload a mission over MAVLink and verify it by reading it back')
+    upload_parser.add_argument('mission', type=Path, metavar='MISSION.waypoints|MISSION.plan')
     upload_parser.add_argument('--connect', required=True, metavar='URL',
                                help='pymavlink URL: tcp:127.0.0.1:5760, udpin:0.0.0.0:14550, '
                                     '/dev/ttyACM0,115200')
