@@ -24,13 +24,13 @@ from uav_comm_planner.vehicle.timing import (leg_time, peak_speed, Profile, ramp
                                              speed_for_time)
 
 DEFAULTS = VehicleLimits()
-A, J = DEFAULTS.max_accel_mpss, DEFAULTS.ramp_jerk_mpsss
+A, J, TJ = DEFAULTS.max_accel_mpss, DEFAULTS.max_jerk_mpsss, DEFAULTS.jerk_time_s
 
 
 def multirotor_case_one(**overrides) -> Scenario:
     """The letter's case I flown at a multirotor's 10 m/s: 400 s in 100 slots of 4 s."""
-    return paper_scenario('I', **{'max_speed_mps': 10.0, 'horizon_s': 400.0,
-                                   'num_slots': 100, **overrides})
+    settings = {'max_speed_mps': 10.0, 'horizon_s': 400.0, 'num_slots': 100, **overrides}
+    return paper_scenario('I', **settings)
 
 
 def random_scenario(seed: int) -> Scenario:
@@ -65,40 +65,48 @@ def arducopter_ramp(speed_mps, accel, jerk, jerk_time_s, dt=1e-4):
 
 def test_ramps_are_arducopter_scurve_durations():
     # ArduPilot's SCurve: reaching V takes V / A + A / J + tj; tj = 0.3 s by default.
-    assert DEFAULTS.jerk_time_s == 0.3
-    assert leg_time(1000.0, 10.0, A, J) == pytest.approx(100.0 + 4.0 + 2.5 + 0.3)
-    assert 2 * ramp_distance(10.0, A, J) == pytest.approx(10.0 * (4.0 + 2.5 + 0.3))
-    assert peak_speed(68.0, 10.0, A, J) == pytest.approx(10.0)
-    assert peak_speed(48.0, 10.0, A, J) < 9.0
+    assert TJ == 0.3
+    assert leg_time(1000.0, 10.0, DEFAULTS) == pytest.approx(100.0 + 4.0 + 2.5 + 0.3)
+    assert 2 * ramp_distance(10.0, DEFAULTS) == pytest.approx(10.0 * (4.0 + 2.5 + 0.3))
+    assert peak_speed(68.0, 10.0, DEFAULTS) == pytest.approx(10.0)
+    assert peak_speed(48.0, 10.0, DEFAULTS) < 9.0
 
 
 @pytest.mark.parametrize('speed_mps', [7.5, 10.0, 12.0, 15.0])
 def test_ramps_match_arducopters_raised_cosine_jerk_integrated(speed_mps):
-    seconds, metres = arducopter_ramp(speed_mps, A, DEFAULTS.max_jerk_mpsss,
-                                      DEFAULTS.jerk_time_s)
-    assert seconds == pytest.approx(speed_mps / A + A / J, abs=1e-3)
-    assert metres == pytest.approx(ramp_distance(speed_mps, A, J), rel=1e-3)
-    # A long leg: both ramps and the cruise between them.
-    assert leg_time(1000.0, speed_mps, A, J) == pytest.approx(
+    seconds, metres = arducopter_ramp(speed_mps, A, J, TJ)
+    assert seconds == pytest.approx(speed_mps / A + A / J + TJ, abs=1e-3)
+    assert metres == pytest.approx(ramp_distance(speed_mps, DEFAULTS), rel=1e-3)
+    # A long leg: both ramps and the cruise between them, and the same positions throughout.
+    assert leg_time(1000.0, speed_mps, DEFAULTS) == pytest.approx(
         2 * seconds + (1000.0 - 2 * metres) / speed_mps, abs=1e-2)
+    profile = Profile.rest_to_rest(1000.0, speed_mps, DEFAULTS)
+    assert profile.distance(np.array([seconds]))[0] == pytest.approx(metres, abs=1e-2)
 
 
-def test_profile_ends_at_the_leg_and_never_goes_back():
-    for length_m, speed_mps in [(1000.0, 10.0), (30.0, 10.0), (0.5, 3.0)]:
-        profile = Profile.rest_to_rest(length_m, speed_mps, A, J)
-        t = np.linspace(0.0, profile.duration_s, 2001)
-        s = profile.distance(t)
-        assert s[0] == 0.0 and s[-1] == pytest.approx(length_m, rel=1e-9)
-        assert np.all(np.diff(s) >= -1e-9)
-        assert np.diff(s).max() / (t[1] - t[0]) <= speed_mps * (1 + 1e-6)
-        assert profile.duration_s == pytest.approx(leg_time(length_m, speed_mps, A, J))
+@pytest.mark.parametrize('length_m', [0.1, 0.5, 4.0, 12.0, 30.0, 50.0, 68.0, 300.0])
+@pytest.mark.parametrize('speed_mps', [0.5, 2.0, 10.0, 15.0])
+def test_every_scurve_branch_is_a_rest_to_rest_leg_within_the_limits(length_m, speed_mps):
+    """Short legs and slow speeds take SCurve's reduced branches; each must still be a motion
+    from rest to rest over exactly the leg, within the speed and acceleration limits."""
+    profile = Profile.rest_to_rest(length_m, speed_mps, DEFAULTS)
+    t = np.linspace(0.0, profile.duration_s, 4001)
+    s = profile.distance(t)
+    v = np.gradient(s, t)
+    a = np.gradient(v, t)
+    assert s[0] == 0.0 and s[-1] == pytest.approx(length_m, rel=1e-6)
+    assert np.all(np.diff(s) >= -1e-9)
+    assert v.max() <= speed_mps * (1 + 1e-3) and abs(v[-1]) <= 1e-2 * max(speed_mps, 1)
+    assert np.abs(a[2:-2]).max() <= A * 1.01
+    assert v.max() == pytest.approx(peak_speed(length_m, speed_mps, DEFAULTS), rel=1e-2)
+    assert profile.duration_s == pytest.approx(leg_time(length_m, speed_mps, DEFAULTS))
 
 
 def test_speed_for_time_inverts_leg_time():
     for length_m, duration_s in [(200.0, 40.0), (12.0, 12.0), (500.0, 70.0)]:
-        speed = speed_for_time(length_m, duration_s, 10.0, A, J)
-        assert leg_time(length_m, speed, A, J) == pytest.approx(duration_s, abs=1e-6)
-    assert speed_for_time(500.0, 10.0, 10.0, A, J) == 10.0   # too little time: at most V
+        speed = speed_for_time(length_m, duration_s, 10.0, DEFAULTS)
+        assert leg_time(length_m, speed, DEFAULTS) == pytest.approx(duration_s, abs=1e-6)
+    assert speed_for_time(500.0, 10.0, 10.0, DEFAULTS) == 10.0   # too little time: at most V
 
 
 def test_limits_are_validated_and_read_from_ground_station_files(tmp_path):
@@ -155,11 +163,11 @@ def test_the_schedule_keeps_every_limit(case_one):
     holds = [stop.hold_s for stop in schedule.stops]
     assert all(float(hold).is_integer() for hold in holds)          # ArduPilot: whole seconds
     assert min(holds[1:-1]) >= MIN_STOP_HOLD_S                      # a hover stops the vehicle
-    minimum_step = 2 * ramp_distance(DEFAULTS.max_speed_mps, A, J)
+    minimum_step = 2 * ramp_distance(DEFAULTS.max_speed_mps, DEFAULTS)
     for leg in schedule.legs:
         assert leg.speed_mps <= DEFAULTS.cruise_speed_mps
         steps = np.linalg.norm(np.diff(leg.vertices, axis=0), axis=1)
-        assert len(steps) == 1 or steps.min() >= 2 * ramp_distance(leg.speed_mps, A, J) - 1e-6
+        assert len(steps) == 1 or steps.min() >= 2 * ramp_distance(leg.speed_mps, DEFAULTS) - 1e-6
         assert steps.min() <= max(minimum_step, steps.min())
         assert np.all(turn_angles_deg(leg.vertices) <= MAX_TURN_DEG)
     # Three hovers, one over each node, and nothing else stops the vehicle.
@@ -213,4 +221,3 @@ def test_a_track_that_is_the_prediction_scores_as_the_plan(case_one):
     late = evaluate_flight(case_one.flown, flight.track(), times + 1020.0,
                            flight.positions(times), 1000.0)
     assert late.worst_reach_slots >= 4.0 and late.flown_to_stated < 1.0
-

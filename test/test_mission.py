@@ -157,8 +157,7 @@ def test_hover_holds_where_the_plan_hovers(case_one, home, tmp_path):
     waypoints = [(to_enu(item, home), item.param1) for item in items[2:]
                  if item.command == WAYPOINT]
     limits = VehicleLimits()
-    stop_cost = ramp_time(limits.cruise_speed_mps, limits.max_accel_mpss,
-                          limits.ramp_jerk_mpsss) + 1.0
+    stop_cost = ramp_time(limits.cruise_speed_mps, limits) + 1.0
     for node in case_one.scenario.nodes:
         near = np.linalg.norm(path - node, axis=1) < 25.0
         hovering = ((legs < 0.5) & near[:-1] & near[1:]).sum() * delta
@@ -181,7 +180,7 @@ def test_a_plan_faster_than_the_vehicle_is_refused_before_any_file(home, tmp_pat
         export_mission(fast, tmp_path / 'm.waypoints', home)
     assert list(tmp_path.iterdir()) == []
     quick = VehicleLimits(max_speed_mps=100.0, max_accel_mpss=50.0, max_jerk_mpsss=500.0,
-                          jerk_time_s=0.0)
+                          jerk_time_s=0.01)
     assert export_mission(fast, tmp_path / 'm.waypoints', home, limits=quick).is_file()
 
 

@@ -66,15 +66,14 @@ class FlightReport:
 
 def distance_to_polyline(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """Distance (K,) of each point (K, 2) from the polyline through ``vertices`` (V, 2)."""
+    if len(vertices) == 1:
+        return np.linalg.norm(points - vertices[0], axis=1)
     a, b = vertices[:-1], vertices[1:]
     ab = b - a
     length2 = np.maximum((ab ** 2).sum(axis=1), 1e-300)
     t = np.clip(((points[:, None, :] - a[None]) * ab[None]).sum(axis=2) / length2, 0.0, 1.0)
     nearest = a[None] + t[..., None] * ab[None]
-    distances = np.linalg.norm(points[:, None, :] - nearest, axis=2)
-    if len(vertices) == 1:
-        return np.linalg.norm(points - vertices[0], axis=1)
-    return distances.min(axis=1)
+    return np.linalg.norm(points[:, None, :] - nearest, axis=2).min(axis=1)
 
 
 def positions_at(times_s: np.ndarray, track_times_s: np.ndarray,

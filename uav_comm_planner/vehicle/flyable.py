@@ -6,7 +6,7 @@ simply lists the plan's points arrives late and delivers less. Here the plan bec
 the autopilot keeps:
 
 1. **Stops.** Runs of plan points within ``merge_radius_m`` of each other that last at least
-   a slot, and at least as long as a stop costs (V / A + A / J' and the leg latency, 7.5 s at
+   a slot, and at least as long as a stop costs (V / A + A / J + tj and the leg latency, 7.5 s at
    ArduCopter's defaults), are hovers: the vehicle stops there; a shorter hover is flown
    through slowly. q0 and qF are stops, and so is a turn sharper
    than ``MAX_TURN_DEG``, which the autopilot would cut.
@@ -37,6 +37,7 @@ from uav_comm_planner.core.model import average_rates, flown_path
 from uav_comm_planner.core.optimizer import optimal_power, plan, PlanResult, Step
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+from uav_comm_planner.vehicle.evaluation import distance_to_polyline
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.timing import (Dwell, Flight, Leg, LEG_LATENCY_S, Profile,
                                              ramp_distance, ramp_time, speed_for_time)
@@ -126,16 +127,6 @@ def _stop_position(points: np.ndarray, first: int, last: int) -> np.ndarray:
     return run[int(np.argmin(spread))].copy()
 
 
-def _deviation(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance of each point (K, 2) from the segment a-b."""
-    ab = b - a
-    length2 = float(ab @ ab)
-    if length2 == 0.0:
-        return np.linalg.norm(points - a, axis=1)
-    t = np.clip((points - a) @ ab / length2, 0.0, 1.0)
-    return np.linalg.norm(points - (a + t[:, None] * ab), axis=1)
-
-
 def simplify(points: np.ndarray, tolerance_m: float) -> list[int]:
     """Douglas-Peucker: indices of the points kept so every point is within the tolerance."""
     keep = {0, len(points) - 1}
@@ -145,7 +136,7 @@ def simplify(points: np.ndarray, tolerance_m: float) -> list[int]:
         if last - first < 2:
             continue
         inner = points[first + 1:last]
-        gaps = _deviation(inner, points[first], points[last])
+        gaps = distance_to_polyline(inner, points[[first, last]])
         worst = int(np.argmax(gaps))
         if gaps[worst] > tolerance_m:
             split = first + 1 + worst
@@ -164,8 +155,9 @@ def _drop_short_steps(points: np.ndarray, kept: list[int], min_step_m: float) ->
             break
         short = int(np.argmin(steps))
         candidates = [i for i in (short, short + 1) if 0 < i < len(kept) - 1]
-        cost = [float(_deviation(points[kept[i - 1]:kept[i + 1] + 1], points[kept[i - 1]],
-                                 points[kept[i + 1]]).max()) for i in candidates]
+        cost = [float(distance_to_polyline(points[kept[i - 1]:kept[i + 1] + 1],
+                                           points[[kept[i - 1], kept[i + 1]]]).max())
+                for i in candidates]
         del kept[candidates[int(np.argmin(cost))]]
     return kept
 
@@ -214,10 +206,9 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     points = flown_path(np.asarray(result.trajectory, dtype=float), scenario)
     times = scenario.slot_s * np.arange(len(points), dtype=float)
     cruise = limits.cruise_speed_mps
-    accel, jerk = limits.max_accel_mpss, limits.ramp_jerk_mpsss
     runs = _stop_runs(points, scenario.slot_s, merge_radius_m, path_tolerance_m,
-                      2.0 * ramp_distance(cruise, accel, jerk),
-                      max(scenario.slot_s, ramp_time(cruise, accel, jerk) + LEG_LATENCY_S)
+                      2.0 * ramp_distance(cruise, limits),
+                      max(scenario.slot_s, ramp_time(cruise, limits) + LEG_LATENCY_S)
                       if stop_at_hovers else math.inf)
     resolution = HOLD_RESOLUTION_S[firmware]
 
@@ -227,13 +218,13 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
                                                       positions[1:]):
         path = np.vstack([here, points[last + 1:following], there])
         planned_s = times[following] - times[last]
-        speed = max(speed_for_time(length_of(path), planned_s, cruise, accel, jerk),
+        speed = max(speed_for_time(length_of(path), planned_s, cruise, limits),
                     MIN_SPEED_MPS)
         speed = min(round(speed, 2), cruise)
         kept = _drop_short_steps(path, simplify(path, path_tolerance_m),
-                                 2.0 * ramp_distance(speed, accel, jerk))
+                                 2.0 * ramp_distance(speed, limits))
         shapes.append((path[kept], speed,
-                       Profile.rest_to_rest(length_of(path[kept]), speed, accel, jerk)))
+                       Profile.rest_to_rest(length_of(path[kept]), speed, limits)))
     # Centre each leg's motion on the plan's time for it, but start it no later than lets
     # every later leg, with the shortest holds, reach qF by the end of the horizon.
     minimum_holds = [0.0] + [MIN_STOP_HOLD_S] * (len(shapes) - 1)
@@ -269,8 +260,8 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     if schedule.arrival_s > end + GOAL_TOLERANCE_SLOTS * scenario.slot_s:
         raise InfeasibleHorizonError(
             f'the vehicle cannot fly this plan on time: with cruise speed '
-            f'{limits.describe_cruise()}, acceleration {accel:g} m/s/s and jerk '
-            f'{limits.max_jerk_mpsss:g} m/s/s/s it reaches the goal at '
+            f'{limits.describe_cruise()}, acceleration {limits.max_accel_mpss:g} m/s/s and '
+            f'jerk {limits.max_jerk_mpsss:g} m/s/s/s it reaches the goal at '
             f'{schedule.arrival_s:.1f} s, the horizon ends at {end:g} s ({len(legs)} legs, '
             f'{len(stops) - 2} stops): lengthen horizon_s by '
             f'{math.ceil(schedule.arrival_s - end)} s or more')

@@ -57,8 +57,8 @@ class VehicleLimits:
                 raise InvalidScenarioError(f'vehicle {name} must be a positive finite number, '
                                            f'got {value!r}')
         if (isinstance(self.jerk_time_s, bool) or not isinstance(self.jerk_time_s, (int, float))
-                or not 0 <= self.jerk_time_s < 10):
-            raise InvalidScenarioError(f'vehicle jerk_time_s must be in [0, 10) s, got '
+                or not 0 < self.jerk_time_s < 10):
+            raise InvalidScenarioError(f'vehicle jerk_time_s must be in (0, 10) s, got '
                                        f'{self.jerk_time_s!r}')
         speed = self.airframe_speed_mps
         if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not speed > 0:
@@ -69,12 +69,6 @@ class VehicleLimits:
     def cruise_speed_mps(self) -> float:
         """The fastest the vehicle flies a waypoint leg: min(max_speed, airframe_speed)."""
         return min(self.max_speed_mps, self.airframe_speed_mps)
-
-    @property
-    def ramp_jerk_mpsss(self) -> float:
-        """The constant jerk whose ramps take as long as the autopilot's: reaching speed V
-        takes V / A + A / J + tj (ArduPilot's SCurve), that is V / A + A / J' with this J'."""
-        return 1.0 / (1.0 / self.max_jerk_mpsss + self.jerk_time_s / self.max_accel_mpss)
 
     def describe_cruise(self) -> str:
         if self.airframe_speed_mps < self.max_speed_mps:

@@ -70,14 +70,22 @@ def _port_free(port: int) -> bool:
     return True
 
 
-def free_instance(first: int = 10) -> int:
-    """An instance number whose MAVLink port and its neighbours are free."""
-    start = first + os.getpid() % 40
-    for instance in list(range(start, 60)) + list(range(first, start)):
+#: Instances this process has started, never handed out again: a port just closed may linger.
+_USED_INSTANCES: set[int] = set()
+
+
+def free_instance(first: int = 10, last: int = 59) -> int:
+    """An instance number whose MAVLink port and its neighbours are free; processes start
+    their search at different places, so that test runs side by side rarely meet."""
+    span = last - first + 1
+    start = first + os.getpid() % span
+    for offset in range(span):
+        instance = first + (start - first + offset) % span
         base = BASE_PORT + 10 * instance
-        if all(_port_free(base + offset) for offset in range(3)):
+        if instance not in _USED_INSTANCES and all(_port_free(base + k) for k in range(3)):
+            _USED_INSTANCES.add(instance)
             return instance
-    raise VehicleLinkError('no free SITL instance between 10 and 59')
+    raise VehicleLinkError(f'no free SITL instance between {first} and {last}')
 
 
 @dataclass
@@ -103,40 +111,47 @@ class Sitl:
                 self.process.wait(10)
 
 
+#: What ArduCopter SITL prints once its MAVLink port listens.
+LISTENING = b'Waiting for connection'
+START_ATTEMPTS = 3
+
+
 def start_sitl(folder: Path, home: Home, *, speedup: int = SPEEDUP,
-               binary: str | os.PathLike | None = None) -> Sitl:
-    """Start ArduCopter in ``folder`` (wiped parameters, ArduPilot's copter defaults)."""
+               binary: str | os.PathLike | None = None, timeout_s: float = 60.0) -> Sitl:
+    """Start ArduCopter in ``folder`` (wiped parameters, ArduPilot's copter defaults) and
+    return once its MAVLink port listens; a start that fails (a port taken meanwhile) is
+    tried again on another instance."""
     binary = sitl_binary(binary)
     if binary is None:
         raise VehicleLinkError(why_not_runnable())
-    instance = free_instance()
-    command = [str(binary), '--model', '+', '--speedup', str(speedup), '-w',
-               f'-I{instance}',
-               '--home', f'{home.latitude_deg},{home.longitude_deg},{home.altitude_m},0']
     defaults = binary.parent / 'copter.parm'
-    if defaults.is_file():
-        command += ['--defaults', str(defaults)]
-    log = open(folder / 'sitl.log', 'wb')
-    process = subprocess.Popen(command, cwd=folder, stdout=log, stderr=subprocess.STDOUT)
-    return Sitl(process, instance, home, folder)
+    log_path = folder / 'sitl.log'
+    for attempt in range(START_ATTEMPTS):
+        instance = free_instance()
+        command = [str(binary), '--model', '+', '--speedup', str(speedup), '-w',
+                   f'-I{instance}',
+                   '--home', f'{home.latitude_deg},{home.longitude_deg},{home.altitude_m},0']
+        if defaults.is_file():
+            command += ['--defaults', str(defaults)]
+        with open(log_path, 'wb') as log:
+            process = subprocess.Popen(command, cwd=folder, stdout=log,
+                                       stderr=subprocess.STDOUT)
+        sitl = Sitl(process, instance, home, folder)
+        deadline = time.monotonic() + timeout_s
+        while process.poll() is None and time.monotonic() < deadline:
+            if LISTENING in log_path.read_bytes():
+                return sitl
+            time.sleep(0.1)
+        sitl.stop()
+    raise VehicleLinkError(f'ArduCopter SITL did not start in {START_ATTEMPTS} attempts; see '
+                           f'{log_path}')
 
 
 def open_link(sitl: Sitl, timeout_s: float = 60.0):
-    """Connect to the SITL once its TCP port listens; returns a pymavlink connection."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        if sitl.process.poll() is not None:
-            raise VehicleLinkError(f'SITL exited with {sitl.process.returncode}; see '
-                                   f'{sitl.folder / "sitl.log"}')
-        try:
-            with socket.create_connection(('127.0.0.1', BASE_PORT + 10 * sitl.instance), 1):
-                pass
-            break
-        except OSError:
-            if time.monotonic() > deadline:
-                raise
-            time.sleep(0.2)
-    time.sleep(0.5)  # the probe above took the SITL's one connection; let it listen again
+    """Connect to the SITL's MAVLink port; returns a pymavlink connection."""
+    if sitl.process.poll() is not None:
+        raise VehicleLinkError(f'SITL exited with {sitl.process.returncode}; see '
+                               f'{sitl.folder / "sitl.log"}')
     return connect(sitl.url, timeout_s=timeout_s)
 
 

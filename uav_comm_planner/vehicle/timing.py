@@ -1,23 +1,22 @@
 """How long the autopilot takes to fly a leg, and where it is meanwhile.
 
-ArduCopter and PX4 fly a waypoint leg from rest to rest with a jerk-limited speed profile: the
-acceleration rises to the acceleration limit A, stays there, falls as the speed reaches the
-cruise speed V; the stop mirrors the start. ArduPilot's SCurve shapes the jerk as a raised
-cosine over a jerk time tj (2 ATC_INPUT_TC = 0.3 s by default), so reaching V from rest takes
-V / A + A / J + tj seconds. The functions here take the constant jerk J' that gives the same
-ramp time, 1 / J' = 1 / J + tj / A (:attr:`VehicleLimits.ramp_jerk_mpsss`): a ramp to V takes
-V / A + A / J' seconds over V (V / A + A / J') / 2 metres (when V >= A^2 / J'; else
-2 sqrt(V / J')), a leg of length L reaches at most the speed V with L = V (V / A + A / J'), and a
-leg flown at V takes L / V + V / A + A / J' seconds: the start and the stop each cost half of
-V / A + A / J' over flying at V throughout.
+ArduCopter flies a waypoint leg from rest to rest along ArduPilot's SCurve: the jerk rises to
+the jerk limit J as a raised cosine over the jerk time tj (2 ATC_INPUT_TC, 0.3 s by default),
+holds, falls the same way, so that the acceleration reaches the limit A; the speed then rises
+at A to the cruise speed V, and the stop mirrors the start. Reaching V from rest takes
+V / A + A / J + tj seconds over V (V / A + A / J + tj) / 2 metres (when V >= A (A / J + tj)), so
+a leg of length L reaches at most the speed V with L = V (V / A + A / J + tj), and a leg flown at
+V takes L / V + V / A + A / J + tj seconds. Shorter legs and lower speeds use the reduced
+profiles SCurve::calculate_path chooses; :func:`scurve_pieces` follows it branch by branch. PX4
+missions are timed with the same profile and its own limits.
 
 A point where the flight turns by a few degrees is flown through without slowing; a hover is a
 stop. So a flight is a chain of stops (:class:`Dwell`) joined by legs (:class:`Leg`), each leg a
 polyline flown at one cruise speed from rest to rest; :class:`Flight` gives the position at any
 time. ``LEG_LATENCY_S`` is what ArduCopter adds to each leg between the end of one hold and the
-start of the next (the vehicle settling into the waypoint radius behind its target, and
-the mission starting the next leg), measured on ArduCopter 4.7 software-in-the-loop: 0.4 to
-1.0 s over legs of 99 to 400 m.
+start of the next (the vehicle settling into the waypoint radius behind its target, and the
+mission starting the next leg), measured on ArduCopter 4.7 software-in-the-loop: 0.4 to 1.0 s
+over legs of 99 to 400 m.
 """
 
 from __future__ import annotations
@@ -28,116 +27,170 @@ from typing import Sequence
 
 import numpy as np
 
+from uav_comm_planner.vehicle.limits import VehicleLimits
+
 #: Seconds ArduCopter adds to a rest-to-rest leg beyond its S-curve (see the module docstring).
 LEG_LATENCY_S = 0.7
+#: Kinds of jerk piece: constant, raised-cosine rise, raised-cosine fall.
+CONSTANT, RISE, FALL = 0, 1, 2
 
 
-def ramp_time(speed_mps: float, accel_mpss: float, jerk_mpsss: float) -> float:
-    """Seconds to go from rest to ``speed_mps`` (or back) under the limits A and J."""
-    if speed_mps >= accel_mpss ** 2 / jerk_mpsss:
-        return speed_mps / accel_mpss + accel_mpss / jerk_mpsss
-    return 2.0 * math.sqrt(speed_mps / jerk_mpsss)
+def _ramp_shape(length_m: float, speed_mps: float,
+                limits: VehicleLimits) -> tuple[float, float, float, float, float]:
+    """SCurve::calculate_path for a rest-to-rest leg: (J, tj, t2, t4, t15) seconds.
 
-
-def ramp_distance(speed_mps: float, accel_mpss: float, jerk_mpsss: float) -> float:
-    """Metres flown while going from rest to ``speed_mps``: the ramp is symmetric, so V t / 2."""
-    return 0.5 * speed_mps * ramp_time(speed_mps, accel_mpss, jerk_mpsss)
-
-
-def peak_speed(length_m: float, speed_mps: float, accel_mpss: float,
-               jerk_mpsss: float) -> float:
-    """The fastest a rest-to-rest leg of ``length_m`` flies when asked for ``speed_mps``."""
-    if 2.0 * ramp_distance(speed_mps, accel_mpss, jerk_mpsss) <= length_m:
-        return speed_mps
-    low, high = 0.0, speed_mps
-    for _ in range(60):
-        middle = 0.5 * (low + high)
-        if 2.0 * ramp_distance(middle, accel_mpss, jerk_mpsss) <= length_m:
-            low = middle
+    t2: constant jerk inside each jerk pulse; t4: constant acceleration; t15: cruise.
+    """
+    accel, jerk, tj = limits.max_accel_mpss, limits.max_jerk_mpsss, limits.jerk_time_s
+    snap = jerk * math.pi / (2.0 * tj)
+    half = 0.5 * length_m
+    reachable = min(accel, speed_mps / (2.0 * tj), half / (4.0 * tj * tj))
+    if reachable <= 0.0:
+        return jerk, tj, 0.0, 0.0, 0.0
+    if reachable < jerk * tj:
+        # Too short or too slow for a full jerk pulse: a shorter tj, the same snap.
+        tj = min(tj, (half * math.pi / (8 * snap)) ** 0.25,
+                 (speed_mps * math.pi / (4 * snap)) ** (1 / 3),
+                 math.sqrt(accel * math.pi / (2 * snap)))
+        jerk = 2 * snap * tj / math.pi
+        accel = jerk * tj
+        t2 = 0.0
+        c = accel / jerk + tj
+        t4 = 0.0 if (speed_mps <= 2 * accel * tj or half <= 4 * accel * tj * tj) else max(
+            0.0, min((speed_mps - accel * c) / accel,
+                     0.5 * (-3 * c + math.sqrt(c * c + 8 * half / accel))))
+    else:
+        c = accel / jerk + tj
+        if speed_mps < accel * c or half < accel * c * c:
+            # The acceleration limit is not reached: the largest peak that fits.
+            by_speed = 0.5 * jerk * (math.sqrt(tj * tj + 4 * speed_mps / jerk) - tj)
+            low, high = 0.0, accel
+            for _ in range(100):
+                middle = 0.5 * (low + high)
+                if middle * (middle / jerk + tj) ** 2 < half:
+                    low = middle
+                else:
+                    high = middle
+            accel = min(accel, by_speed, 0.5 * (low + high))
+            t2, t4 = accel / jerk - tj, 0.0
         else:
-            high = middle
-    return low
+            t2 = accel / jerk - tj
+            t4 = max(0.0, min((speed_mps - accel * c) / accel,
+                              0.5 * (-3 * c + math.sqrt(c * c + 8 * half / accel))))
+    c = accel / jerk + tj
+    peak = accel * (c + t4)
+    t15 = max(0.0, (length_m - peak * (2 * c + t4)) / peak)
+    return jerk, tj, t2, t4, t15
 
 
-def leg_time(length_m: float, speed_mps: float, accel_mpss: float, jerk_mpsss: float) -> float:
+def scurve_pieces(length_m: float, speed_mps: float,
+                  limits: VehicleLimits) -> list[tuple[float, int, float]]:
+    """The leg's jerk pieces in order: (duration s, kind, peak jerk m/s^3)."""
+    jerk, tj, t2, t4, t15 = _ramp_shape(length_m, speed_mps, limits)
+    up = [(tj, RISE, jerk), (t2, CONSTANT, jerk), (tj, FALL, jerk)]
+    down = [(d, kind, -j) for d, kind, j in up]
+    return (up + [(t4, CONSTANT, 0.0)] + down + [(t15, CONSTANT, 0.0)] + down
+            + [(t4, CONSTANT, 0.0)] + up)
+
+
+def _advance(kind: int, jerk: float, duration: float, x, a, v, s):
+    """State (a, v, s) after ``x`` seconds of a piece that starts in state (a, v, s)."""
+    if kind == CONSTANT or duration <= 0.0:
+        return (a + jerk * x, v + a * x + jerk * x ** 2 / 2,
+                s + v * x + a * x ** 2 / 2 + jerk * x ** 3 / 6)
+    b, h = math.pi / duration, jerk / 2
+    sign = -1.0 if kind == RISE else 1.0
+    return (a + h * x + sign * (h / b) * np.sin(b * x),
+            v + a * x + h * x ** 2 / 2 + sign * (h / b ** 2) * (1 - np.cos(b * x)),
+            s + v * x + a * x ** 2 / 2 + h * x ** 3 / 6
+            + sign * (h / b ** 2) * (x - np.sin(b * x) / b))
+
+
+def leg_time(length_m: float, speed_mps: float, limits: VehicleLimits) -> float:
     """Seconds of a rest-to-rest leg asked to cruise at ``speed_mps`` (latency excluded)."""
     if length_m <= 0.0:
         return 0.0
-    peak = peak_speed(length_m, speed_mps, accel_mpss, jerk_mpsss)
-    cruise = length_m - 2.0 * ramp_distance(peak, accel_mpss, jerk_mpsss)
-    return 2.0 * ramp_time(peak, accel_mpss, jerk_mpsss) + max(cruise, 0.0) / peak
+    return sum(duration for duration, _, _ in scurve_pieces(length_m, speed_mps, limits))
+
+
+def ramp_time(speed_mps: float, limits: VehicleLimits) -> float:
+    """Seconds from rest to ``speed_mps``: V / A + A / J + tj when the full ramp is needed."""
+    accel, jerk, tj = limits.max_accel_mpss, limits.max_jerk_mpsss, limits.jerk_time_s
+    if speed_mps >= accel * (accel / jerk + tj):
+        return speed_mps / accel + accel / jerk + tj
+    return tj + math.sqrt(tj * tj + 4 * speed_mps / jerk)
+
+
+def ramp_distance(speed_mps: float, limits: VehicleLimits) -> float:
+    """Metres flown while going from rest to ``speed_mps``: the ramp is symmetric, V t / 2."""
+    return 0.5 * speed_mps * ramp_time(speed_mps, limits)
+
+
+def peak_speed(length_m: float, speed_mps: float, limits: VehicleLimits) -> float:
+    """The fastest a rest-to-rest leg of ``length_m`` flies when asked for ``speed_mps``."""
+    jerk, tj, t2, t4, _ = _ramp_shape(length_m, speed_mps, limits)
+    accel = jerk * (t2 + tj)
+    return accel * (accel / jerk + tj + t4)
 
 
 def speed_for_time(length_m: float, duration_s: float, max_speed_mps: float,
-                   accel_mpss: float, jerk_mpsss: float) -> float:
+                   limits: VehicleLimits) -> float:
     """The cruise speed that flies ``length_m`` rest to rest in ``duration_s`` (at most V).
 
     Returns ``max_speed_mps`` when even that is too slow for the time given.
     """
-    if leg_time(length_m, max_speed_mps, accel_mpss, jerk_mpsss) >= duration_s:
+    if leg_time(length_m, max_speed_mps, limits) >= duration_s:
         return max_speed_mps
     low, high = 0.0, max_speed_mps
     for _ in range(60):
         middle = 0.5 * (low + high)
-        if middle > 0 and leg_time(length_m, middle, accel_mpss, jerk_mpsss) <= duration_s:
+        if middle > 0 and leg_time(length_m, middle, limits) <= duration_s:
             high = middle
         else:
             low = middle
     return high
 
 
-def _jerk_segments(peak_mps: float, accel_mpss: float,
-                   jerk_mpsss: float) -> list[tuple[float, float]]:
-    """(duration s, jerk m/s^3) pieces of the ramp from rest to ``peak_mps``."""
-    if peak_mps >= accel_mpss ** 2 / jerk_mpsss:
-        rise = accel_mpss / jerk_mpsss
-        hold = peak_mps / accel_mpss - rise
-        return [(rise, jerk_mpsss), (hold, 0.0), (rise, -jerk_mpsss)]
-    rise = math.sqrt(peak_mps / jerk_mpsss)
-    return [(rise, jerk_mpsss), (rise, -jerk_mpsss)]
-
-
 @dataclass(frozen=True)
 class Profile:
-    """Distance along a rest-to-rest leg against time: piecewise-constant jerk, integrated.
+    """Distance along a rest-to-rest leg against time, from its jerk pieces.
 
-    ``knots``: (K, 4) rows of (t, s, v, a) at the start of each piece; ``jerks``: (K,).
+    ``knots``: (K, 4) rows of (t, s, v, a) at the start of each piece; ``pieces``: (K, 3) rows
+    of (duration, kind, jerk).
     """
 
     knots: np.ndarray
-    jerks: np.ndarray
+    pieces: np.ndarray
     duration_s: float
     length_m: float
 
     @classmethod
-    def rest_to_rest(cls, length_m: float, speed_mps: float, accel_mpss: float,
-                     jerk_mpsss: float) -> 'Profile':
+    def rest_to_rest(cls, length_m: float, speed_mps: float,
+                     limits: VehicleLimits) -> 'Profile':
         if length_m <= 0.0:
-            return cls(np.zeros((1, 4)), np.zeros(1), 0.0, 0.0)
-        peak = peak_speed(length_m, speed_mps, accel_mpss, jerk_mpsss)
-        start = _jerk_segments(peak, accel_mpss, jerk_mpsss)
-        cruise = max(length_m - 2.0 * ramp_distance(peak, accel_mpss, jerk_mpsss), 0.0) / peak
-        pieces = start + [(cruise, 0.0)] + [(d, -j) for d, j in start]
-        knots, jerks = [], []
+            return cls(np.zeros((1, 4)), np.array([[0.0, CONSTANT, 0.0]]), 0.0, 0.0)
+        pieces = [piece for piece in scurve_pieces(length_m, speed_mps, limits) if piece[0] > 0]
+        knots = []
         t = s = v = a = 0.0
-        for duration, jerk in pieces:
+        for duration, kind, jerk in pieces:
             knots.append((t, s, v, a))
-            jerks.append(jerk)
-            s += v * duration + a * duration ** 2 / 2 + jerk * duration ** 3 / 6
-            v += a * duration + jerk * duration ** 2 / 2
-            a += jerk * duration
+            a, v, s = _advance(kind, jerk, duration, duration, a, v, s)
             t += duration
-        return cls(np.array(knots), np.array(jerks), t, length_m)
+        return cls(np.array(knots), np.array(pieces, dtype=float), t, length_m)
 
     def distance(self, t: np.ndarray) -> np.ndarray:
         """Metres flown at times ``t`` (s from the leg's start), clipped to [0, length]."""
         t = np.clip(np.asarray(t, dtype=float), 0.0, self.duration_s)
         index = np.clip(np.searchsorted(self.knots[:, 0], t, side='right') - 1, 0,
-                        len(self.jerks) - 1)
+                        len(self.pieces) - 1)
         t0, s0, v0, a0 = self.knots[index].T
-        dt = t - t0
-        s = s0 + v0 * dt + a0 * dt ** 2 / 2 + self.jerks[index] * dt ** 3 / 6
-        return np.clip(s, 0.0, self.length_m)
+        out = np.empty_like(t)
+        for number, (duration, kind, jerk) in enumerate(self.pieces):
+            mask = index == number
+            if mask.any():
+                out[mask] = _advance(int(kind), jerk, duration, t[mask] - t0[mask], a0[mask],
+                                     v0[mask], s0[mask])[2]
+        return np.clip(out, 0.0, self.length_m)
 
 
 def polyline_point(vertices: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
