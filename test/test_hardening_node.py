@@ -95,6 +95,8 @@ def test_mission_file_goes_into_mission_dir_and_refuses_a_link_in_its_place(harn
     assert (folder / 'flight.waypoints').read_text().startswith('QGC WPL 110')
     errors = h.node.error_count
     assert set_parameter(h, 'mission_file', 'linked.waypoints').successful
+    # The mission file is an output: it is written with the next plan.
+    assert h.call('export_mission', Trigger.Request()).success is False
     h.errors_after(errors)
     assert 'symbolic link' in h.node.last_error
     assert outside.read_text() == 'foreign'

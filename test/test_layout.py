@@ -34,7 +34,8 @@ THIRD_PARTY = {
     'core': {'numpy', 'scipy', 'cvxpy', 'clarabel'},
     'vehicle': {'numpy', 'pymavlink', 'pymap3d'},
     'ros': {'numpy', 'rclpy', 'builtin_interfaces', 'geometry_msgs', 'nav_msgs', 'std_msgs',
-            'std_srvs', 'visualization_msgs', 'rcl_interfaces', 'diagnostic_msgs'},
+            'std_srvs', 'visualization_msgs', 'rcl_interfaces', 'diagnostic_msgs',
+            'trajectory_msgs'},
     'tools': {'numpy', 'scipy', 'matplotlib', 'dask', 'distributed', 'pyarrow'},
 }
 #: The top-level modules of the package that every folder may use.

@@ -120,7 +120,7 @@ class Harness:
                     and markers is not None
                     and nanoseconds_of(markers.markers[0].header.stamp) == start_ns
                     and power is not None and list(power.data) == expected_power
-                    and rate is not None and rate.data == outcome.result.min_throughput)
+                    and rate is not None and rate.data == outcome.min_throughput)
         self.spin_until(arrived, 'plan on every output topic')
 
     def send_nodes(self, points, frame_id: str = 'map') -> None:
@@ -323,21 +323,28 @@ def test_burst_of_updates_coalesces_and_ends_with_the_last(harness):
 def test_uav_pose_replans_the_rest_and_refuses_an_unreachable_goal(harness):
     h = harness()
     h.published(1)
-    h.send_pose(500.0, 50.0)
+    h.send_pose(500.0, -300.0)       # no mission clock yet: a pose alone plans nothing
+    assert h.call('start', Trigger.Request()).success
+    assert h.node.progress.started
+    h.send_pose(500.0, -300.0)
     h.published(2)
     path = h.latest(TOPIC_PATH)
     points = flight_points(path)
-    np.testing.assert_allclose(points[0], (500.0, 50.0))
+    np.testing.assert_allclose(points[0], (500.0, -300.0))
     np.testing.assert_allclose(points[-1], paper_scenario().goal_m)
     assert 3 <= len(path.poses) <= SLOTS + 2
     assert h.node.current_plan.result.scenario.slot_s == pytest.approx(SLOT_S)
     assert np.all(np.linalg.norm(np.diff(points, axis=0), axis=1) <= MAX_STEP_M * (1 + 1e-6))
+    receding = h.node.current_plan.receding
+    assert receding is not None
+    assert receding.mission_energy_w <= paper_scenario().power_budget_w * (1 + 1e-9)
 
-    errors, requests = h.node.error_count, h.node.requests_made
+    errors = h.node.error_count
+    h.node._last_pose_replan_s = -math.inf        # past the replan interval
     h.send_pose(100000.0, 0.0)
     h.errors_after(errors)
     assert 'goal unreachable' in h.node.last_error
-    assert h.node.requests_made == requests
+    assert h.node.plans_published == 2
 
 
 def test_solver_failure_is_logged_and_the_last_plan_stays(harness):
@@ -393,10 +400,12 @@ def test_mission_written_on_every_plan_and_on_demand(harness, tmp_path):
 
     (tmp_path / 'taken.waypoints').mkdir()
     nowhere = Parameter('mission_file', value='taken.waypoints')
-    errors = h.node.error_count
+    errors, requests = h.node.error_count, h.node.requests_made
     answer = h.call('set_parameters', SetParameters.Request(
         parameters=[nowhere.to_parameter_msg()]))
     assert answer.results[0].successful
+    assert h.node.requests_made == requests      # an output parameter never replans
+    assert h.call('replan', Trigger.Request()).success
     h.published(2)
     h.errors_after(errors)
     assert 'mission export failed' in h.node.last_error

@@ -14,7 +14,7 @@ import yaml
 from uav_comm_planner import (InfeasibleHorizonError, InvalidScenarioError, paper_scenario,
                               plan, Scenario, SolverSettings)
 from uav_comm_planner.ros.publishing import summary_line
-from uav_comm_planner.ros.worker import LatestOnlyWorker, remaining_scenario
+from uav_comm_planner.ros.worker import LatestOnlyWorker
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.ros.messages import (ground_nodes_of, headings, marker_array,
@@ -146,19 +146,6 @@ def test_pose_array_round_trip_ignores_height():
     message = pose_array([(1.0, 2.0), (3.0, -4.0)], 'map')
     message.poses[0].position.z = 55.0
     assert ground_nodes_of(message) == [(1.0, 2.0), (3.0, -4.0)]
-
-
-def test_remaining_scenario_drops_the_slots_that_passed():
-    scenario = paper_scenario('I', num_slots=20, horizon_s=40.0)
-    assert remaining_scenario(scenario, (10.0, 0.0), 0.0) == scenario.replace(
-        start_m=(10.0, 0.0))
-    rest = remaining_scenario(scenario, (500.0, 0.0), 5.0)
-    assert rest.num_slots == 18 and rest.slot_s == pytest.approx(2.0)
-    assert rest.start_m == (500.0, 0.0) and rest.goal_m == scenario.goal_m
-    with pytest.raises(InfeasibleHorizonError, match='horizon is over'):
-        remaining_scenario(scenario, (1900.0, 0.0), 40.0)
-    with pytest.raises(InfeasibleHorizonError, match='goal unreachable'):
-        remaining_scenario(scenario, (-5000.0, 0.0), 2.0)
 
 
 def test_worker_runs_the_newest_waiting_request_only():

@@ -36,7 +36,7 @@ from uav_comm_planner.errors import SolverError
 from uav_comm_planner.core.model import leg_lengths
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.trajectory import (kilometre_rows, KM, surrogate_coefficients,
-                                         TrajectoryStep)
+                                         TrajectoryStep, with_offsets)
 
 
 def block_slots(num_nodes: int) -> int:
@@ -306,10 +306,12 @@ class ClarabelTrajectoryStep:
         sum_rows = np.zeros(self.layout.num_nodes + self.layout.num_sums)
         return np.concatenate([sum_rows, speed.ravel(), epigraph])
 
-    def node_rows(self, q_k: np.ndarray, p: np.ndarray) -> NodeRows:
-        """The bound's weights and constants, expanded at q_k (M, 2) with power p (N, M)."""
+    def node_rows(self, q_k: np.ndarray, p: np.ndarray,
+                  offsets: np.ndarray | None = None) -> NodeRows:
+        """The bound's weights and constants, expanded at q_k (M, 2) with power p (N, M);
+        offsets o (N,) bits per use, if any, add to the constants."""
         weight, constant = kilometre_rows(surrogate_coefficients(q_k, p, self.scenario))
-        return NodeRows(weight=weight, constant=constant)
+        return NodeRows(weight=weight, constant=with_offsets(constant, offsets))
 
     def coefficients(self, rows: NodeRows) -> np.ndarray:
         """The changing entries of A: (N, M, 3), slot m's (z_x, z_y, u) coefficients in node
@@ -347,11 +349,13 @@ class ClarabelTrajectoryStep:
                                 b=(self._node_index, self.node_right_hand_side(rows).tolist()))
         return self._solver.solve()
 
-    def __call__(self, q_k: np.ndarray, p: np.ndarray, scenario: Scenario) -> TrajectoryStep:
-        """One SCA step expanded at q_k (M, 2) metres with power p (N, M) watts."""
+    def __call__(self, q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
+                 offsets: np.ndarray | None = None) -> TrajectoryStep:
+        """One SCA step expanded at q_k (M, 2) metres with power p (N, M) watts; with offsets
+        o (N,) bits per use it maximises min_n (o_n + mean_m lbr_{n,m})."""
         if scenario is not self.scenario and scenario != self.scenario:
             raise ValueError('this trajectory stepper was built for another scenario')
-        rows = self.node_rows(q_k, p)
+        rows = self.node_rows(q_k, p, offsets)
         while True:
             solution = self._solve(rows)
             z = self._positions(solution)
@@ -394,7 +398,7 @@ class ClarabelTrajectoryStep:
                     <= self.scenario.max_step_m * (1 + 1e-7))
 
 
-def trajectory_step_clarabel(q_k: np.ndarray, p: np.ndarray,
-                             scenario: Scenario) -> TrajectoryStep:
+def trajectory_step_clarabel(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
+                             offsets: np.ndarray | None = None) -> TrajectoryStep:
     """One SCA step on a fresh Clarabel solver (stateless; a plan keeps one stepper instead)."""
-    return ClarabelTrajectoryStep(scenario)(q_k, p, scenario)
+    return ClarabelTrajectoryStep(scenario)(q_k, p, scenario, offsets=offsets)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import functools
 import logging
 import math
 import time
@@ -16,7 +17,8 @@ from uav_comm_planner.core.fast_trajectory import ClarabelTrajectoryStep, trajec
 from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt,
                                          snr_scale, spectral_efficiencies,
                                          spectral_efficiency_to_rate)
-from uav_comm_planner.core.power import conic_power, PowerAllocation, waterfilling_power
+from uav_comm_planner.core.power import (checked_offsets, conic_power, PowerAllocation,
+                                         waterfilling_power)
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.trajectory import trajectory_step_cvxpy, TrajectoryStep
 
@@ -65,8 +67,13 @@ class PlanResult:
     ('static'), each with its optimal power, bit/s.
     start: the initial trajectory of the kept plan ('straight' or 'hover');
     start_throughputs: the min throughput Algorithm 1 reached from each start tried, bit/s;
-    upper_bound: :func:`throughput_upper_bound`, no plan can exceed it, bit/s;
+    upper_bound: :func:`throughput_upper_bound`, no plan can exceed it, bit/s (inf with
+    offsets, where it does not hold);
     solve_time_s: wall time of the whole plan (every start and the baselines), seconds.
+    offsets: o (N,) bits per use credited to each node before this plan (None: none, the
+    letter's problem). With offsets, rates, min_throughput, history and baselines all count
+    them: R_n = (B/N) (o_n + mean_m log2(1 + p_n[m] a_n[m])) (see
+    :mod:`uav_comm_planner.core.receding`).
     """
 
     scenario: Scenario
@@ -84,6 +91,7 @@ class PlanResult:
     start: str = 'straight'
     upper_bound: float = math.inf
     start_throughputs: dict[str, float] = field(default_factory=dict)
+    offsets: np.ndarray | None = None
 
     @property
     def status(self) -> str:
@@ -99,20 +107,37 @@ def _tolerance(settings: SolverSettings, value: float) -> float:
     return max(settings.tolerance_bps, settings.relative_tolerance * abs(value))
 
 
+def _offset_keywords(offsets: np.ndarray | None) -> dict[str, np.ndarray]:
+    """``offsets=`` for a step only when there are offsets, so that any solver with the
+    letter's signature serves the letter's problem."""
+    return {} if offsets is None else {'offsets': offsets}
+
+
+def offset_rates(q: np.ndarray, p: np.ndarray, scenario: Scenario,
+                 offsets: np.ndarray | None = None) -> np.ndarray:
+    """R_n = (B/N) (o_n + mean_m log2(1 + p_n[m] a_n[m])): (N,) bit/s (o = 0 without offsets)."""
+    if offsets is None:
+        return average_rates(q, p, scenario)
+    bits = spectral_efficiencies(snr_per_watt(q, scenario), p) + offsets
+    return spectral_efficiency_to_rate(bits, scenario)
+
+
 def optimal_power(q: np.ndarray, scenario: Scenario,
-                  power_solver: PowerSolver = waterfilling_power) -> np.ndarray:
+                  power_solver: PowerSolver = waterfilling_power, *,
+                  offsets: np.ndarray | None = None) -> np.ndarray:
     """The max-min power schedule p (N, M) watts for a fixed trajectory q (M, 2)."""
-    return power_solver(snr_per_watt(q, scenario), scenario.power_budget_w).p
+    return power_solver(snr_per_watt(q, scenario), scenario.power_budget_w,
+                        **_offset_keywords(offsets)).p
 
 
-def baseline_rates(scenario: Scenario,
-                   power_solver: PowerSolver = waterfilling_power) -> dict[str, float]:
+def baseline_rates(scenario: Scenario, power_solver: PowerSolver = waterfilling_power, *,
+                   offsets: np.ndarray | None = None) -> dict[str, float]:
     """The letter's benchmarks, each with its optimal power: min throughput in bit/s."""
     rates = {}
     for name, q in (('straight', initial.straight_line(scenario)),
                     ('static', initial.static_point(scenario))):
-        p = optimal_power(q, scenario, power_solver)
-        rates[name] = float(average_rates(q, p, scenario).min())
+        p = optimal_power(q, scenario, power_solver, offsets=offsets)
+        rates[name] = float(offset_rates(q, p, scenario, offsets).min())
     return rates
 
 
@@ -120,6 +145,7 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
               power_solver: PowerSolver = waterfilling_power,
               trajectory_solver: TrajectorySolver = trajectory_step_cvxpy,
               should_stop: StopCheck | None = None,
+              offsets: np.ndarray | None = None,
               ) -> tuple[np.ndarray, np.ndarray, list[Step], int, int, bool]:
     """Algorithm 1 from trajectory q (M, 2): returns (q, p, history, outer, inner, converged).
 
@@ -131,17 +157,22 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
     trajectory is projected onto the speed limit (:func:`within_speed_limit`), so solver
     round-off never lets a leg exceed V delta. ``should_stop`` is asked before every step;
     when it returns True the run ends with :class:`~uav_comm_planner.errors.PlanCancelledError`.
+    With ``offsets`` o (N,) bits per use, every step maximises min_n (o_n + mean_m log2(...)).
     """
     history: list[Step] = []
     check_stop = _stop_checker(should_stop)
+    offsets = checked_offsets(offsets, scenario.num_nodes)
+    extra = _offset_keywords(offsets)
 
     def min_rate(a_now: np.ndarray, p_now: np.ndarray) -> float:
-        bits = spectral_efficiencies(a_now, p_now).min()
-        return float(spectral_efficiency_to_rate(bits, scenario))
+        efficiencies = spectral_efficiencies(a_now, p_now)
+        if offsets is not None:
+            efficiencies = efficiencies + offsets
+        return float(spectral_efficiency_to_rate(efficiencies.min(), scenario))
 
     def power_step(a_now: np.ndarray) -> tuple[np.ndarray, float]:
         check_stop()
-        allocation = power_solver(a_now, scenario.power_budget_w)
+        allocation = power_solver(a_now, scenario.power_budget_w, **extra)
         # The allocation's efficiency is min_n mean_m log2(1 + p a) of its own p.
         value = float(spectral_efficiency_to_rate(allocation.efficiency, scenario))
         history.append(Step('power', value))
@@ -162,7 +193,7 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
         previous_power_value = value
         for _ in range(settings.max_inner_iterations):
             check_stop()
-            step = trajectory_solver(q, p, scenario)
+            step = trajectory_solver(q, p, scenario, **extra)
             inner_total += 1
             q_new = within_speed_limit(step.q, scenario)
             a_new = snr_per_watt(q_new, scenario)
@@ -249,12 +280,13 @@ def _solvers(scenario: Scenario, power_method: str,
 
 def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
          power_method: str = 'waterfilling', trajectory_method: str = 'clarabel',
-         should_stop: StopCheck | None = None) -> PlanResult:
+         should_stop: StopCheck | None = None, offsets: np.ndarray | None = None,
+         extra_starts: dict[str, np.ndarray] | None = None) -> PlanResult:
     """Jointly optimise the trajectory and the transmit power for ``scenario``.
 
     Runs the letter's Algorithm 1 from every start in ``settings.starts`` (by default the
-    straight line q0 -> qF at uniform speed and :func:`~uav_comm_planner.core.initial.hover_and_fly`)
-    and returns the best as a :class:`PlanResult`; ties go to the earlier start. The default
+    straight line q0 -> qF at uniform speed and
+    :func:`~uav_comm_planner.core.initial.hover_and_fly`) and returns the best as a :class:`PlanResult`; ties go to the earlier start. The default
     methods are the exact water-filling power step and the SCA step on one Clarabel solver
     updated in place; ``power_method='conic', trajectory_method='cvxpy'`` rebuilds cvxpy
     problems every step (the reference). Raises
@@ -263,6 +295,12 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     :class:`~uav_comm_planner.errors.SolverError` when a convex step fails and
     :class:`~uav_comm_planner.errors.PlanCancelledError` when ``should_stop`` (asked between
     steps) returns True.
+
+    ``offsets`` o (N,), bits per use, credit each node with data it already holds (the
+    receding horizon, :func:`uav_comm_planner.core.receding.replan`); all zero is the same
+    as none, the letter's problem exactly. ``extra_starts`` adds initial trajectories
+    (M, 2) metres by name (for example the rest of the previous plan); each must keep the
+    speed limit, since Algorithm 1 only improves on its start.
     """
     if settings is None:
         settings = SolverSettings()
@@ -273,26 +311,34 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     if should_stop is not None and not callable(should_stop):
         raise InvalidScenarioError(f'should_stop must be callable, got {should_stop!r}')
     check_stop = _stop_checker(should_stop)
+    offsets = checked_offsets(offsets, scenario.num_nodes)
     began = time.perf_counter()
     power_solver, trajectory_solver = _solvers(scenario, power_method, trajectory_method)
+    starts = {name: STARTS[name] for name in settings.starts}
+    for name, trajectory in (extra_starts or {}).items():
+        starts[name] = functools.partial(np.array, trajectory, dtype=float)
+    order = list(starts)
     runs = {}
-    for name in settings.starts:
-        runs[name] = alternate(scenario, STARTS[name](scenario), settings,
-                               power_solver=power_solver, trajectory_solver=trajectory_solver,
-                               should_stop=should_stop)
+    for name, start in starts.items():
+        runs[name] = alternate(scenario, start(scenario) if name in STARTS else start(),
+                               settings, power_solver=power_solver,
+                               trajectory_solver=trajectory_solver, should_stop=should_stop,
+                               offsets=offsets)
     # The last step of each run is the true min rate of the (q, p) it returns.
     values = {name: run[2][-1].min_throughput for name, run in runs.items()}
-    best = max(values, key=lambda name: (values[name], -settings.starts.index(name)))
+    best = max(values, key=lambda name: (values[name], -order.index(name)))
     q, p, history, outer, inner, converged = runs[best]
-    rates = average_rates(q, p, scenario)
+    rates = offset_rates(q, p, scenario, offsets)
     check_stop()
-    baselines = baseline_rates(scenario, power_solver) if settings.compute_baselines else {}
+    baselines = (baseline_rates(scenario, power_solver, offsets=offsets)
+                 if settings.compute_baselines else {})
     return PlanResult(
         scenario=scenario, trajectory=q, times=scenario.times_s, power=p, rates=rates,
         min_throughput=float(rates.min()), history=tuple(history), baselines=baselines,
         outer_iterations=outer, trajectory_steps=inner, converged=converged,
         solve_time_s=time.perf_counter() - began, start=best,
-        upper_bound=throughput_upper_bound(scenario), start_throughputs=values)
+        upper_bound=(throughput_upper_bound(scenario) if offsets is None else math.inf),
+        start_throughputs=values, offsets=offsets)
 
 
 __all__ = ['PlanResult', 'Step', 'StopCheck', 'alternate', 'within_speed_limit',

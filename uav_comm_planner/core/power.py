@@ -10,6 +10,12 @@ rate. Two exact solvers, which must agree:
   every slot is active at the optimum (the usual case at high SNR) the levels have a closed
   form, tried first.
 * :func:`conic_power`: the same problem as an exponential-cone program (cvxpy + Clarabel).
+
+Both take optional offsets o_n (N,) bits per use, the data a node already holds (the receding
+horizon, :mod:`uav_comm_planner.core.receding`): they then maximise the common value
+c = min_n (o_n + mean_m log2(1 + p_n[m] a_n[m])), where node n needs only the efficiency
+(c - o_n)^+ from this schedule. Without offsets (or with all zero) the problem and the code
+path are exactly the letter's.
 """
 
 from __future__ import annotations
@@ -33,19 +39,40 @@ CLARABEL_TIGHT = dict(tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10, tol_
 
 @dataclass(frozen=True)
 class PowerAllocation:
-    """p: (N, M) watts; efficiency: the common mean_m log2(1 + p a) reached, bits per use."""
+    """p: (N, M) watts; efficiency: the common min_n (o_n + mean_m log2(1 + p a)) reached,
+    bits per use (o = 0 without offsets)."""
 
     p: np.ndarray
     efficiency: float
 
 
-def _within_budget(p: np.ndarray, a: np.ndarray, power_budget_w: float) -> PowerAllocation:
+def _within_budget(p: np.ndarray, a: np.ndarray, power_budget_w: float,
+                   offsets: np.ndarray | None = None) -> PowerAllocation:
     """p >= 0 (N, M), scaled down in place if round-off put its total above the budget, with
-    the efficiency it reaches for SNR per watt a."""
+    the efficiency it reaches for SNR per watt a (plus the offsets o (N,), if any)."""
     total = float(p.sum())
     if total > power_budget_w:
         p *= power_budget_w / total
-    return PowerAllocation(p=p, efficiency=float(spectral_efficiencies(a, p).min()))
+    efficiencies = spectral_efficiencies(a, p)
+    if offsets is not None:
+        efficiencies = efficiencies + offsets
+    return PowerAllocation(p=p, efficiency=float(efficiencies.min()))
+
+
+def has_offsets(offsets: np.ndarray | None) -> bool:
+    """Whether ``offsets`` change the problem (None and all zero do not)."""
+    return offsets is not None and bool(np.any(np.asarray(offsets, dtype=float) != 0.0))
+
+
+def checked_offsets(offsets: np.ndarray | None, num_nodes: int) -> np.ndarray | None:
+    """The offsets as a finite (N,) array, or None when they do not change the problem."""
+    if not has_offsets(offsets):
+        return None
+    offsets = np.asarray(offsets, dtype=float).reshape(-1)
+    if offsets.shape != (num_nodes,) or not np.all(np.isfinite(offsets)):
+        raise SolverError(f'offsets must be {num_nodes} finite values (bits per use), one per '
+                          f'node, got {offsets.shape[0]}')
+    return offsets
 
 
 class _WaterLevels:
@@ -72,13 +99,16 @@ class _WaterLevels:
         # k slots are active at target c iff M c >= R_k - k r_k (nondecreasing in k, R_1 = 0).
         self.threshold = self.relative_sum - np.arange(1, self.num_slots + 1) * self.relative
 
-    def shifts(self, c: float) -> np.ndarray:
-        """log2(mu_n a_n,best) (N,) at target c: the exponent of each node's best slot."""
-        active = np.count_nonzero(self.threshold <= self.num_slots * c, axis=1)
+    def shifts(self, c: float | np.ndarray) -> np.ndarray:
+        """log2(mu_n a_n,best) (N,) at target c (one for all nodes, or (N,) one per node):
+        the exponent of each node's best slot."""
+        targets = np.reshape(c, (-1, 1)) if np.ndim(c) else c
+        active = np.count_nonzero(self.threshold <= self.num_slots * targets, axis=1)
         return (self.num_slots * c - self.relative_sum[self._rows, active - 1]) / active
 
-    def levels(self, c: float) -> tuple[np.ndarray, np.ndarray]:
-        """Water level mu_n (N,) and node power P_n(c) (N,) for target c >= 0."""
+    def levels(self, c: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Water level mu_n (N,) and node power P_n(c) (N,) for target c >= 0, one for all
+        nodes or (N,) one per node."""
         exponents = self.shifts(c)[:, None] + self.relative
         np.maximum(exponents, 0.0, out=exponents)               # inactive slots: no power
         node_power = (np.expm1(LN2 * exponents) / self.best_first).sum(axis=1)
@@ -158,38 +188,105 @@ def _newton_levels(a: np.ndarray, power_budget_w: float) -> np.ndarray:
     return water.levels(c)[0]
 
 
-def waterfilling_power(a: np.ndarray, power_budget_w: float) -> PowerAllocation:
+def _offset_levels_if_all_active(a: np.ndarray, inv_a: np.ndarray, power_budget_w: float,
+                                 offsets: np.ndarray) -> np.ndarray | None:
+    """:func:`_levels_if_all_active` with offsets: with every slot of every node active,
+    log2 mu_n = c - o_n - mean_m log2 a_n[m] and the budget gives
+    c = log2(P_T + sum_{n,m} 1/a_n[m]) - log2(M sum_n 2^(-o_n - mean_m log2 a_n[m])).
+    The optimum when then every node needs data (c >= o_n) and every slot is active."""
+    exponent = -offsets - np.log2(a).sum(axis=1) / a.shape[1]
+    top = exponent.max()
+    c = (math.log2(power_budget_w + inv_a.sum()) - math.log2(a.shape[1]) - top
+         - math.log2(np.exp2(exponent - top).sum()))
+    mu = np.exp2(c + exponent)
+    if np.all(c >= offsets) and (mu * a.min(axis=1)).min() >= 1.0:
+        return mu
+    return None
+
+
+def _offset_newton_levels(a: np.ndarray, power_budget_w: float,
+                          offsets: np.ndarray) -> np.ndarray:
+    """The water levels mu (N,) of the optimum with offsets o (N,), by Newton's method.
+
+    Node n's target is (c - o_n)^+, so the total power P(c) = sum_n P_n((c - o_n)^+) is still
+    convex and increasing, with slope M ln 2 sum_{n: c > o_n} mu_n, and Newton's method from
+    above converges monotonically. The start is above the root: no node gets more than
+    log2(1 + P_T max_m a_n[m] / M) from the whole budget (Jensen), so
+    c <= min_n (o_n + log2(1 + P_T max_m a_n[m] / M)); and the all-active relaxation (no
+    p >= 0, targets c - o_n of any sign) needs less power than P at every c.
+    """
+    water = _WaterLevels(a)
+    m = a.shape[1]
+    newton_scale = m * math.log(2.0)
+    best = np.exp2(water.log_sum[:, 0])                    # max_m a_n[m]
+    jensen = float((offsets + np.log2(1.0 + power_budget_w * best / m)).min())
+    exponent = -offsets - water.log_sum[:, -1] / m
+    top = exponent.max()
+    relaxed = (math.log2(power_budget_w + water.inv_sum[:, -1].sum()) - math.log2(m) - top
+               - math.log2(np.exp2(exponent - top).sum()))
+    c = max(min(jensen, relaxed), float(offsets.min()))
+    for _ in range(_NEWTON_MAX_STEPS):
+        needing = c > offsets
+        mu, node_power = water.levels(np.maximum(c - offsets, 0.0))
+        mu[~needing] = 0.0                 # no power at all, not 1/max_m a_n[m] +- round-off
+        excess = float(node_power.sum()) - power_budget_w
+        slope = newton_scale * float(mu[needing].sum())
+        if excess <= 1e-13 * max(power_budget_w, 1e-300) or slope == 0.0:
+            return mu
+        step = excess / slope
+        if step <= 1e-15 * max(abs(c), 1.0):
+            return mu
+        c = max(c - step, float(offsets.min()))
+    raise SolverError('water-filling did not converge; check that a (SNR per watt) is sane')
+
+
+def waterfilling_power(a: np.ndarray, power_budget_w: float, *,
+                       offsets: np.ndarray | None = None) -> PowerAllocation:
     """Exact max-min power for SNR per watt ``a`` (N, M) and budget P_T, by water-filling:
     in closed form when every slot is active (and P_T is not negligible against sum 1/a),
-    else by Newton's method on the target."""
+    else by Newton's method on the target.
+
+    ``offsets`` o (N,), bits per use: maximise min_n (o_n + mean_m log2(1 + p_n[m] a_n[m]));
+    a node with o_n above the common value gets no power.
+    """
     a = np.asarray(a, dtype=float)
     # min > 0 and max < inf fail for NaN too.
     if a.ndim != 2 or a.size == 0 or not (a.min() > 0.0 and a.max() < math.inf):
         raise SolverError('water-filling needs a finite, positive SNR-per-watt array (N, M)')
+    offsets = checked_offsets(offsets, a.shape[0])
     inv_a = 1.0 / a
-    mu = None
-    if power_budget_w >= _CLOSED_FORM_LEAST_SHARE * inv_a.sum():
-        mu = _levels_if_all_active(a, inv_a, power_budget_w)
-    if mu is None:
-        water, c = _newton_target(a, power_budget_w)
-        return _within_budget(water.power(c), a, power_budget_w)
+    if offsets is None:
+        mu = None
+        if power_budget_w >= _CLOSED_FORM_LEAST_SHARE * inv_a.sum():
+            mu = _levels_if_all_active(a, inv_a, power_budget_w)
+        if mu is None:
+            water, c = _newton_target(a, power_budget_w)
+            return _within_budget(water.power(c), a, power_budget_w)
+    else:
+        mu = _offset_levels_if_all_active(a, inv_a, power_budget_w, offsets)
+        if mu is None:
+            mu = _offset_newton_levels(a, power_budget_w, offsets)
     p = mu[:, None] - inv_a
     np.maximum(p, 0.0, out=p)
-    return _within_budget(p, a, power_budget_w)
+    return _within_budget(p, a, power_budget_w, offsets)
 
 
-def conic_power(a: np.ndarray, power_budget_w: float, *, solver: str = 'CLARABEL',
-                **solver_options) -> PowerAllocation:
+def conic_power(a: np.ndarray, power_budget_w: float, *, offsets: np.ndarray | None = None,
+                solver: str = 'CLARABEL', **solver_options) -> PowerAllocation:
     """Exact max-min power for ``a`` (N, M) as an exponential-cone program.
 
     Written for conditioning: with x = p / P_T (a share of the budget) and b = 1 / (P_T a),
     log2(1 + p a) = log2(P_T a) + log2(x + b), so the cone sees log(x + b) with x in [0, 1]
-    instead of log(1 + a p) with a around 1e13.
+    instead of log(1 + a p) with a around 1e13. ``offsets`` o (N,) bits per use are added to
+    each node's mean: t <= o_n + mean_m log2(1 + p_n[m] a_n[m]).
     """
     a = np.asarray(a, dtype=float)
     n, m = a.shape
+    offsets = checked_offsets(offsets, n)
     b = 1.0 / (power_budget_w * a)
     offset = np.log(power_budget_w * a).mean(axis=1)
+    if offsets is not None:
+        offset = offset + math.log(2.0) * offsets
     x = cp.Variable((n, m), nonneg=True)
     t = cp.Variable()
     constraints = [cp.sum(x) <= 1.0,
@@ -198,4 +295,5 @@ def conic_power(a: np.ndarray, power_budget_w: float, *, solver: str = 'CLARABEL
     options = dict(CLARABEL_TIGHT) if solver == 'CLARABEL' else {}
     options.update(solver_options)
     solve_to_optimality(problem, 'power step', solver, **options)
-    return _within_budget(power_budget_w * np.maximum(x.value, 0.0), a, power_budget_w)
+    return _within_budget(power_budget_w * np.maximum(x.value, 0.0), a, power_budget_w,
+                          offsets)

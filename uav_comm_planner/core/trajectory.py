@@ -10,6 +10,10 @@ which is the letter's bound, since
 gamma beta0 / (d^k (gamma beta0 + d^k)) = snr^k / ((1 + snr^k) d^k).
 The bound is global and tight at q^k, so maximising min_n mean_m lbr_{n,m} subject to the
 speed limits never lowers the true minimum rate.
+
+With offsets o_n (N,) bits per use (the data a node already holds, see
+:mod:`uav_comm_planner.core.receding`) the step maximises min_n (o_n + mean_m lbr_{n,m}): the
+same bound plus a constant per node, still global and tight at q^k.
 """
 
 from __future__ import annotations
@@ -87,14 +91,24 @@ class TrajectoryStep:
         return float(self.bound_of())
 
 
+def with_offsets(constant: np.ndarray, offsets: np.ndarray | None) -> np.ndarray:
+    """constant_n + o_n (N,), or ``constant`` itself without offsets."""
+    if offsets is None:
+        return constant
+    return constant + np.asarray(offsets, dtype=float).reshape(-1)
+
+
 def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
-                          solver: str = 'CLARABEL', **solver_options) -> TrajectoryStep:
+                          offsets: np.ndarray | None = None, solver: str = 'CLARABEL',
+                          **solver_options) -> TrajectoryStep:
     """One SCA step, built afresh as a cvxpy problem (the reference implementation).
 
     Variables are z = q / 1000 (kilometres) and t (bits per use): maximise t subject to
-    mean_m lbr_{n,m}(z) >= t for every node and every leg at most V delta.
+    o_n + mean_m lbr_{n,m}(z) >= t for every node (o = 0 without ``offsets`` (N,)) and every
+    leg at most V delta.
     """
     weight, constant = kilometre_rows(surrogate_coefficients(q_k, p, scenario))
+    constant = with_offsets(constant, offsets)
     m = scenario.num_slots
     w = scenario.nodes / KM
 
@@ -109,5 +123,5 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
     problem = cp.Problem(cp.Maximize(t), constraints)
     solve_to_optimality(problem, 'trajectory step', solver, **solver_options)
     q = np.asarray(z.value) * KM
-    return TrajectoryStep(
-        q=q, bound_of=lambda: sca_lower_bound(q, q_k, p, scenario).mean(axis=1).min())
+    return TrajectoryStep(q=q, bound_of=lambda: with_offsets(
+        sca_lower_bound(q, q_k, p, scenario).mean(axis=1), offsets).min())

@@ -16,14 +16,17 @@ class ParameterBinding:
     """Keeps a node's :class:`PlannerConfig` in step with its ROS parameters.
 
     Declares every parameter of :func:`parameter_specs` on ``node`` with its descriptor,
-    refuses a change that does not make a valid configuration (with the reason), and after an
-    accepted change rebuilds :attr:`config` and calls ``on_change`` with the changed names.
+    refuses a change that does not make a valid configuration (with the reason, also given to
+    ``on_refused`` with the names), and after an accepted change rebuilds :attr:`config` and
+    calls ``on_change`` with the changed names.
     Raises :class:`~uav_comm_planner.errors.PlannerError` when the initial values are invalid.
     """
 
-    def __init__(self, node: Node, on_change: Callable[[list[str]], None]) -> None:
+    def __init__(self, node: Node, on_change: Callable[[list[str]], None], *,
+                 on_refused: Callable[[list[str], str], None] | None = None) -> None:
         self._node = node
         self._on_change = on_change
+        self._on_refused = on_refused
         specs = parameter_specs()
         node.declare_parameters('', [(spec.name, spec.default, spec.descriptor())
                                      for spec in specs])
@@ -42,6 +45,8 @@ class ParameterBinding:
         try:
             config_from_parameters(self._values(changes))
         except PlannerError as exc:
+            if self._on_refused is not None:
+                self._on_refused([p.name for p in changes], str(exc))
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 

@@ -10,12 +10,14 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
-from builtin_interfaces.msg import Time
+from builtin_interfaces.msg import Duration, Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point as PointMsg
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped, Quaternion
 from nav_msgs.msg import Path
 import numpy as np
 from std_msgs.msg import ColorRGBA, Float64MultiArray, Header, MultiArrayDimension
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from uav_comm_planner.core.model import flown_path, leg_lengths
@@ -117,6 +119,72 @@ def power_message(result: PlanResult) -> Float64MultiArray:
     return message
 
 
+def node_names(num_nodes: int) -> list[str]:
+    """``node_1`` .. ``node_N``: the names of the nodes' power channels."""
+    return [f'node_{n + 1}' for n in range(num_nodes)]
+
+
+def duration_msg(seconds: float) -> Duration:
+    """A builtin_interfaces/Duration for ``seconds`` >= 0."""
+    whole, rest = divmod(round(seconds * NANOSECONDS), NANOSECONDS)
+    return Duration(sec=int(whole), nanosec=int(rest))
+
+
+def power_plan_message(result: PlanResult, frame_id: str, stamp_ns: int) -> JointTrajectory:
+    """The power schedule, stamped: trajectory_msgs/JointTrajectory with one joint per node.
+
+    header.stamp is the plan stamp (the one on ``planned_path``); joint_names are
+    ``node_1`` .. ``node_N``; point m (m = 1..M) holds p_n[m] in watts in ``positions`` (in
+    joint order) and the slot's end, m delta, in ``time_from_start``: the transmit power of
+    slot m, flown while the UAV moves from q[m-1] to q[m].
+    """
+    message = JointTrajectory(header=Header(frame_id=frame_id, stamp=time_msg(stamp_ns)))
+    message.joint_names = node_names(result.power.shape[0])
+    for power, t in zip(result.power.T, result.scenario.times_s):
+        message.points.append(JointTrajectoryPoint(
+            positions=[float(v) for v in power], time_from_start=duration_msg(float(t))))
+    return message
+
+
+def nodes_text(points: Sequence[Sequence[float]]) -> str:
+    """Node positions as ``x1,y1;x2,y2;...`` with every float exact (repr), as the status
+    names the node set a request was for."""
+    return ';'.join(f'{float(x)!r},{float(y)!r}' for x, y in points)
+
+
+#: Name of the planner's DiagnosticStatus.
+STATUS_NAME = 'uav_comm_planner: plan'
+PLANNED = 'planned'
+REFUSED = 'refused'
+
+
+def status_message(stamp_ns: int, *, request: str, planned: bool, message: str,
+                   values: dict[str, object] | None = None) -> DiagnosticArray:
+    """diagnostic_msgs/DiagnosticArray saying whether one request was planned or refused.
+
+    header.stamp is the plan stamp for a plan (the same as on every output of that plan), the
+    time of the refusal otherwise. One status, named :data:`STATUS_NAME`: level OK and
+    message ``planned: ...``, or level ERROR and ``refused: <reason>``; its values carry
+    ``request`` (what asked for the plan: ``ground_nodes``, ``uav_pose``, ``parameters ...``)
+    and whatever else is known (``nodes``, ``min_throughput_bps``, ...), as text.
+    """
+    status = DiagnosticStatus(
+        level=DiagnosticStatus.OK if planned else DiagnosticStatus.ERROR,
+        name=STATUS_NAME, hardware_id='',
+        message=f'{PLANNED if planned else REFUSED}: {message}')
+    status.values = [KeyValue(key='request', value=request)] + [
+        KeyValue(key=key, value=str(value)) for key, value in (values or {}).items()]
+    return DiagnosticArray(header=Header(stamp=time_msg(stamp_ns)), status=[status])
+
+
+def status_values(message: DiagnosticArray) -> dict[str, str]:
+    """The key-value pairs of the planner's status in ``message`` ({} if none)."""
+    for status in message.status:
+        if status.name == STATUS_NAME:
+            return {pair.key: pair.value for pair in status.values}
+    return {}
+
+
 def _points(xy: np.ndarray, z: float) -> list[PointMsg]:
     return [PointMsg(x=float(x), y=float(y), z=float(z)) for x, y in xy]
 
@@ -149,5 +217,7 @@ def marker_array(result: PlanResult, frame_id: str, start_ns: int) -> MarkerArra
     return MarkerArray(markers=[nodes, path, hover])
 
 
-__all__ = ['HOVER_FRACTION', 'ground_nodes_of', 'headings', 'marker_array', 'nanoseconds_of',
-           'path_message', 'pose_array', 'power_message', 'time_msg', 'yaw_quaternion']
+__all__ = ['HOVER_FRACTION', 'PLANNED', 'REFUSED', 'STATUS_NAME', 'duration_msg',
+           'ground_nodes_of', 'headings', 'marker_array', 'nanoseconds_of', 'node_names',
+           'nodes_text', 'path_message', 'pose_array', 'power_message', 'power_plan_message',
+           'status_message', 'status_values', 'time_msg', 'yaw_quaternion']

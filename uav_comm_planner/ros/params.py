@@ -17,6 +17,7 @@ dataclasses.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+import math
 import os
 from pathlib import Path, PurePath
 import typing
@@ -52,6 +53,10 @@ class NodeSettings:
     means the node's working directory), so that whoever may set parameters cannot make the
     node write anywhere else. The home position anchors the planning frame's origin
     (east-north metres) on WGS84; ``home_altitude_m`` is above mean sea level.
+    ``mavlink_url`` (empty: no vehicle link) is where every new plan is uploaded and the
+    vehicle's telemetry read. A pose replans the rest of the mission only when the UAV is off
+    the plan by more than ``replan_distance_m`` or ``replan_delay_s``, and at most once every
+    ``replan_interval_s`` (mission clock seconds).
     """
 
     frame_id: str = 'map'
@@ -62,6 +67,10 @@ class NodeSettings:
     home_altitude_m: float = DEFAULT_HOME[2]
     mission_end: str = 'land'
     mission_firmware: str = 'ardupilot'
+    mavlink_url: str = ''
+    replan_distance_m: float = 20.0
+    replan_delay_s: float = 5.0
+    replan_interval_s: float = 10.0
     vehicle_aware: bool = True
     vehicle_params_file: str = ''
 
@@ -72,6 +81,11 @@ class NodeSettings:
                                            f'{getattr(self, name)!r}')
         if not self.frame_id.strip():
             raise InvalidScenarioError('frame_id must not be empty, e.g. "map"')
+        for name in ('replan_distance_m', 'replan_delay_s', 'replan_interval_s'):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+                raise InvalidScenarioError(
+                    f'{name} must be a positive finite number, got {value!r}')
         if '\0' in self.mission_dir:
             raise InvalidScenarioError('mission_dir must be a folder path')
         if self.mission_file:
@@ -161,6 +175,14 @@ DESCRIPTIONS = {
     'home_altitude_m': 'altitude of the frame origin above mean sea level (m)',
     'mission_end': 'what the mission does at the goal: land or rtl',
     'mission_firmware': 'mission dialect: ardupilot or px4',
+    'mavlink_url': 'vehicle link as pymavlink takes it (tcp:HOST:PORT, udpin:0.0.0.0:14550, '
+                   '/dev/ttyACM0,115200): every new plan is uploaded, telemetry starts the '
+                   'mission clock at q0; empty: no link',
+    'replan_distance_m': 'replan from uav_pose when the UAV is farther than this from the '
+                         'planned path (m)',
+    'replan_delay_s': 'replan from uav_pose when the UAV is this far behind or ahead of the '
+                      'planned time (s)',
+    'replan_interval_s': 'at most one replan from uav_pose in this many seconds',
     'vehicle_aware': 'plan for the vehicle_* limits and publish the plan as the vehicle flies '
                      'it (S-curve legs, holds shortened by starts and stops)',
     'vehicle_params_file': 'ground-station parameter file (NAME,VALUE lines) whose WPNAV_* / '
@@ -173,6 +195,13 @@ DESCRIPTIONS = {
                                   'speed (m/s; .inf: unknown)',
     'vehicle_jerk_time_s': 'time the jerk takes to build up: 2 ATC_INPUT_TC (s)',
 }
+
+#: Parameters that change only what is done with a plan, never the plan: changing one never
+#: replans nor restarts the mission clock.
+OUTPUT_ONLY = frozenset({
+    'frame_id', 'mission_file', 'home_latitude_deg', 'home_longitude_deg', 'home_altitude_m',
+    'mission_end', 'mission_firmware', 'mavlink_url', 'replan_distance_m', 'replan_delay_s',
+    'replan_interval_s'})
 
 #: Inclusive (low, high) limits shown to tools; the dataclasses check the exact domain.
 RANGES = {
@@ -193,6 +222,9 @@ RANGES = {
     'home_latitude_deg': (-90.0, 90.0),
     'home_longitude_deg': (-180.0, 180.0),
     'home_altitude_m': HOME_ALTITUDE_RANGE_M,
+    'replan_distance_m': (0.0, 1.0e6),
+    'replan_delay_s': (0.0, 1.0e6),
+    'replan_interval_s': (0.0, 1.0e6),
 }
 #: Parameters that only the node's start-up (overrides, a parameter file) may set: the
 #: limits on the work a plan may take and where mission files go.
@@ -346,6 +378,6 @@ def flat_pairs(points: Sequence[Sequence[float]]) -> list[float]:
     return to_parameter_value(points, 'pairs')
 
 
-__all__ = ['MISSION_ENDS', 'MISSION_FIRMWARES', 'NodeSettings', 'ParameterSpec',
+__all__ = ['MISSION_ENDS', 'MISSION_FIRMWARES', 'NodeSettings', 'OUTPUT_ONLY', 'ParameterSpec',
            'PlannerConfig', 'config_from_parameters', 'flat_pairs', 'from_parameter_value',
            'parameter_specs', 'to_parameter_value']

@@ -1,4 +1,11 @@
-"""The node's outputs: one publisher per topic, and the one log line per plan."""
+"""The node's outputs: one publisher per topic, and the one log line per plan.
+
+Every output of one plan carries the same plan stamp: the header stamp of ``planned_path``,
+``power_plan`` (the power schedule as trajectory_msgs/JointTrajectory), ``plan_markers`` and
+the ``planner_status`` entry that announces the plan (with its min throughput). The unstamped
+``power_schedule`` (Float64MultiArray) and ``min_throughput`` (Float64) stay for existing
+subscribers; pair them by arrival only.
+"""
 
 from __future__ import annotations
 
@@ -6,22 +13,30 @@ import math
 
 from nav_msgs.msg import Path
 from rclpy.node import Node
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64, Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from uav_comm_planner.core.optimizer import PlanResult
-from uav_comm_planner.ros.messages import marker_array, path_message, power_message
+from uav_comm_planner.ros.messages import (marker_array, nodes_text, path_message,
+                                           power_message, power_plan_message, status_message)
 from uav_comm_planner.ros.worker import PlanOutcome
 
 TOPIC_PATH = 'planned_path'
 TOPIC_POWER = 'power_schedule'
+TOPIC_POWER_PLAN = 'power_plan'
 TOPIC_MIN_THROUGHPUT = 'min_throughput'
 TOPIC_MARKERS = 'plan_markers'
+TOPIC_STATUS = 'planner_status'
 
 #: Outputs keep the latest plan for subscribers that join later.
 OUTPUT_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: One status per request; a sender subscribes before it asks, so nothing is kept for later.
+STATUS_QOS = QoSProfile(depth=20, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.VOLATILE)
 
 
 class PlanPublisher:
@@ -33,17 +48,50 @@ class PlanPublisher:
     def __init__(self, node: Node) -> None:
         self._path = node.create_publisher(Path, TOPIC_PATH, OUTPUT_QOS)
         self._power = node.create_publisher(Float64MultiArray, TOPIC_POWER, OUTPUT_QOS)
+        self._power_plan = node.create_publisher(JointTrajectory, TOPIC_POWER_PLAN, OUTPUT_QOS)
         self._throughput = node.create_publisher(Float64, TOPIC_MIN_THROUGHPUT, OUTPUT_QOS)
         self._markers = node.create_publisher(MarkerArray, TOPIC_MARKERS, OUTPUT_QOS)
+        self._status = node.create_publisher(DiagnosticArray, TOPIC_STATUS, STATUS_QOS)
 
     def publish(self, outcome: PlanOutcome) -> None:
-        """Publish the plan of a successful ``outcome`` on every output."""
+        """Publish the plan of a successful ``outcome`` on every output, then its status."""
         result, request = outcome.result, outcome.request
         frame_id = request.output.frame_id
-        self._path.publish(path_message(result, frame_id, request.start_ns))
+        stamp = request.start_ns
+        self._path.publish(path_message(result, frame_id, stamp))
         self._power.publish(power_message(result))
-        self._throughput.publish(Float64(data=float(result.min_throughput)))
-        self._markers.publish(marker_array(result, frame_id, request.start_ns))
+        self._power_plan.publish(power_plan_message(result, frame_id, stamp))
+        self._throughput.publish(Float64(data=outcome.min_throughput))
+        self._markers.publish(marker_array(result, frame_id, stamp))
+        self._status.publish(status_message(
+            stamp, request=request.reason, planned=True, message=summary_line(result),
+            values=plan_values(outcome)))
+
+    def refused(self, stamp_ns: int, request: str, reason: str, *,
+                nodes: str | None = None) -> None:
+        """Publish that ``request`` was refused (or failed) and why; ``nodes``: the node set it
+        asked for, as :func:`~uav_comm_planner.ros.messages.nodes_text` writes it."""
+        values = {} if nodes is None else {'nodes': nodes}
+        self._status.publish(status_message(stamp_ns, request=request, planned=False,
+                                            message=reason, values=values))
+
+
+def plan_values(outcome: PlanOutcome) -> dict[str, object]:
+    """What the status says about a plan: node set, throughput, energy, slots."""
+    result = outcome.result
+    values: dict[str, object] = {
+        'nodes': nodes_text(result.scenario.ground_nodes_m),
+        'min_throughput_bps': repr(outcome.min_throughput),
+        'slots': result.scenario.num_slots,
+        'energy_w': repr(float(result.power.sum())),
+    }
+    if outcome.receding is not None:
+        receding = outcome.receding
+        values.update({'elapsed_slots': receding.flown.num_slots,
+                       'mission_energy_w': repr(receding.mission_energy_w),
+                       'mission_rates_bps': ','.join(repr(float(r))
+                                                     for r in receding.mission_rates)})
+    return values
 
 
 def summary_line(result: PlanResult) -> str:

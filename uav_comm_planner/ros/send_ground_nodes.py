@@ -5,8 +5,10 @@ For a terminal without the ros2 command line::
     python -m uav_comm_planner.ros.send_ground_nodes 300,200 900,-150 1500,250
 
 publishes the nodes (x, y in metres, in ``--frame-id``) on ``ground_nodes`` and waits until
-the planner publishes a plan for exactly these nodes; it prints that plan's path and exits 0,
-or exits 1 when no planner listens or none answers in time (the planner logs why it refused).
+the planner publishes a plan for exactly these nodes; it prints that plan's path and exits 0.
+When the planner refuses the nodes (``planner_status`` says so, naming them) it prints the
+planner's reason and exits 2 at once; it exits 1 when no planner listens or none answers in
+time.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import sys
 import time
 from typing import Sequence
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseArray
 from nav_msgs.msg import Path
 import rclpy
@@ -24,9 +27,11 @@ from rclpy.utilities import remove_ros_args
 from visualization_msgs.msg import MarkerArray
 
 from uav_comm_planner.core.scenario import Point
-from uav_comm_planner.ros.messages import nanoseconds_of, pose_array
+from uav_comm_planner.ros.messages import (nanoseconds_of, nodes_text, pose_array,
+                                           STATUS_NAME)
 from uav_comm_planner.ros.node import GROUND_NODES_QOS, TOPIC_GROUND_NODES
-from uav_comm_planner.ros.publishing import OUTPUT_QOS, TOPIC_MARKERS, TOPIC_PATH
+from uav_comm_planner.ros.publishing import (OUTPUT_QOS, STATUS_QOS, TOPIC_MARKERS,
+                                             TOPIC_PATH, TOPIC_STATUS)
 
 
 def parse_point(text: str) -> Point:
@@ -48,8 +53,22 @@ class GroundNodesSender:
         self._publisher = node.create_publisher(PoseArray, TOPIC_GROUND_NODES, GROUND_NODES_QOS)
         self.path: Path | None = None
         self.markers: MarkerArray | None = None
+        self.refusals: dict[str, str] = {}
         node.create_subscription(Path, TOPIC_PATH, self._on_path, OUTPUT_QOS)
         node.create_subscription(MarkerArray, TOPIC_MARKERS, self._on_markers, OUTPUT_QOS)
+        node.create_subscription(DiagnosticArray, TOPIC_STATUS, self._on_status, STATUS_QOS)
+
+    def _on_status(self, message: DiagnosticArray) -> None:
+        for status in message.status:
+            if status.name != STATUS_NAME or status.level != DiagnosticStatus.ERROR:
+                continue
+            values = {pair.key: pair.value for pair in status.values}
+            if values.get('request') == TOPIC_GROUND_NODES and 'nodes' in values:
+                self.refusals[values['nodes']] = status.message
+
+    def refusal(self, points: Sequence[Point]) -> str | None:
+        """The planner's reason for refusing exactly ``points``, if it said so."""
+        return self.refusals.get(nodes_text(points))
 
     def _on_path(self, message: Path) -> None:
         self.path = message
@@ -115,10 +134,18 @@ def main(args: list[str] | None = None) -> int:
             print(f'no planner subscribes to {TOPIC_GROUND_NODES} (same ROS_DOMAIN_ID?)',
                   file=sys.stderr)
             return 1
+        sender.refusals.clear()
         sender.send(options.points, options.frame_id)
-        if not _spin_until(node, lambda: sender.answered(options.points), options.timeout):
-            print("no plan for these nodes; the planner's log says why", file=sys.stderr)
+        if not _spin_until(node, lambda: (sender.answered(options.points)
+                                          or sender.refusal(options.points) is not None),
+                           options.timeout):
+            print('no plan for these nodes and no answer from the planner within '
+                  f'{options.timeout:g} s', file=sys.stderr)
             return 1
+        reason = sender.refusal(options.points)
+        if reason is not None and not sender.answered(options.points):
+            print(f'the planner {reason}', file=sys.stderr)
+            return 2
         print(describe(sender.path))
         return 0
     except KeyboardInterrupt:

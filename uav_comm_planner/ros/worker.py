@@ -9,14 +9,14 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 import functools
 import inspect
-import math
 from pathlib import Path as FilePath
 import threading
 from typing import Callable, Generic, TypeVar
 
 from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.receding import as_flown, FlownSlots, RecedingPlan, replan
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
-from uav_comm_planner.errors import InfeasibleHorizonError, PlanCancelledError, PlannerError
+from uav_comm_planner.errors import PlanCancelledError, PlannerError
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
 from uav_comm_planner.vehicle.limits import VehicleLimits
@@ -81,8 +81,30 @@ class LatestOnlyWorker(Generic[Request]):
 
 
 @dataclass(frozen=True)
+class RecedingRequest:
+    """The rest of a mission in flight to replan (see :mod:`uav_comm_planner.core.receding`).
+
+    position_m: where the rest starts; flown: the slots already flown (power mapped onto the
+    mission's nodes); previous_q: the rest of the plan in force, one more start;
+    segment: the plan in force (a :class:`~uav_comm_planner.ros.progress.Segment`), cut after
+    ``slots_kept`` of its slots when the replan takes over.
+    """
+
+    position_m: tuple[float, float]
+    flown: FlownSlots
+    previous_q: object
+    segment: object
+    slots_kept: int
+
+
+@dataclass(frozen=True)
 class PlanRequest:
-    """What to plan, the settings to publish it with, and when the planned flight starts."""
+    """What to plan, the settings to publish it with, and its plan stamp.
+
+    start_ns: the plan stamp (node clock, nanoseconds) on every output of the plan; the
+    planned poses are stamped start_ns + their planned time. ``receding``: plan the rest of
+    the mission in flight instead of the whole mission from ``start_m``.
+    """
 
     scenario: Scenario
     settings: SolverSettings
@@ -90,6 +112,7 @@ class PlanRequest:
     start_ns: int
     reason: str
     vehicle: VehicleLimits = VehicleLimits()
+    receding: RecedingRequest | None = None
 
 
 @dataclass(frozen=True)
@@ -98,6 +121,7 @@ class PlanOutcome:
 
     ``result`` is the plan to publish: as the vehicle flies it when the request is
     vehicle-aware (``vehicle_plan`` then holds the optimiser's plan and the mission's timing).
+    receding: for a replan of a mission in flight, what it promises for the whole mission.
     """
 
     request: PlanRequest
@@ -107,25 +131,14 @@ class PlanOutcome:
     mission_path: FilePath | None = None
     mission_error: str = ''
     cancelled: bool = False
+    receding: RecedingPlan | None = None
 
-
-def remaining_scenario(scenario: Scenario, position: tuple[float, float],
-                       elapsed_s: float) -> Scenario:
-    """The rest of ``scenario`` flown from ``position`` after ``elapsed_s`` seconds.
-
-    Keeps the slot length; drops the slots whose waypoint time has passed. Raises
-    :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when none remains or the goal
-    is out of reach from ``position``.
-    """
-    passed = max(0, math.floor(elapsed_s / scenario.slot_s))
-    remaining = scenario.num_slots - passed
-    if remaining < 1:
-        raise InfeasibleHorizonError(
-            f'the mission horizon is over ({elapsed_s:.1f} s since the mission started, '
-            f'{scenario.num_slots} slots of {scenario.slot_s:g} s): call ~/replan to start '
-            f'a new mission')
-    return scenario.replace(start_m=position, num_slots=remaining,
-                            horizon_s=remaining * scenario.slot_s)
+    @property
+    def min_throughput(self) -> float:
+        """The min average throughput over the whole mission, bit/s."""
+        if self.receding is not None:
+            return self.receding.mission_min_throughput
+        return float(self.result.min_throughput)
 
 
 def write_mission(outcome: PlanOutcome, output: NodeSettings) -> FilePath:
@@ -146,32 +159,63 @@ def accepts_should_stop(planner: Callable[..., object]) -> bool:
                for p in parameters)
 
 
+def _plan_whole(planner: Planner,
+                request: PlanRequest) -> tuple[VehiclePlan | None, PlanResult]:
+    """The whole mission: for the vehicle (its plan as flown) or the optimiser's plan."""
+    if not request.output.vehicle_aware:
+        return None, planner(request.scenario, request.settings)
+    vehicle_plan = plan_for_vehicle(request.scenario, request.vehicle, request.settings,
+                                    firmware=request.output.mission_firmware, planner=planner)
+    return vehicle_plan, vehicle_plan.flown
+
+
+def _plan_rest(planner: Planner, request: PlanRequest, planned: list, scenario: Scenario,
+               settings: SolverSettings | None, *, offsets=None,
+               extra_starts=None) -> PlanResult:
+    """The rest of a mission in flight, as :func:`~uav_comm_planner.core.receding.replan`
+    asks for it: with the offsets; for the vehicle, the plan as flown with its power for the
+    offsets (the vehicle plan is appended to ``planned``)."""
+    optimiser = functools.partial(planner, offsets=offsets, extra_starts=extra_starts)
+    if not request.output.vehicle_aware:
+        return optimiser(scenario, settings)
+    vehicle_plan = plan_for_vehicle(scenario, request.vehicle, settings,
+                                    firmware=request.output.mission_firmware,
+                                    planner=optimiser)
+    planned.append(vehicle_plan)
+    return as_flown(vehicle_plan.flown, offsets)
+
+
 def attempt(planner: Planner, request: PlanRequest, *,
             should_stop: Callable[[], bool] | None = None) -> PlanOutcome:
     """Plan ``request`` and write its mission if asked; every failure becomes the outcome.
 
     ``should_stop``, when given, is passed on to the planner, which asks it between steps;
     a plan given up that way is an outcome with ``cancelled`` set. A vehicle-aware request
-    is planned for its vehicle; the outcome's ``result`` is then the plan as flown.
+    is planned for its vehicle (the outcome's ``result`` is then the plan as flown); a
+    request in flight replans the rest of the mission (the receding horizon).
     """
     if should_stop is not None:
         planner = functools.partial(planner, should_stop=should_stop)
     vehicle_plan = None
+    receding = None
     try:
-        if request.output.vehicle_aware:
-            vehicle_plan = plan_for_vehicle(request.scenario, request.vehicle, request.settings,
-                                            firmware=request.output.mission_firmware,
-                                            planner=planner)
-            result = vehicle_plan.flown
+        if request.receding is None:
+            vehicle_plan, result = _plan_whole(planner, request)
         else:
-            result = planner(request.scenario, request.settings)
+            rest = request.receding
+            planned: list[VehiclePlan] = []
+            receding = replan(request.scenario, rest.position_m, rest.flown, request.settings,
+                              planner=functools.partial(_plan_rest, planner, request, planned),
+                              previous_q=rest.previous_q)
+            result = receding.result
+            vehicle_plan = planned[-1] if planned else None
     except PlanCancelledError as exc:
         return PlanOutcome(request, error=str(exc), cancelled=True)
     except PlannerError as exc:
         return PlanOutcome(request, error=str(exc))
     except Exception as exc:  # noqa: B902 - a failed plan must not end the worker thread
         return PlanOutcome(request, error=f'unexpected {type(exc).__name__}: {exc}')
-    outcome = PlanOutcome(request, result, vehicle_plan)
+    outcome = PlanOutcome(request, result, vehicle_plan, receding=receding)
     if not request.output.mission_file:
         return outcome
     try:

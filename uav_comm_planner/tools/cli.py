@@ -335,6 +335,17 @@ def _command_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _command_upload(args: argparse.Namespace) -> int:
+    from uav_comm_planner.vehicle.link import LinkSettings
+    from uav_comm_planner.vehicle.upload import upload_file
+
+    count = upload_file(args.mission, args.connect,
+                        settings=LinkSettings(timeout_s=args.timeout, retries=args.retries),
+                        connect_timeout_s=args.connect_timeout)
+    print(f'{args.mission}: {count} items uploaded to {args.connect} and read back identical')
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineArgumentParser(
         prog=PROG,
@@ -383,6 +394,20 @@ def build_parser() -> argparse.ArgumentParser:
     sweep_parser.add_argument('--figure', type=Path, metavar='FILE.png',
                               help="draw the letter's Fig. 2 (.png, .pdf or .svg)")
     sweep_parser.set_defaults(handler=_command_sweep)
+
+    upload_parser = commands.add_parser(
+        'upload', help='upload a mission over MAVLink and verify it by reading it back')
+    upload_parser.add_argument('mission', type=Path, metavar='MISSION.waypoints|MISSION.plan')
+    upload_parser.add_argument('--connect', required=True, metavar='URL',
+                               help='pymavlink URL: tcp:127.0.0.1:5760, udpin:0.0.0.0:14550, '
+                                    '/dev/ttyACM0,115200')
+    upload_parser.add_argument('--timeout', type=float, default=2.0, metavar='S',
+                               help='seconds to wait for each answer (default 2)')
+    upload_parser.add_argument('--retries', type=int, default=5,
+                               help='resends of an unanswered message (default 5)')
+    upload_parser.add_argument('--connect-timeout', type=float, default=30.0, metavar='S',
+                               help='seconds to wait for the heartbeat (default 30)')
+    upload_parser.set_defaults(handler=_command_upload)
 
     bench_parser = commands.add_parser('bench', help=bench.DESCRIPTION,
                                        description=bench.DESCRIPTION)

@@ -1,0 +1,240 @@
+"""Receding horizon: replan the rest of a mission without forgetting what it already did.
+
+A mission is the letter's problem over M slots of delta = T / M seconds with budget P_T. After
+k elapsed slots, flown at positions q[1..k] with power p_n[m], node n holds
+
+    D_n = delta sum_{m<=k} (B/N) log2(1 + p_n[m] a_n[m])      bits,
+
+and sum_{m<=k} sum_n p_n[m] of the budget is spent. The replan chooses the remaining M' = M - k
+waypoints (from the UAV's position to qF, same delta) and their power to maximise the whole
+mission's min average throughput
+
+    min_n (D_n + delta sum_{m>k} (B/N) log2(1 + p_n[m] a_n[m])) / T
+
+subject to sum_{m>k} sum_n p_n[m] <= P_T - sum_{m<=k} sum_n p_n[m]. Dividing by (B/N) M' delta,
+it is the letter's problem on the remaining slots with an offset per node,
+
+    maximise min_n (o_n + mean_{m>k} log2(1 + p_n[m] a_n[m])),  o_n = D_n / (delta (B/N) M'),
+
+which the water-filling (node n needs only (c - o_n)^+ for a common value c) and the SCA
+bound (plus the constant o_n) solve unchanged (:func:`~uav_comm_planner.core.optimizer.plan`
+with ``offsets``). The whole mission's rate is then R_n = (B/N) (o_n + mean_{m>k} ...) M' / M.
+With no elapsed slot the offsets are zero and the replan is the letter's problem exactly.
+
+Notation: p (N, k) watts, positions (k, 2) metres, D (N,) bits.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+import math
+from typing import Callable, Sequence
+
+import numpy as np
+
+from uav_comm_planner.core.model import leg_lengths, snr_per_watt
+from uav_comm_planner.core.optimizer import offset_rates, optimal_power, plan, PlanResult, Step
+from uav_comm_planner.core.power import checked_offsets
+from uav_comm_planner.core.scenario import DUPLICATE_NODE_DISTANCE_M, Scenario, SolverSettings
+from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+
+
+@dataclass(frozen=True)
+class FlownSlots:
+    """The k elapsed slots of a mission, as the transmitter used them.
+
+    power_w: p_n[m] (N, k) watts, for the nodes of the mission being replanned (a node that
+    was not served in a slot has 0 there; :func:`power_for_nodes` maps a schedule onto a new
+    node set); positions_m: (k, 2) metres, where the UAV was at each slot's time (flown, or
+    as planned when no telemetry has it).
+    """
+
+    power_w: np.ndarray
+    positions_m: np.ndarray
+
+    def __post_init__(self) -> None:
+        power = np.array(self.power_w, dtype=float, ndmin=2)
+        positions = np.array(self.positions_m, dtype=float).reshape(-1, 2)
+        if power.shape[1] != positions.shape[0]:
+            raise InvalidScenarioError(
+                f'flown slots: {power.shape[1]} slots of power but {positions.shape[0]} '
+                f'positions; give one position per slot')
+        if not (np.all(np.isfinite(power)) and np.all(np.isfinite(positions))):
+            raise InvalidScenarioError('flown slots: power and positions must be finite')
+        if np.any(power < 0.0):
+            raise InvalidScenarioError('flown slots: power must be >= 0 W')
+        for array in (power, positions):
+            array.setflags(write=False)
+        object.__setattr__(self, 'power_w', power)
+        object.__setattr__(self, 'positions_m', positions)
+
+    @classmethod
+    def none(cls, num_nodes: int) -> 'FlownSlots':
+        """No slot elapsed yet, for ``num_nodes`` nodes."""
+        return cls(np.zeros((num_nodes, 0)), np.zeros((0, 2)))
+
+    @property
+    def num_slots(self) -> int:
+        """k."""
+        return int(self.power_w.shape[1])
+
+    @property
+    def energy_w(self) -> float:
+        """sum_{m<=k} sum_n p_n[m]: the part of the budget P_T spent (the letter's units, W)."""
+        return float(self.power_w.sum())
+
+    def then(self, power_w: np.ndarray, positions_m: np.ndarray) -> 'FlownSlots':
+        """These slots followed by more: power (N, j) watts at positions (j, 2) metres."""
+        return FlownSlots(np.hstack([self.power_w, np.array(power_w, dtype=float, ndmin=2)]),
+                          np.vstack([self.positions_m, np.reshape(positions_m, (-1, 2))]))
+
+
+def power_for_nodes(from_nodes_m: Sequence[Sequence[float]], power_w: np.ndarray,
+                    to_nodes_m: Sequence[Sequence[float]]) -> np.ndarray:
+    """A schedule p (N0, k) for nodes ``from_nodes_m`` (N0, 2) seen by nodes ``to_nodes_m``
+    (N1, 2): (N1, k) watts, a node's row where it is the same node (within
+    DUPLICATE_NODE_DISTANCE_M), zeros for a node that was not served."""
+    source = np.reshape(np.asarray(from_nodes_m, dtype=float), (-1, 2))
+    target = np.reshape(np.asarray(to_nodes_m, dtype=float), (-1, 2))
+    power = np.array(power_w, dtype=float, ndmin=2)
+    mapped = np.zeros((len(target), power.shape[1]))
+    if len(source) == 0:
+        return mapped
+    gaps = np.linalg.norm(target[:, None, :] - source[None, :, :], axis=-1)
+    nearest = gaps.argmin(axis=1)
+    same = gaps[np.arange(len(target)), nearest] < DUPLICATE_NODE_DISTANCE_M
+    mapped[same] = power[nearest[same]]
+    return mapped
+
+
+def delivered_bits(mission: Scenario, flown: FlownSlots) -> np.ndarray:
+    """D_n = delta sum_{m<=k} (B/N) log2(1 + p_n[m] a_n[m]) at the flown positions: (N,) bits."""
+    if flown.power_w.shape[0] != mission.num_nodes:
+        raise InvalidScenarioError(
+            f'flown slots: power for {flown.power_w.shape[0]} nodes, the mission has '
+            f'{mission.num_nodes}; map it with power_for_nodes')
+    if flown.num_slots == 0:
+        return np.zeros(mission.num_nodes)
+    a = snr_per_watt(flown.positions_m, mission)
+    bits_per_use = np.log2(1.0 + flown.power_w * a).sum(axis=1)
+    return mission.slot_s * mission.bandwidth_hz / mission.num_nodes * bits_per_use
+
+
+def rest_of_mission(mission: Scenario, position_m: Sequence[float],
+                    flown: FlownSlots) -> Scenario:
+    """The remaining M - k slots from ``position_m`` to qF, same delta, with the budget left.
+
+    Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when no slot remains or
+    qF is out of reach, :class:`~uav_comm_planner.errors.InvalidScenarioError` when the
+    budget is spent.
+    """
+    remaining = mission.num_slots - flown.num_slots
+    if remaining < 1:
+        raise InfeasibleHorizonError(
+            f'the mission horizon is over ({flown.num_slots} of {mission.num_slots} slots '
+            f'flown): start a new mission')
+    budget_left = mission.power_budget_w - flown.energy_w
+    if not budget_left > 0.0:
+        raise InvalidScenarioError(
+            f'the power budget is spent ({flown.energy_w:.6g} W of P_T = '
+            f'{mission.power_budget_w:g} W in {flown.num_slots} slots): start a new mission')
+    if remaining == mission.num_slots and tuple(position_m) == tuple(mission.start_m):
+        return mission
+    return mission.replace(start_m=tuple(position_m), num_slots=remaining,
+                           horizon_s=remaining * mission.slot_s, power_budget_w=budget_left)
+
+
+@dataclass(frozen=True)
+class RecedingPlan:
+    """A replan of the rest of a mission and what it promises for the whole mission.
+
+    result: the plan of :func:`rest_of_mission` (its trajectory, times and power cover the
+    remaining slots only; its rates count the offsets, see :class:`PlanResult`);
+    delivered_bits: D_n (N,) bits before the replan; offsets: o (N,) bits per use;
+    mission_rates: R_n (N,) bit/s over the whole mission; mission_min_throughput: min_n R_n.
+    """
+
+    mission: Scenario
+    flown: FlownSlots
+    result: PlanResult
+    delivered_bits: np.ndarray
+    offsets: np.ndarray
+    mission_rates: np.ndarray
+    mission_min_throughput: float
+
+    @property
+    def mission_energy_w(self) -> float:
+        """sum of p over every slot, flown and planned: at most P_T."""
+        return self.flown.energy_w + float(self.result.power.sum())
+
+
+Planner = Callable[..., PlanResult]
+
+
+def as_flown(result: PlanResult, offsets: np.ndarray | None) -> PlanResult:
+    """``result`` (a plan at the positions a vehicle will fly, with the letter's power for
+    them) with the power that is optimal there for the offsets o (N,) instead, and its rates
+    counting them: R_n = (B/N) (o_n + mean_m log2(1 + p_n[m] a_n[m])). Without offsets (or
+    all zero) ``result`` itself."""
+    offsets = checked_offsets(offsets, result.scenario.num_nodes)
+    if offsets is None:
+        return result
+    p = optimal_power(result.trajectory, result.scenario, offsets=offsets)
+    rates = offset_rates(result.trajectory, p, result.scenario, offsets)
+    value = float(rates.min())
+    return dataclasses.replace(result, power=p, rates=rates, min_throughput=value,
+                               history=result.history + (Step('power', value),),
+                               upper_bound=math.inf, offsets=offsets)
+
+
+#: Name of the start that continues the previous plan (see :func:`replan`).
+PREVIOUS_PLAN_START = 'previous'
+
+
+def within_speed_limit(q: np.ndarray, scenario: Scenario) -> bool:
+    """Whether q (M, 2) metres, with q0 and qF of ``scenario``, keeps every leg <= V delta."""
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    if q.shape[0] != scenario.num_slots or not np.all(np.isfinite(q)):
+        return False
+    return bool(leg_lengths(q, scenario).max() <= scenario.max_step_m * (1 + 1e-9))
+
+
+def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
+           settings: SolverSettings | None = None, *, planner: Planner = plan,
+           previous_q: np.ndarray | None = None, **plan_options) -> RecedingPlan:
+    """Plan the rest of ``mission`` from ``position_m`` after the slots ``flown``.
+
+    Maximises the whole mission's min average throughput under the whole mission's budget
+    (module docstring). ``previous_q`` (M - k, 2) metres, the rest of the plan being flown,
+    is one more start for Algorithm 1 when it keeps the speed limit from ``position_m``: the
+    replan then promises at least what going on with it would give. ``plan_options`` go to
+    ``planner`` (:func:`plan`: ``power_method``, ``trajectory_method``). With no flown slot
+    and ``position_m`` = q0 it returns the letter's plan exactly. Raises the errors of
+    :func:`rest_of_mission` and of the planner.
+    """
+    rest = rest_of_mission(mission, position_m, flown)
+    delivered = delivered_bits(mission, flown)
+    per_use = rest.slot_s * rest.bandwidth_hz / rest.num_nodes * rest.num_slots
+    offsets = delivered / per_use
+    if previous_q is not None and within_speed_limit(previous_q, rest):
+        plan_options['extra_starts'] = {PREVIOUS_PLAN_START: np.asarray(previous_q, float)}
+    result = planner(rest, settings, offsets=offsets, **plan_options)
+    share = rest.num_slots / mission.num_slots
+    mission_rates = np.asarray(result.rates, dtype=float) * share
+    return RecedingPlan(mission=mission, flown=flown, result=result, delivered_bits=delivered,
+                        offsets=offsets, mission_rates=mission_rates,
+                        mission_min_throughput=float(mission_rates.min()))
+
+
+def mission_rates_flown(mission: Scenario, power_w: np.ndarray,
+                        positions_m: np.ndarray) -> np.ndarray:
+    """R_n (N,) bit/s of a whole mission from every slot's power (N, M) and position (M, 2):
+    (1/T) sum_m delta (B/N) log2(1 + p_n[m] a_n[m]); slots not flown count as no data."""
+    flown = FlownSlots(power_w, positions_m)
+    return delivered_bits(mission, flown) / mission.horizon_s
+
+
+__all__ = ['PREVIOUS_PLAN_START', 'FlownSlots', 'RecedingPlan', 'as_flown', 'delivered_bits',
+           'mission_rates_flown', 'power_for_nodes', 'replan', 'rest_of_mission',
+           'within_speed_limit']

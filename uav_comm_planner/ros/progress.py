@@ -1,0 +1,233 @@
+"""The mission in flight: its clock, the plan each slot was flown under, and where the UAV was.
+
+No ROS here: the node feeds times (seconds on one clock: the vehicle's boot time with a
+MAVLink link, the node's clock without) and positions (metres in the planning frame), and
+asks what a receding replan needs (:func:`uav_comm_planner.core.receding.replan`).
+
+A mission is M slots of delta seconds. Its first plan starts when the UAV reaches that plan's
+q0 (or on ``~/start``); slot m of a plan covers ((m - 1) delta, m delta] after the plan's start,
+with the UAV at q[m] at its end. A replan at time t counts the slots of the plan in force that
+have begun, j = ceil((t - start) / delta), as flown under that plan (their power is spent),
+and plans the remaining slots; the new plan's slots start when the UAV reaches its q0. In
+between, the transmitter schedule has no slot: the energy and the data of the mission are the
+sums over the slots of its plans, each cut where the next one took over.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+from uav_comm_planner.core.model import flown_path
+from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.receding import FlownSlots, power_for_nodes
+from uav_comm_planner.core.scenario import Scenario
+
+#: Position samples kept for the flown positions (about 20 minutes at 50 Hz).
+TRACK_LENGTH = 60_000
+#: A slot's flown position is read from the track when a sample lies within this many
+#: seconds of the slot's time on each side; otherwise the planned position stands for it.
+TRACK_GAP_S = 2.0
+#: Samples of the planned path per slot when looking for the nearest planned point.
+PATH_SAMPLES_PER_SLOT = 10
+
+
+class PoseTrack:
+    """Timed positions of the UAV: (t seconds, x, y metres), in time order, bounded."""
+
+    def __init__(self, length: int = TRACK_LENGTH) -> None:
+        self._samples = np.empty((length, 3))
+        self._count = 0
+
+    def add(self, time_s: float, x_m: float, y_m: float) -> None:
+        """Append a sample; one older than the last is ignored (time goes forward)."""
+        if self._count and time_s < self._samples[self._count - 1, 0]:
+            return
+        if self._count == len(self._samples):
+            self._samples[:-1] = self._samples[1:]
+            self._count -= 1
+        self._samples[self._count] = (time_s, x_m, y_m)
+        self._count += 1
+
+    @property
+    def samples(self) -> np.ndarray:
+        """(K, 3): t seconds, x, y metres."""
+        return self._samples[:self._count]
+
+    @property
+    def latest(self) -> tuple[float, float, float] | None:
+        return tuple(self._samples[self._count - 1]) if self._count else None
+
+    def at(self, times_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (K, 2) at ``times_s`` (K,), linearly interpolated, and (K,) booleans:
+        whether a sample lies within TRACK_GAP_S on each side of the time."""
+        times_s = np.asarray(times_s, dtype=float).reshape(-1)
+        samples = self.samples
+        known = np.zeros(len(times_s), dtype=bool)
+        positions = np.full((len(times_s), 2), np.nan)
+        if len(samples) < 1:
+            return positions, known
+        t = samples[:, 0]
+        after = np.searchsorted(t, times_s, side='left')
+        before = np.clip(after - 1, 0, len(t) - 1)
+        after_c = np.clip(after, 0, len(t) - 1)
+        exact = t[after_c] == times_s
+        known = exact | ((after > 0) & (after < len(t))
+                         & (times_s - t[before] <= TRACK_GAP_S)
+                         & (t[after_c] - times_s <= TRACK_GAP_S))
+        positions[:, 0] = np.interp(times_s, t, samples[:, 1])
+        positions[:, 1] = np.interp(times_s, t, samples[:, 2])
+        return positions, known
+
+
+@dataclass
+class Segment:
+    """One plan of the mission: it covers mission slots first_slot + 1 .. first_slot + M'.
+
+    start_s: when its clock started (the UAV at its q0), None while it waits for that;
+    slots_kept: how many of its slots count (all until a replan cuts it).
+    """
+
+    result: PlanResult
+    first_slot: int
+    start_s: float | None = None
+    slots_kept: int | None = None
+
+    @property
+    def num_slots(self) -> int:
+        return self.result.scenario.num_slots if self.slots_kept is None else self.slots_kept
+
+    def slots_begun(self, now_s: float) -> int:
+        """Slots of this plan that have begun at ``now_s`` (0 before its start)."""
+        if self.start_s is None:
+            return 0
+        begun = math.ceil((now_s - self.start_s) / self.result.scenario.slot_s - 1e-9)
+        return int(min(max(begun, 0), self.num_slots))
+
+    def slot_times_s(self, slots: int) -> np.ndarray:
+        """Clock times of this plan's first ``slots`` waypoints: start + m delta, (slots,)."""
+        return self.start_s + self.result.scenario.slot_s * np.arange(1, slots + 1)
+
+
+@dataclass
+class MissionProgress:
+    """The plans of the mission in flight, in order, on one clock.
+
+    ``segments[-1]`` is the plan in force (or waiting for its q0). ``mission`` is the whole
+    mission's scenario as last planned (the node set and budget of the latest plan).
+    """
+
+    mission: Scenario | None = None
+    segments: list[Segment] = field(default_factory=list)
+
+    @property
+    def started(self) -> bool:
+        return bool(self.segments) and self.segments[0].start_s is not None
+
+    @property
+    def current(self) -> Segment | None:
+        return self.segments[-1] if self.segments else None
+
+    def begin(self, mission: Scenario, result: PlanResult) -> None:
+        """A new mission whose first plan is ``result``; its clock is not running yet."""
+        self.mission = mission
+        self.segments = [Segment(result, 0)]
+
+    def start_clock(self, now_s: float) -> None:
+        """The plan in force starts now (the UAV is at its q0)."""
+        if self.current is not None and self.current.start_s is None:
+            self.current.start_s = now_s
+
+    def flown_slots(self, now_s: float, nodes: tuple, track: PoseTrack | None) -> FlownSlots:
+        """Every slot begun by ``now_s``, with its power mapped onto ``nodes`` and its position
+        from ``track`` where it covers the slot's time, else as planned."""
+        power, positions = [], []
+        for segment in self.segments:
+            begun = segment.slots_begun(now_s) if segment is self.current else segment.num_slots
+            if begun == 0 or segment.start_s is None:
+                continue
+            result = segment.result
+            planned = np.asarray(result.trajectory[:begun], dtype=float)
+            if track is not None:
+                tracked, known = track.at(segment.slot_times_s(begun))
+                planned = np.where(known[:, None], tracked, planned)
+            power.append(power_for_nodes(result.scenario.ground_nodes_m,
+                                         result.power[:, :begun], nodes))
+            positions.append(planned)
+        if not power:
+            return FlownSlots.none(len(nodes))
+        return FlownSlots(np.hstack(power), np.vstack(positions))
+
+    def cut(self, now_s: float) -> int:
+        """End the plan in force after its slots begun by ``now_s``; returns the mission's
+        slots counted so far (the next plan's first slot)."""
+        segment = self.current
+        segment.slots_kept = segment.slots_begun(now_s)
+        return segment.first_slot + segment.slots_kept
+
+    def follow_with(self, mission: Scenario, result: PlanResult, first_slot: int) -> None:
+        """The next plan of the mission, from mission slot ``first_slot`` + 1."""
+        self.mission = mission
+        if self.current is not None and self.current.start_s is None:
+            # The plan it replaces never started: drop it, it flew no slot.
+            self.segments.pop()
+        self.segments.append(Segment(result, first_slot))
+
+    def over(self, now_s: float) -> bool:
+        """Whether every slot of the mission has begun."""
+        segment = self.current
+        if segment is None or self.mission is None or segment.start_s is None:
+            return False
+        return segment.first_slot + segment.slots_begun(now_s) >= self.mission.num_slots \
+            and segment.slots_begun(now_s) >= segment.num_slots
+
+    def schedule(self) -> tuple[np.ndarray, list[tuple[Segment, int]]]:
+        """The power of every slot kept so far, mapped onto the last plan's nodes: (N, K)
+        watts, and each segment with the number of its slots in it."""
+        nodes = self.current.result.scenario.ground_nodes_m
+        parts, kept = [], []
+        for segment in self.segments:
+            count = segment.num_slots
+            parts.append(power_for_nodes(segment.result.scenario.ground_nodes_m,
+                                         segment.result.power[:, :count], nodes))
+            kept.append((segment, count))
+        return np.hstack(parts), kept
+
+
+def planned_position(result: PlanResult, elapsed_s: float) -> np.ndarray:
+    """Where the plan has the UAV ``elapsed_s`` after its start: (2,) metres, interpolated
+    along q0, q[1..M], qF (held at the ends)."""
+    points = flown_path(result.trajectory, result.scenario)
+    times = result.scenario.path_times_s
+    return np.array([np.interp(elapsed_s, times, points[:, 0]),
+                     np.interp(elapsed_s, times, points[:, 1])])
+
+
+def off_plan(result: PlanResult, elapsed_s: float, position_m: tuple[float, float], *,
+             distance_m: float, delay_s: float) -> str:
+    """Why the UAV at ``position_m``, ``elapsed_s`` after the plan's start, is off the plan
+    ('' when it is on it).
+
+    Off by distance: no point of the planned path (sampled PATH_SAMPLES_PER_SLOT times a slot)
+    lies within ``distance_m``. Off by time: the nearest planned times at which the path passes
+    within ``distance_m`` all differ from ``elapsed_s`` by more than ``delay_s``.
+    """
+    scenario = result.scenario
+    points = flown_path(result.trajectory, scenario)
+    times = scenario.path_times_s
+    fine = np.linspace(0.0, times[-1], PATH_SAMPLES_PER_SLOT * (len(times) - 1) + 1)
+    path = np.column_stack([np.interp(fine, times, points[:, 0]),
+                            np.interp(fine, times, points[:, 1])])
+    gaps = np.linalg.norm(path - np.asarray(position_m, dtype=float), axis=1)
+    near = gaps <= distance_m
+    if not near.any():
+        return f'{gaps.min():.1f} m from the planned path (replan_distance_m {distance_m:g})'
+    lag = np.abs(fine[near] - elapsed_s).min()
+    if lag > delay_s:
+        return f'{lag:.1f} s off the planned time (replan_delay_s {delay_s:g})'
+    return ''
+
+
+__all__ = ['MissionProgress', 'PoseTrack', 'Segment', 'off_plan', 'planned_position']

@@ -1,0 +1,200 @@
+"""The vehicle on its own thread: telemetry in, missions out, over one MAVLink connection.
+
+A :class:`VehicleBridge` owns the connection (pymavlink's are not thread-safe) and runs on a
+daemon thread, never on the caller's: it connects (waiting for a heartbeat, again after a lost
+link), asks for GLOBAL_POSITION_INT and MISSION_CURRENT at ``rate_hz`` (autopilot time), turns
+each position into the planning frame through ``home`` and hands the caller
+:class:`Position`, :class:`MissionProgressReport` and :class:`LinkEvent` objects through
+``on_event``, which must be quick and thread-safe (a queue push). Uploads are queued with
+:meth:`VehicleBridge.upload`; the newest waiting mission replaces an older one that has not
+started. An upload is verified by reading the mission back
+(:func:`~uav_comm_planner.vehicle.link.upload_and_verify`) and, when asked, followed by
+MISSION_SET_CURRENT so that a vehicle in flight goes on from that item instead of restarting.
+
+Times are the autopilot's (``time_boot_ms`` / 1000, seconds), never the wall clock.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import threading
+import time
+from typing import Callable, Sequence
+
+from pymavlink import mavutil
+
+from uav_comm_planner.errors import VehicleLinkError
+from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
+from uav_comm_planner.vehicle.link import connect, LinkSettings, upload_and_verify
+from uav_comm_planner.vehicle.mission import MissionItem
+
+MAV = mavutil.mavlink
+#: Telemetry rate asked of the autopilot (per second of autopilot time).
+TELEMETRY_RATE_HZ = 10.0
+#: Pause before connecting again after a lost or refused link, seconds (wall clock).
+RECONNECT_PAUSE_S = 1.0
+#: How long MISSION_SET_CURRENT waits for MISSION_CURRENT to confirm, per try (wall clock).
+SET_CURRENT_TIMEOUT_S = 1.0
+SET_CURRENT_TRIES = 5
+
+
+@dataclass(frozen=True)
+class Position:
+    """The vehicle at east, north metres from home, ``up_m`` above home, at ``time_s``."""
+
+    time_s: float
+    east_m: float
+    north_m: float
+    up_m: float
+
+
+@dataclass(frozen=True)
+class MissionProgressReport:
+    """MISSION_CURRENT: the item the vehicle flies to (``seq``) at ``time_s`` (last seen)."""
+
+    time_s: float
+    seq: int
+
+
+@dataclass(frozen=True)
+class LinkEvent:
+    """Something the link did: ``kind`` is 'connected', 'uploaded', 'error'; ``tag`` names the
+    upload it concerns (what :meth:`VehicleBridge.upload` was given)."""
+
+    kind: str
+    message: str
+    tag: object = None
+
+
+Event = Position | MissionProgressReport | LinkEvent
+
+
+@dataclass(frozen=True)
+class _Upload:
+    items: tuple[MissionItem, ...]
+    current_seq: int | None
+    tag: object
+
+
+def enu_of(message, home: Home) -> tuple[float, float, float]:
+    """A GLOBAL_POSITION_INT's position as east, north metres from ``home`` and metres above
+    home (relative altitude)."""
+    east, north, _ = geodetic_to_enu(message.lat / 1e7, message.lon / 1e7, home.altitude_m,
+                                     home)
+    return float(east), float(north), message.relative_alt / 1000.0
+
+
+class VehicleBridge:
+    """Telemetry and mission uploads for one vehicle at ``url``, on a thread of its own."""
+
+    def __init__(self, url: str, home: Home, on_event: Callable[[Event], None], *,
+                 settings: LinkSettings = LinkSettings(), rate_hz: float = TELEMETRY_RATE_HZ,
+                 connect_timeout_s: float = 30.0) -> None:
+        self.url = url
+        self.home = home
+        self._on_event = on_event
+        self._settings = settings
+        self._rate_hz = rate_hz
+        self._connect_timeout_s = connect_timeout_s
+        self._lock = threading.Lock()
+        self._waiting: _Upload | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name='uav_comm_planner.vehicle',
+                                        daemon=True)
+        self._thread.start()
+
+    def upload(self, items: Sequence[MissionItem], *, current_seq: int | None = None,
+               tag: object = None) -> None:
+        """Queue ``items`` for upload (replacing a waiting one); then, with ``current_seq``,
+        make that item the vehicle's current one."""
+        with self._lock:
+            self._waiting = _Upload(tuple(items), current_seq, tag)
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        """End the thread and close the connection."""
+        self._stop.set()
+        self._thread.join(timeout_s)
+
+    def _run(self) -> None:
+        refused = ''
+        while not self._stop.is_set():
+            try:
+                link = connect(self.url, timeout_s=self._connect_timeout_s)
+            except VehicleLinkError as exc:
+                if str(exc) != refused:            # said once, not at every retry
+                    refused = str(exc)
+                    self._on_event(LinkEvent('error', f'{exc}; retrying'))
+                self._stop.wait(RECONNECT_PAUSE_S)
+                continue
+            refused = ''
+            try:
+                self._on_event(LinkEvent('connected', f'vehicle link up on {self.url}'))
+                self._serve(link)
+            except VehicleLinkError as exc:
+                self._on_event(LinkEvent('error', f'vehicle link: {exc}'))
+                self._stop.wait(RECONNECT_PAUSE_S)
+            except (OSError, ConnectionError) as exc:
+                self._on_event(LinkEvent('error', f'vehicle link lost: {exc}'))
+                self._stop.wait(RECONNECT_PAUSE_S)
+            finally:
+                link.close()
+
+    def _ask_streams(self, link) -> None:
+        for message_id in (MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                           MAV.MAVLINK_MSG_ID_MISSION_CURRENT):
+            link.mav.command_long_send(link.target_system, link.target_component,
+                                       MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id,
+                                       1e6 / self._rate_hz, 0, 0, 0, 0, 0)
+
+    def _serve(self, link) -> None:
+        self._ask_streams(link)
+        latest_time_s = 0.0
+        while not self._stop.is_set():
+            with self._lock:
+                job, self._waiting = self._waiting, None
+            if job is not None:
+                self._upload(link, job)
+                self._ask_streams(link)
+                continue
+            message = link.recv_match(type=['GLOBAL_POSITION_INT', 'MISSION_CURRENT'],
+                                      blocking=True, timeout=0.05)
+            if message is None:
+                continue
+            if message.get_type() == 'GLOBAL_POSITION_INT':
+                latest_time_s = message.time_boot_ms / 1000.0
+                east, north, up = enu_of(message, self.home)
+                self._on_event(Position(latest_time_s, east, north, up))
+            else:
+                self._on_event(MissionProgressReport(latest_time_s, int(message.seq)))
+
+    def _upload(self, link, job: _Upload) -> None:
+        try:
+            upload_and_verify(link, job.items, self._settings)
+            note = ''
+            if job.current_seq is not None:
+                set_current(link, job.current_seq)
+                note = f'; current item {job.current_seq}'
+        except VehicleLinkError as exc:
+            self._on_event(LinkEvent('error', f'mission upload failed: {exc}', job.tag))
+            if 'link lost' in str(exc):
+                raise
+            return
+        self._on_event(LinkEvent('uploaded', f'mission of {len(job.items)} items uploaded '
+                                             f'and read back{note}', job.tag))
+
+
+def set_current(link, seq: int) -> None:
+    """MISSION_SET_CURRENT until MISSION_CURRENT reports ``seq``; raises VehicleLinkError."""
+    for _ in range(SET_CURRENT_TRIES):
+        link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
+        deadline = time.monotonic() + SET_CURRENT_TIMEOUT_S
+        while (left := deadline - time.monotonic()) > 0:
+            message = link.recv_match(type='MISSION_CURRENT', blocking=True, timeout=left)
+            if message is not None and message.seq == seq:
+                return
+    raise VehicleLinkError(f'the vehicle did not make item {seq} current after '
+                           f'{SET_CURRENT_TRIES} tries of {SET_CURRENT_TIMEOUT_S:g} s')
+
+
+__all__ = ['LinkEvent', 'MissionProgressReport', 'Position', 'VehicleBridge', 'enu_of',
+           'set_current']
