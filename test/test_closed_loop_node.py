@@ -23,8 +23,8 @@ from test_node import harness, NODES_B  # noqa: F401 - the fixture is used by na
 from uav_comm_planner.ros.messages import nanoseconds_of, nodes_text, status_values
 from uav_comm_planner.ros.progress import planned_position
 from uav_comm_planner.ros.publishing import (OUTPUT_QOS, STATUS_QOS, TOPIC_MARKERS,
-                                             TOPIC_MIN_THROUGHPUT, TOPIC_PATH,
-                                             TOPIC_POWER_PLAN, TOPIC_STATUS)
+                                             TOPIC_MIN_THROUGHPUT, TOPIC_PATH, TOPIC_POWER_PLAN,
+                                             TOPIC_STATUS)
 
 POSE_RATE_HZ = 20.0
 

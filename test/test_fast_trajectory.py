@@ -9,7 +9,7 @@ from scipy import sparse
 
 from uav_comm_planner import paper_scenario, plan, Scenario, SolverError, SolverSettings
 from uav_comm_planner.core.fast_trajectory import (clarabel_settings, ClarabelTrajectoryStep,
-                                              cone_layout, trajectory_step_clarabel)
+                                                   cone_layout, trajectory_step_clarabel)
 from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.model import leg_lengths, snr_per_watt
 from uav_comm_planner.core.power import waterfilling_power

@@ -21,8 +21,8 @@ from uav_comm_planner.core.optimizer import within_speed_limit
 from uav_comm_planner.core.power import waterfilling_power
 from uav_comm_planner.files import NotARegularFileError, PARTIAL_MARK, write_text_atomic
 from uav_comm_planner.tools import cli
-from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.flyable import MAX_HOLD_S, schedule_flight
+from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mission import build_mission_items, export_mission, NAV_WAYPOINT
 

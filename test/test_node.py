@@ -379,8 +379,8 @@ def test_vehicle_aware_node_publishes_the_plan_as_flown(harness):
                                                num_slots=100)).flown
     poses = np.array([(pose.pose.position.x, pose.pose.position.y) for pose in path.poses])
     assert np.allclose(poses[1:-1], expected.trajectory, atol=1e-6)
-    assert h.received[TOPIC_MIN_THROUGHPUT][-1].data == pytest.approx(expected.min_throughput,
-                                                                       rel=1e-9)
+    stated = h.received[TOPIC_MIN_THROUGHPUT][-1].data
+    assert stated == pytest.approx(expected.min_throughput, rel=1e-9)
     # A planning speed above the vehicle's is refused as a parameter, with the numbers.
     answer = h.call('set_parameters', SetParameters.Request(
         parameters=[Parameter('max_speed_mps', value=12.0).to_parameter_msg()]))

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import paper_scenario
-from uav_comm_planner.errors import SolverError
 from uav_comm_planner.core.initial import static_point, straight_line
 from uav_comm_planner.core.model import snr_per_watt
 from uav_comm_planner.core.power import conic_power, waterfilling_power
+from uav_comm_planner.errors import SolverError
 
 
 def letter_cases():

@@ -130,7 +130,8 @@ def test_mission_export_writes_rows_inside_their_ranges_or_refuses(
         assert all(math.isfinite(v) for v in (*item.params[:3], item.x, item.y, item.z))
         assert abs(item.x) <= 90.0 and abs(item.y) <= 180.0
         if firmware == 'ardupilot' and item.command == NAV_WAYPOINT:
-            assert item.params[0] <= MAX_HOLD_S['ardupilot'] and item.params[0] == int(item.params[0])
+            hold = item.params[0]
+            assert hold <= MAX_HOLD_S['ardupilot'] and hold == int(hold)
 
 
 number_text = st.one_of(

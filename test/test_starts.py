@@ -5,10 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from uav_comm_planner import (InvalidScenarioError, paper_scenario, plan, Scenario,
-                              SolverSettings)
+from uav_comm_planner import (InvalidScenarioError, paper_scenario, plan, Scenario, SolverSettings)
 from uav_comm_planner.core.initial import (even_hovers, hover_and_fly, nearest_neighbour_order,
-                                      straight_line, tour_order, two_opt)
+                                           straight_line, tour_order, two_opt)
 from uav_comm_planner.core.model import average_rates, leg_lengths
 from uav_comm_planner.core.optimizer import throughput_upper_bound
 

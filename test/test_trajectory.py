@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import paper_scenario
-from uav_comm_planner.errors import SolverError
 from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.model import leg_lengths, snr_per_watt
 from uav_comm_planner.core.power import waterfilling_power
 from uav_comm_planner.core.trajectory import sca_lower_bound, trajectory_step_cvxpy
+from uav_comm_planner.errors import SolverError
 
 
 def letter_bound(q, q_k, p, scenario):

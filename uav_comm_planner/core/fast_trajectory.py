@@ -1,7 +1,8 @@
 """The SCA trajectory step on Clarabel directly: a sparse cone program built once per plan.
 
-Same problem as :func:`uav_comm_planner.core.trajectory.trajectory_step_cvxpy` (letter, problem (11)):
-maximise t subject to mean_m lbr_{n,m}(q) >= t for every node n and every leg at most V delta.
+Same problem as :func:`uav_comm_planner.core.trajectory.trajectory_step_cvxpy` (letter,
+problem (11)): maximise t subject to mean_m lbr_{n,m}(q) >= t for every node n and every
+leg at most V delta.
 With z[m] = (q[m] - c) / 1000 (kilometres, about a centre c of the scene), the bound's weight
 W_{n,m} = slope_{n,m} / d^k_{n,m} (d^k in km^2) and an epigraph variable u[m] >= ||z[m]||^2,
 
@@ -32,11 +33,11 @@ import clarabel
 import numpy as np
 from scipy import sparse
 
-from uav_comm_planner.errors import SolverError
 from uav_comm_planner.core.model import leg_lengths
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.trajectory import (kilometre_rows, KM, surrogate_coefficients,
-                                         TrajectoryStep, with_offsets)
+                                              TrajectoryStep, with_offsets)
+from uav_comm_planner.errors import SolverError
 
 
 def block_slots(num_nodes: int) -> int:

@@ -12,15 +12,14 @@ from typing import Callable
 import numpy as np
 
 from uav_comm_planner.core import initial
-from uav_comm_planner.errors import InvalidScenarioError, PlanCancelledError, SolverError
 from uav_comm_planner.core.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
-from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt,
-                                         snr_scale, spectral_efficiencies,
-                                         spectral_efficiency_to_rate)
+from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt, snr_scale,
+                                         spectral_efficiencies, spectral_efficiency_to_rate)
 from uav_comm_planner.core.power import (checked_offsets, conic_power, PowerAllocation,
                                          waterfilling_power)
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.trajectory import trajectory_step_cvxpy, TrajectoryStep
+from uav_comm_planner.errors import InvalidScenarioError, PlanCancelledError, SolverError
 
 logger = logging.getLogger(__name__)
 
@@ -286,10 +285,11 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
 
     Runs the letter's Algorithm 1 from every start in ``settings.starts`` (by default the
     straight line q0 -> qF at uniform speed and
-    :func:`~uav_comm_planner.core.initial.hover_and_fly`) and returns the best as a :class:`PlanResult`; ties go to the earlier start. The default
-    methods are the exact water-filling power step and the SCA step on one Clarabel solver
-    updated in place; ``power_method='conic', trajectory_method='cvxpy'`` rebuilds cvxpy
-    problems every step (the reference). Raises
+    :func:`~uav_comm_planner.core.initial.hover_and_fly`) and returns the best as a
+    :class:`PlanResult`; ties go to the earlier start. The default methods are the exact
+    water-filling power step and the SCA step on one Clarabel solver updated in place;
+    ``power_method='conic', trajectory_method='cvxpy'`` rebuilds cvxpy problems every step
+    (the reference). Raises
     :class:`~uav_comm_planner.errors.InvalidScenarioError` for a scenario outside the limits of
     ``settings`` (among them the compute budget N x M, checked before any work),
     :class:`~uav_comm_planner.errors.SolverError` when a convex step fails and

@@ -27,8 +27,8 @@ import cvxpy as cp
 import numpy as np
 
 from uav_comm_planner.core.conic import solve_to_optimality
-from uav_comm_planner.errors import SolverError
 from uav_comm_planner.core.model import LN2, spectral_efficiencies
+from uav_comm_planner.errors import SolverError
 
 _NEWTON_MAX_STEPS = 200
 

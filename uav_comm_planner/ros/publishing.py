@@ -11,17 +11,17 @@ from __future__ import annotations
 
 import math
 
+from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Path
 from rclpy.node import Node
-from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64, Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from uav_comm_planner.core.optimizer import PlanResult
-from uav_comm_planner.ros.messages import (marker_array, nodes_text, path_message,
-                                           power_message, power_plan_message, status_message)
+from uav_comm_planner.ros.messages import (marker_array, nodes_text, path_message, power_message,
+                                           power_plan_message, status_message)
 from uav_comm_planner.ros.worker import PlanOutcome
 
 TOPIC_PATH = 'planned_path'

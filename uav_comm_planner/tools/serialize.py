@@ -8,9 +8,9 @@ from pathlib import Path
 import re
 from typing import Any, Mapping
 
-from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.errors import InvalidScenarioError
 
 DISTRIBUTION = 'uav_comm_planner'
 
