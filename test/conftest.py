@@ -30,3 +30,18 @@ def ros_context() -> Iterator[object]:
         yield context
     finally:
         context.try_shutdown()
+
+
+@pytest.fixture
+def harness(ros_context):
+    """Makes planner nodes on real rclpy (``test_node.Harness``); closes them after the test."""
+    from test_node import Harness
+
+    made = []
+
+    def make(**options):
+        made.append(Harness(ros_context, **options))
+        return made[-1]
+    yield make
+    for each in made:
+        each.close()

@@ -17,9 +17,9 @@ import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
+from test_node import NODES_B
 from trajectory_msgs.msg import JointTrajectory
 
-from test_node import harness, NODES_B  # noqa: F401 - the fixture is used by name
 from uav_comm_planner.ros.messages import nanoseconds_of, nodes_text, status_values
 from uav_comm_planner.ros.progress import planned_position
 from uav_comm_planner.ros.publishing import (OUTPUT_QOS, STATUS_QOS, TOPIC_MARKERS,

@@ -25,18 +25,6 @@ from uav_comm_planner.ros.node import NODE_NAME
 pytestmark = pytest.mark.filterwarnings('ignore::DeprecationWarning')
 
 
-@pytest.fixture
-def harness(ros_context):
-    made = []
-
-    def make(**options) -> Harness:
-        made.append(Harness(ros_context, **options))
-        return made[-1]
-    yield make
-    for each in made:
-        each.close()
-
-
 def set_parameter(h: Harness, name: str, value):
     answer = h.call('set_parameters', SetParameters.Request(
         parameters=[Parameter(name, value=value).to_parameter_msg()]))

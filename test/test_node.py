@@ -149,18 +149,6 @@ class Harness:
         self.spin_until(lambda: self.node.error_count > count, 'error')
 
 
-@pytest.fixture
-def harness(ros_context):
-    made = []
-
-    def make(**options) -> Harness:
-        made.append(Harness(ros_context, **options))
-        return made[-1]
-    yield make
-    for each in made:
-        each.close()
-
-
 def flight_points(path: Path) -> np.ndarray:
     return np.array([[p.pose.position.x, p.pose.position.y] for p in path.poses])
 
