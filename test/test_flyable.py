@@ -221,3 +221,10 @@ def test_a_track_that_is_the_prediction_scores_as_the_plan(case_one):
     late = evaluate_flight(case_one.flown, flight.track(), times + 1020.0,
                            flight.positions(times), 1000.0)
     assert late.worst_reach_slots >= 4.0 and late.flown_to_stated < 1.0
+
+
+def test_a_planner_that_refuses_every_speed_gives_its_own_typed_error():
+    def refusing(scenario, settings):
+        raise InfeasibleHorizonError('no plan at this speed')
+    with pytest.raises(InfeasibleHorizonError, match='no plan at this speed'):
+        plan_for_vehicle(multirotor_case_one(), planner=refusing)

@@ -178,3 +178,13 @@ def test_summary_line_has_objective_baselines_and_time():
     assert f'{result.baselines["straight"]:.4g}' in line
     assert f'{result.baselines["static"]:.4g}' in line
     assert 'planned in' in line and '\n' not in line
+
+
+@pytest.mark.parametrize('values, message', [
+    ({'vehicle_aware': 'no'}, 'vehicle_aware must be true or false'),
+    ({'vehicle_params_file': 5}, 'vehicle_params_file must be a string'),
+    ({'replan_delay_s': True}, 'replan_delay_s must be a positive finite number'),
+])
+def test_node_settings_of_the_wrong_type_are_refused(values, message):
+    with pytest.raises(InvalidScenarioError, match=message):
+        NodeSettings(**values)

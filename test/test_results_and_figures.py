@@ -13,8 +13,8 @@ from uav_comm_planner.core.optimizer import plan
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.tools import cli, plots
-from uav_comm_planner.tools.serialize import (package_version, settings_from_dict,
-                                              settings_to_dict)
+from uav_comm_planner.tools.serialize import (package_version, scenario_to_dict,
+                                              settings_from_dict, settings_to_dict)
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 from uav_comm_planner.vehicle.mission import DEGREE_DECIMALS, export_mission
 
@@ -236,3 +236,18 @@ def test_mission_coordinates_have_the_precision_the_comment_states(tmp_path):
                         if row[3] == '16' and row[2] == '3'])
     assert np.abs(planned - coordinates).max() <= 0.5e-6 + 1e-12
     assert Path(waypoints).read_text().startswith('QGC WPL 110\n')
+
+
+@pytest.mark.parametrize('record', [
+    {'budgets_w': '12'}, {'budgets_w': []},
+    {'budgets_w': [1.0], 'settings': {'compute_baselines': False}}])
+def test_a_sweep_file_with_odd_budgets_or_no_baselines_is_refused_or_swept(
+        tmp_path, capsys, record):
+    source = tmp_path / 'sweep.json'
+    source.write_text(json.dumps({'scenario': scenario_to_dict(small_scenario()), **record}))
+    status = cli.main(['sweep', '--scenario', str(source)])
+    out, err = capsys.readouterr()
+    if 'settings' in record:
+        assert status == 0 and 'Traceback' not in err
+    else:
+        assert status == 2 and 'must be a list of numbers, at least one' in err

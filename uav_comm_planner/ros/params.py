@@ -75,7 +75,11 @@ class NodeSettings:
     vehicle_params_file: str = ''
 
     def __post_init__(self) -> None:
-        for name in ('frame_id', 'mission_dir', 'mission_file', *CHOICES):
+        if not isinstance(self.vehicle_aware, bool):
+            raise InvalidScenarioError(f'vehicle_aware must be true or false, got '
+                                       f'{self.vehicle_aware!r}')
+        for name in ('frame_id', 'mission_dir', 'mission_file', 'vehicle_params_file',
+                     *CHOICES):
             if not isinstance(getattr(self, name), str):
                 raise InvalidScenarioError(f'{name} must be a string, got '
                                            f'{getattr(self, name)!r}')
@@ -83,7 +87,8 @@ class NodeSettings:
             raise InvalidScenarioError('frame_id must not be empty, e.g. "map"')
         for name in ('replan_distance_m', 'replan_delay_s', 'replan_interval_s'):
             value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+            if (isinstance(value, bool) or not isinstance(value, (int, float))
+                    or not math.isfinite(value) or value <= 0):
                 raise InvalidScenarioError(
                     f'{name} must be a positive finite number, got {value!r}')
         if '\0' in self.mission_dir:

@@ -9,6 +9,7 @@ scenario, output paths and formats, finite output) passes before the first file 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import logging
 from pathlib import Path
@@ -202,7 +203,7 @@ def format_plan(result: PlanResult) -> str:
 
 
 def _vehicle_limits(args: argparse.Namespace):
-    """The vehicle's limits: a parameter file, then single flags over it; None if not asked."""
+    """The vehicle's limits: ArduCopter's defaults, a parameter file over them, flags over it."""
     from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
     limits = VehicleLimits()
     if args.vehicle_params is not None:
@@ -297,16 +298,21 @@ def _sweep_budgets(args: argparse.Namespace) -> list[float]:
         recorded = read_scenario_file(args.scenario).get('budgets_w')
         if recorded is not None:
             try:
+                if not isinstance(recorded, list) or not recorded:
+                    raise TypeError
                 return [float(v) for v in recorded]
             except (TypeError, ValueError):
                 raise PlannerError(f'budgets_w in {str(args.scenario)!r} must be a list of '
-                                   f'numbers, got {recorded!r}') from None
+                                   f'numbers, at least one, got {recorded!r}') from None
     return list(SWEEP_BUDGETS_W)
 
 
 def _command_sweep(args: argparse.Namespace) -> int:
     _check_outputs(args.json, figure=args.figure)
-    scenario, settings = _scenario(args), _settings(args)
+    # The sweep's table is the proposed plan against both baselines, whatever a result file
+    # recorded.
+    scenario = _scenario(args)
+    settings = dataclasses.replace(_settings(args), compute_baselines=True)
     budgets = _sweep_budgets(args)
     scenarios = [scenario.replace(power_budget_w=budget) for budget in budgets]
     for each in scenarios:

@@ -320,7 +320,8 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
             slower = scenario if share == 1.0 else scenario.replace(
                 max_speed_mps=share * scenario.max_speed_mps)
             ideal = planner(slower, settings)
-        except InfeasibleHorizonError:
+        except InfeasibleHorizonError as exc:
+            first_error = first_error or exc
             continue
         for stop_at_hovers in (True, False):
             try:

@@ -43,7 +43,7 @@ def sitl_binary(path: str | os.PathLike | None = None) -> Path | None:
     candidates = [path, os.environ.get(ENVIRONMENT_VARIABLE), shutil.which('arducopter')]
     for candidate in candidates:
         if candidate and Path(candidate).is_file() and os.access(candidate, os.X_OK):
-            return Path(candidate)
+            return Path(candidate).resolve()   # the SITL runs in a folder of its own
     return None
 
 
