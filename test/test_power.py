@@ -1,12 +1,14 @@
 """The exact water-filling power step against the conic (cvxpy + Clarabel) power step."""
 
+import cvxpy as cp
 import numpy as np
 import pytest
 
 from uav_comm_planner import paper_scenario
+from uav_comm_planner.core.conic import Certificate, solve_checked
 from uav_comm_planner.core.initial import static_point, straight_line
 from uav_comm_planner.core.model import snr_per_watt
-from uav_comm_planner.core.power import conic_power, waterfilling_power
+from uav_comm_planner.core.power import conic_power, power_dual_bound, waterfilling_power
 from uav_comm_planner.errors import SolverError
 
 
@@ -125,3 +127,48 @@ def test_closed_form_levels_are_newtons_when_every_slot_is_active_and_absent_oth
             assert np.any(newton[:, None] <= 1.0 / a * (1 + 1e-9))
         seen[closed is None] += 1
     assert seen[True] > 30 and seen[False] > 30
+
+
+def waterfilling_multipliers(allocation, a, offsets=None):
+    """The Lagrange multipliers of a water-filling answer: p = (mu_n - 1/a)^+ is the inner
+    maximiser of the dual at lambda_n = M ln2 nu mu_n, so lambda is mu over the served nodes,
+    normalised, and nu = 1 / (M ln 2 sum mu)."""
+    m = a.shape[1]
+    served = allocation.p.sum(axis=1) > 0
+    mu = np.where(served, np.where(allocation.p > 0, allocation.p + 1.0 / a, 0.0).max(axis=1),
+                  0.0)
+    return mu / mu.sum(), 1.0 / (m * np.log(2.0) * mu.sum())
+
+
+@pytest.mark.parametrize('a, budget', list(letter_cases()) + list(random_cases()))
+def test_waterfilling_is_certified_optimal_by_weak_duality(a, budget):
+    """The dual bound at the water-filling's own multipliers equals its value (so it is the
+    optimum), and any other multipliers give a bound above it (so the bound is one)."""
+    exact = waterfilling_power(a, budget)
+    weights, nu = waterfilling_multipliers(exact, a)
+    bound = power_dual_bound(a, budget, weights, nu)
+    assert bound >= exact.efficiency - 1e-9 * max(1.0, exact.efficiency)
+    assert bound == pytest.approx(exact.efficiency, rel=1e-9, abs=1e-9)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        other = rng.dirichlet(np.ones(a.shape[0]))
+        assert power_dual_bound(a, budget, other, nu * rng.uniform(0.2, 5.0)) \
+            > exact.efficiency - 1e-12
+
+
+def test_an_answer_the_certificate_refuses_is_solved_again_then_an_error():
+    a = np.array([[4.0, 0.5], [1.0, 2.0]])
+    problem_seen = []
+
+    def refuse():
+        problem_seen.append(1)
+        return Certificate(gap=1e-3, tolerance=1e-8)
+
+    x = cp.Variable(nonneg=True)
+    problem = cp.Problem(cp.Maximize(cp.log(1 + a[0, 0] * x)), [x <= 1.0])
+    with pytest.raises(SolverError, match=r"power step: CLARABEL returned status 'optimal' "
+                                          r'with an optimality gap of 0\.001 .*; then '):
+        solve_checked(problem, 'power step', 'CLARABEL', [{}, {'max_iter': 50}], refuse)
+    assert len(problem_seen) == 2
+    # A NaN gap never holds.
+    assert not Certificate(gap=float('nan'), tolerance=1.0).holds

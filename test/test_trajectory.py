@@ -85,3 +85,48 @@ def test_solver_status_is_checked(monkeypatch, expansion):
     monkeypatch.setattr(cp.Problem, 'status', property(lambda self: self._status))
     with pytest.raises(SolverError, match="CLARABEL returned status 'infeasible'"):
         trajectory_step_cvxpy(q_k, p, scenario)
+
+
+def test_the_reference_step_is_certified_by_its_duality_gap(monkeypatch):
+    """Each cvxpy step is accepted on a duality gap far below its tolerance; the same bound at a
+    point moved off the optimum, or past a speed limit, refuses it."""
+    from uav_comm_planner.core import trajectory
+
+    scenario = paper_scenario('I')
+    q_k = straight_line(scenario)
+    p = waterfilling_power(snr_per_watt(q_k, scenario), scenario.power_budget_w).p
+    seen = {}
+    solve = trajectory.solve_checked
+
+    def spy(problem, step, solver, attempts, check):
+        certificate = solve(problem, step, solver, attempts, check)
+        variables = {v.shape: v.value for v in problem.variables()}
+        seen.update(certificate=certificate, z=variables[(scenario.num_slots, 2)],
+                    duals=[c.dual_value for c in problem.constraints])
+        return certificate
+
+    monkeypatch.setattr(trajectory, 'solve_checked', spy)
+    step = trajectory_step_cvxpy(q_k, p, scenario)
+    assert seen['certificate'].gap < 1e-8
+
+    weight, constant = trajectory.kilometre_rows(
+        trajectory.surrogate_coefficients(q_k, p, scenario))
+    km = trajectory.KM
+    args = (np.array([float(d) for d in seen['duals'][1:]]),
+            np.asarray(seen['duals'][0], dtype=float), weight, constant,
+            np.reshape(scenario.start_m, (1, 2)) / km, np.reshape(scenario.goal_m, (1, 2)) / km,
+            scenario.nodes / km, scenario.max_step_m / km)
+    z = seen['z']
+    np.testing.assert_allclose(z * km, step.q)
+    assert trajectory.sca_duality_gap(z, *args) < 1e-8
+    # The straight line is feasible and worse than the optimum: its gap is at least the
+    # difference of the two values (weak duality makes the bound hold at any feasible point).
+    line = q_k / km
+    values = [float((constant - (weight * ((x[None] - args[6][:, None]) ** 2).sum(axis=2))
+                     .sum(axis=1) / scenario.num_slots).min()) for x in (z, line)]
+    assert values[0] > values[1]
+    assert trajectory.sca_duality_gap(line, *args) * max(1, abs(values[1])) \
+        >= values[0] - values[1] - 1e-12
+    too_fast = z.copy()
+    too_fast[0] += 2 * scenario.max_step_m / km
+    assert trajectory.sca_duality_gap(too_fast, *args) == math.inf

@@ -1,20 +1,77 @@
-"""Solving a cvxpy problem with its status checked: a failure is a typed error, never None."""
+"""Solving a cvxpy problem with its status and its answer checked: a failure is a typed error,
+never None, and an answer is accepted only when an independent optimality check holds.
+
+An interior-point solver can stop short of its tolerances (cvxpy's ``optimal_inaccurate``,
+Clarabel's ``AlmostSolved``) on problems that are perfectly well posed: for example when its
+gap stalls a few per cent above a tolerance near the floor of double precision. Such an
+answer may still be exact to far more digits than a caller needs, or it may not; the status
+does not say which. :func:`solve_checked` therefore asks the caller's own certificate (a
+duality gap or a KKT residual computed from the answer with numpy alone) and retries with the
+next settings when it fails.
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Sequence
+import warnings
 
 import cvxpy as cp
 
 from uav_comm_planner.errors import SolverError
 
+#: Statuses whose answer is worth checking; any other is a failure of that attempt.
+_USABLE = (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """The outcome of an optimality check: ``gap`` (the check's own measure, such as a relative
+    duality gap or KKT residual) against the ``tolerance`` it must not exceed."""
+
+    gap: float
+    tolerance: float
+
+    @property
+    def holds(self) -> bool:
+        # Written so that a NaN gap does not hold.
+        return self.gap <= self.tolerance
+
+
+def solve_checked(problem: cp.Problem, step: str, solver: str,
+                  attempts: Sequence[dict], check: Callable[[], Certificate]) -> Certificate:
+    """Solve ``problem`` with ``solver`` under each option set of ``attempts`` in turn, until an
+    answer is optimal (or nearly so) and ``check()`` certifies it; return that certificate.
+
+    ``check`` reads the problem's variables and dual values after a solve. Raises
+    :class:`SolverError` naming ``step`` when no attempt gives a certified answer.
+    """
+    failures = []
+    for options in attempts:
+        try:
+            with warnings.catch_warnings():
+                # cvxpy warns of every inaccurate answer; here the check decides instead.
+                warnings.filterwarnings('ignore', message='Solution may be inaccurate')
+                problem.solve(solver=solver, **options)
+        except cp.error.SolverError as exc:
+            failures.append(f'failed ({exc})')
+            continue
+        if problem.status not in _USABLE:
+            failures.append(f'returned status {problem.status!r}')
+            continue
+        certificate = check()
+        if certificate.holds:
+            return certificate
+        failures.append(f'returned status {problem.status!r} with an optimality gap of '
+                        f'{certificate.gap:.3g} (at most {certificate.tolerance:.3g} accepted)')
+    raise SolverError(f'{step}: {solver} ' + '; then '.join(failures))
+
 
 def solve_to_optimality(problem: cp.Problem, step: str, solver: str, **options) -> None:
     """Solve ``problem`` with ``solver``; raise :class:`SolverError` unless it is optimal.
 
-    ``step`` names the sub-problem in the message ('power step', 'trajectory step').
+    ``step`` names the sub-problem in the message ('power step', 'trajectory step'). For
+    problems without a certificate of their own.
     """
-    try:
-        problem.solve(solver=solver, **options)
-    except cp.error.SolverError as exc:
-        raise SolverError(f'{step}: {solver} failed ({exc})') from exc
-    if problem.status != cp.OPTIMAL:
-        raise SolverError(f'{step}: {solver} returned status {problem.status!r}')
+    solve_checked(problem, step, solver, [options],
+                  lambda: Certificate(0.0 if problem.status == cp.OPTIMAL else 1.0, 0.0))
