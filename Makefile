@@ -10,14 +10,19 @@ STAMP := $(VENV)/.installed
 EDITABLE := $(VENV)/.editable
 # The mode of the last install; a change of mode (make dev, or removing .editable) reinstalls.
 MODE_STAMP := $(VENV)/.mode-$(if $(wildcard $(EDITABLE)),editable,normal)
-SOURCES := setup.py setup.cfg package.xml $(wildcard config/*.yaml launch/*.py rviz/*.rviz) \
+# The exact versions the suite last passed with (`make lock` writes it; setup.py keeps the
+# compatible ranges that users install within).
+CONSTRAINTS := constraints.txt
+EXTRAS := ros,plots,study,test
+SOURCES := setup.py setup.cfg package.xml $(CONSTRAINTS) $(wildcard config/*.yaml launch/*.py rviz/*.rviz) \
            $(wildcard uav_comm_planner/*.py uav_comm_planner/*/*.py) resource/uav_comm_planner
 
 # One DDS domain per run, discovery on this machine only, so that test runs
 # and planners on a shared machine do not hear each other.
+comma := ,
 ROS_ENV := ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST AMENT_PREFIX_PATH=$(abspath $(VENV))
 
-.PHONY: install dev run test fuzz bench figures docs clean
+.PHONY: install dev run test test-latest lock fuzz bench figures docs clean
 
 install: $(STAMP)
 
@@ -28,8 +33,8 @@ $(MODE_STAMP):
 
 $(STAMP): $(SOURCES) $(MODE_STAMP)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade 'pip>=23'
-	$(BIN)/python -m pip install --quiet $(if $(wildcard $(EDITABLE)),--editable )'.[ros,plots,study,test]'
+	$(BIN)/python -m pip install --quiet --upgrade 'pip>=23,<27'
+	$(BIN)/python -m pip install --quiet --constraint $(CONSTRAINTS) $(if $(wildcard $(EDITABLE)),--editable )'.[$(EXTRAS)]'
 	@# `ros2 run uav_comm_planner planner` looks for lib/<package>/<executable>;
 	@# pip puts console scripts in bin/, so link them where ros2 run looks.
 	mkdir -p $(VENV)/lib/uav_comm_planner
@@ -57,6 +62,30 @@ test: $(STAMP)
 	$(ROS_ENV) ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-$$(( 100 + $$$$ % 100 ))} \
 		$(BIN)/python -m pytest $(PYTEST_ARGS)
 
+# The suite on the newest versions that setup.py's ranges allow, in a venv of its own (not in
+# CI): a release that breaks the package is found on purpose, here, not by a new user.
+LATEST_VENV ?= .venv-latest
+test-latest:
+	rm -rf $(LATEST_VENV)
+	$(PYTHON) -m venv $(LATEST_VENV)
+	$(LATEST_VENV)/bin/python -m pip install --quiet --upgrade 'pip>=23,<27'
+	$(LATEST_VENV)/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager \
+		'.[$(EXTRAS)]'
+	mkdir -p $(LATEST_VENV)/lib/uav_comm_planner
+	for exe in planner send_ground_nodes uav-comm-planner; do \
+		ln -sf ../../bin/$$exe $(LATEST_VENV)/lib/uav_comm_planner/$$exe; done
+	$(LATEST_VENV)/bin/python -m pip freeze --exclude-editable
+	ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST AMENT_PREFIX_PATH=$(abspath $(LATEST_VENV)) \
+		ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-$$(( 100 + $$$$ % 100 ))} \
+		$(LATEST_VENV)/bin/python -m pytest $(PYTEST_ARGS)
+
+# Writes $(CONSTRAINTS) anew with uv's resolver (newest versions within setup.py's ranges,
+# keeping those already pinned where they still fit); then run `make test` before committing it.
+lock: $(STAMP)
+	$(BIN)/python -m pip install --quiet 'uv>=0.9,<1'
+	$(BIN)/uv pip compile setup.py $(foreach e,$(subst $(comma), ,$(EXTRAS)),--extra $(e)) \
+		--python-version 3.11 --output-file $(CONSTRAINTS)
+
 # Seeded fuzzing of the API, the command line and mission export (minutes; not part of `test`).
 FUZZ_CASES ?= 10000
 FUZZ_SEED ?= 1
@@ -83,4 +112,4 @@ docs: $(STAMP)
 	$(BIN)/python -m uav_comm_planner.ros.docgen docs/node.md
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) $(LATEST_VENV) build *.egg-info

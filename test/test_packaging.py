@@ -411,14 +411,17 @@ def test_make_dev_makes_every_later_install_editable(tmp_path):
     (venv / 'bin').mkdir(parents=True)
     (venv / 'bin' / 'python').touch(mode=0o755)
     normal = _make_install_commands(venv, always=True)
-    assert "-m pip install --quiet '.[ros,plots,study,test]'" in normal
+    # The tested set: the lock file constrains every install.
+    assert "-m pip install --quiet --constraint constraints.txt '.[ros,plots,study,test]'" \
+        in normal
     assert '--editable' not in normal
     (venv / '.mode-normal').touch()
     (venv / '.installed').touch()          # installed after every source and the mode
     assert 'pip install' not in _make_install_commands(venv)
     (venv / '.editable').touch()
     editable = _make_install_commands(venv)
-    assert "-m pip install --quiet --editable '.[ros,plots,study,test]'" in editable
+    assert ("-m pip install --quiet --constraint constraints.txt --editable "
+            "'.[ros,plots,study,test]'") in editable
     # An editable install leaves out data_files; the recipe copies what ros2 run/launch need.
     assert 'cp -r package.xml config launch rviz' in editable
     # What that install leaves; then the mark goes and the next install is a normal one.
@@ -426,4 +429,30 @@ def test_make_dev_makes_every_later_install_editable(tmp_path):
     (venv / '.installed').touch()
     assert 'pip install' not in _make_install_commands(venv)
     (venv / '.editable').unlink()
-    assert "-m pip install --quiet '.[ros,plots,study,test]'" in _make_install_commands(venv)
+    assert "-m pip install --quiet --constraint constraints.txt '.[ros,plots,study,test]'" \
+        in _make_install_commands(venv)
+
+
+def test_the_lock_file_pins_every_requirement_within_setup_pys_ranges():
+    """constraints.txt (``make lock``) holds one exact version of every distribution that
+    setup.py asks for, with or without its extras, and each lies in setup.py's range; the
+    Makefile installs with it."""
+    from importlib.metadata import requires
+    from packaging.requirements import Requirement
+    from packaging.utils import canonicalize_name
+
+    pins = {}
+    for line in (ROOT / 'constraints.txt').read_text(encoding='utf-8').splitlines():
+        line = line.split('#', 1)[0].strip()
+        if line:
+            name, _, version = line.partition('==')
+            assert version, f'constraints.txt: {line!r} is not an exact pin'
+            pins[canonicalize_name(name)] = version
+    wanted = [Requirement(text) for text in requires(PACKAGE)]
+    assert len(wanted) >= 15
+    for requirement in wanted:
+        name = canonicalize_name(requirement.name)
+        assert name in pins, f'{requirement.name} is not pinned in constraints.txt'
+        assert requirement.specifier.contains(pins[name], prereleases=True), \
+            f'{requirement.name}=={pins[name]} is outside setup.py\'s {requirement.specifier}'
+    assert '--constraint $(CONSTRAINTS)' in (ROOT / 'Makefile').read_text(encoding='utf-8')
