@@ -34,8 +34,8 @@ def ros_context() -> Iterator[object]:
 
 @pytest.fixture
 def harness(ros_context):
-    """Makes planner nodes on real rclpy (``test_node.Harness``); closes them after the test."""
-    from test_node import Harness
+    """Makes planner nodes on real rclpy (``helpers.Harness``); closes them after the test."""
+    from helpers import Harness
 
     made = []
 

@@ -12,12 +12,12 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from helpers import NODES_B
 import numpy as np
 import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
-from test_node import NODES_B
 from trajectory_msgs.msg import JointTrajectory
 
 from uav_comm_planner.ros.messages import nanoseconds_of, nodes_text, status_values
@@ -90,6 +90,7 @@ def test_refusals_are_on_the_status_and_the_log(harness):
                              for s in statuses), 'refused parameter on the status')
 
 
+@pytest.mark.slow
 def test_sender_exits_at_once_with_the_planners_reason(harness):
     h = harness()
     h.published(1)
@@ -165,6 +166,7 @@ def stream_poses(h, seconds: float, position_of) -> int:
     return sent
 
 
+@pytest.mark.slow
 def test_a_20_hz_pose_stream_replans_a_bounded_number_of_times(harness):
     interval_s = 1.0
     h = harness(replan_interval_s=interval_s)
@@ -211,6 +213,7 @@ def test_a_replan_in_flight_is_planned_for_the_vehicle(harness):
     assert rates.min() == pytest.approx(outcome.min_throughput, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_an_unreachable_vehicle_is_said_once_and_start_is_left_to_the_link(harness):
     with socket.create_server(('127.0.0.1', 0)) as unused:
         port = unused.getsockname()[1]

@@ -38,7 +38,8 @@ NEW_NODES = [(200.0, 400.0), (1000.0, -150.0), (1700.0, 300.0)]
 #: Wall-clock limits, generous: the flight itself is about 25 s at the SITL's speedup.
 WALL_LIMIT_S = 240.0
 
-pytestmark = pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())
+pytestmark = [pytest.mark.sitl,
+              pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())]
 
 
 class Recorder:

@@ -3,6 +3,7 @@
 import types
 
 import clarabel
+from helpers import random_scenario
 import numpy as np
 import pytest
 from scipy import sparse
@@ -16,22 +17,22 @@ from uav_comm_planner.core.power import waterfilling_power
 from uav_comm_planner.core.trajectory import KM, sca_lower_bound, trajectory_step_cvxpy
 
 
-def random_scenario(seed: int) -> Scenario:
+def random_radio_scenario(seed: int) -> Scenario:
+    """2-7 nodes in a square of 0.5-3 km flown corner to corner in 20-60 slots of 2 s at
+    60 m/s, with a random budget and either radio (the letter's, or 1 MHz at beta0 1e-6)."""
     rng = np.random.default_rng(seed)
-    nodes = int(rng.integers(2, 8))
-    slots = int(rng.integers(20, 60))
+    nodes, slots = int(rng.integers(2, 8)), int(rng.integers(20, 60))
     side = float(rng.uniform(500.0, 3000.0))
-    return Scenario(ground_nodes_m=rng.uniform(0.0, side, size=(nodes, 2)).tolist(),
-                    start_m=(0.0, side), goal_m=(side, 0.0), num_slots=slots,
-                    horizon_s=2.0 * slots, max_speed_mps=60.0,
-                    power_budget_w=float(rng.uniform(0.5, 10.0)),
-                    bandwidth_hz=float(rng.choice([1.0, 1e6])),
-                    reference_gain=float(rng.choice([1e-3, 1e-6])))
+    return random_scenario(rng, nodes, slots, side_m=side, start_m=(0.0, side),
+                           goal_m=(side, 0.0), horizon_s=2.0 * slots, max_speed_mps=60.0,
+                           power_budget_w=float(rng.uniform(0.5, 10.0)),
+                           bandwidth_hz=float(rng.choice([1.0, 1e6])),
+                           reference_gain=float(rng.choice([1e-3, 1e-6])))
 
 
 CASES = {'I': paper_scenario('I'), 'II': paper_scenario('II'),
          'I-150-slots': paper_scenario('I', num_slots=150, horizon_s=150.0),
-         **{f'random-{seed}': random_scenario(seed) for seed in range(4)}}
+         **{f'random-{seed}': random_radio_scenario(seed) for seed in range(4)}}
 
 
 def expansion_point(scenario: Scenario, wiggle: float = 0.0, seed: int = 0):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+from helpers import random_six_nodes
 import numpy as np
 import pytest
 
@@ -31,13 +32,6 @@ def multirotor_case_one(**overrides) -> Scenario:
     """The letter's case I flown at a multirotor's 10 m/s: 400 s in 100 slots of 4 s."""
     settings = {'max_speed_mps': 10.0, 'horizon_s': 400.0, 'num_slots': 100, **overrides}
     return paper_scenario('I', **settings)
-
-
-def random_scenario(seed: int) -> Scenario:
-    rng = np.random.default_rng(seed)
-    nodes = np.column_stack([rng.uniform(0, 1500, 6), rng.uniform(-400, 400, 6)])
-    return Scenario(ground_nodes_m=[tuple(x) for x in nodes], start_m=(0.0, 0.0),
-                    goal_m=(1500.0, 0.0), max_speed_mps=10.0, horizon_s=400.0, num_slots=100)
 
 
 @pytest.fixture(scope='module')
@@ -187,7 +181,7 @@ def test_the_flown_plan_is_the_predicted_flight_with_its_optimal_power(case_one)
 
 
 def test_a_random_plan_is_flyable_and_beats_the_baselines():
-    vehicle_plan = plan_for_vehicle(random_scenario(1))
+    vehicle_plan = plan_for_vehicle(random_six_nodes(1))
     scenario = vehicle_plan.ideal.scenario
     assert vehicle_plan.schedule.arrival_s <= scenario.slot_s * (scenario.num_slots + 1.25)
     assert vehicle_plan.flown.min_throughput > max(vehicle_plan.ideal.baselines.values())

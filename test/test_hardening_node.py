@@ -11,13 +11,13 @@ import sys
 import threading
 import time
 
+from helpers import DEADLINE_S, Harness, NODES_B, PROCESS_DEADLINE_S
 import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
-from test_node import DEADLINE_S, Harness, NODES_B, PROCESS_DEADLINE_S
 
 from uav_comm_planner import plan
 from uav_comm_planner.ros.node import NODE_NAME
@@ -156,6 +156,7 @@ def test_double_ctrl_c_while_the_planner_starts_exits_quietly(delay_s):
     assert status == 0 or (status == -signal.SIGINT and not stderr), (status, stderr)
 
 
+@pytest.mark.slow
 def test_double_ctrl_c_during_a_long_plan_exits_quietly(ros_context):
     # 3 nodes x 6000 slots: a plan of tens of seconds, within the default compute budget.
     process = start_planner('-p', 'num_slots:=6000', '-p', 'horizon_s:=12000.0')

@@ -17,25 +17,18 @@ The figures are printed for the record (``pytest -s``).
 
 from __future__ import annotations
 
-import numpy as np
+from helpers import random_six_nodes
 import pytest
 
-from uav_comm_planner import paper_scenario, Scenario
+from uav_comm_planner import paper_scenario
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.sitl import fly_plan, why_not_runnable
 
-pytestmark = pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())
+pytestmark = [pytest.mark.sitl,
+              pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())]
 
 HOME = Home(-35.363262, 149.165237, 584.0)
-
-
-def random_six_nodes(seed: int = 1) -> Scenario:
-    """Six nodes uniform in a 1500 m x 800 m field, flown from (0, 0) to (1500, 0)."""
-    rng = np.random.default_rng(seed)
-    nodes = np.column_stack([rng.uniform(0, 1500, 6), rng.uniform(-400, 400, 6)])
-    return Scenario(ground_nodes_m=[tuple(x) for x in nodes], start_m=(0.0, 0.0),
-                    goal_m=(1500.0, 0.0), max_speed_mps=10.0, horizon_s=400.0, num_slots=100)
 
 
 SCENARIOS = {

@@ -2,6 +2,7 @@
 
 import math
 
+from helpers import random_scenario
 import numpy as np
 import pytest
 
@@ -10,15 +11,6 @@ from uav_comm_planner.core.initial import (even_hovers, hover_and_fly, nearest_n
                                            straight_line, tour_order, two_opt)
 from uav_comm_planner.core.model import average_rates, leg_lengths
 from uav_comm_planner.core.optimizer import throughput_upper_bound
-
-
-def random_scenario(seed: int, nodes: int = 6, slots: int = 60, **changes) -> Scenario:
-    rng = np.random.default_rng(seed)
-    fields = dict(ground_nodes_m=rng.uniform(0.0, 2000.0, size=(nodes, 2)).tolist(),
-                  start_m=(0.0, 0.0), goal_m=(2000.0, 2000.0), num_slots=slots,
-                  horizon_s=float(slots), max_speed_mps=100.0)
-    fields.update(changes)
-    return Scenario(**fields)
 
 
 def distance_to_path(q: np.ndarray, w: np.ndarray) -> np.ndarray:

@@ -293,6 +293,7 @@ def test_a_stopped_study_resumes_without_losing_or_repeating_rows(
     assert code == 0 and 'nothing to plan: 40 of 40 rows' in printed
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_the_study_and_the_same_command_goes_on(tmp_path, scheduler):
     """The command in its own process group, interrupted as a terminal's Ctrl-C does."""
     out = tmp_path / 'study.parquet'

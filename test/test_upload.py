@@ -26,7 +26,12 @@ from uav_comm_planner.vehicle.upload import read_mission_file, read_waypoints
 HOME = Home(-35.363262, 149.165237, 584.0)
 CLI = [sys.executable, '-m', 'uav_comm_planner.tools.cli']
 
-needs_sitl = pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())
+
+def needs_sitl(test):
+    """Marks a test that flies or talks to the SITL (``-m 'not sitl'`` leaves it out); skipped,
+    with the reason, only where the binary cannot run."""
+    return pytest.mark.sitl(
+        pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())(test))
 
 
 @pytest.fixture(scope='module')
@@ -156,6 +161,7 @@ def test_a_link_that_drops_mid_upload_is_one_line_and_exit_2(vehicle, mission_fi
     assert 'link lost' in lines[0] or 'stopped answering' in lines[0], lines[0]
 
 
+@pytest.mark.slow
 def test_no_vehicle_and_bad_files_are_one_line_and_exit_2(tmp_path, mission_file):
     with socket.create_server(('127.0.0.1', 0)) as unused:
         port = unused.getsockname()[1]

@@ -1,0 +1,148 @@
+"""What several test modules share: seeded random scenarios, the six-node field, and the node
+harness (the planner node, a probe node and one executor, on real rclpy)."""
+
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+from geometry_msgs.msg import PoseArray, PoseStamped
+from nav_msgs.msg import Path
+import pytest
+from rcl_interfaces.msg import Log
+from rcl_interfaces.srv import SetParameters
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64, Float64MultiArray
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
+
+from uav_comm_planner import paper_scenario, plan, Scenario
+from uav_comm_planner.ros.messages import nanoseconds_of, pose_array
+from uav_comm_planner.ros.node import (GROUND_NODES_QOS, NODE_NAME, PlannerNode,
+                                       TOPIC_GROUND_NODES, TOPIC_UAV_POSE)
+from uav_comm_planner.ros.publishing import (OUTPUT_QOS, TOPIC_MARKERS, TOPIC_MIN_THROUGHPUT,
+                                             TOPIC_PATH, TOPIC_POWER)
+from uav_comm_planner.tools import bench
+#: Six nodes uniform in a 1500 m x 800 m field, flown from (0, 0) to (1500, 0) at 10 m/s: the
+#: field the flights and the vehicle-aware tests use (the package's own, for the benchmark).
+from uav_comm_planner.tools.flights import random_six_nodes  # noqa: F401
+
+
+def random_scenario(seed: int, nodes: int = 6, slots: int = 60, *, side_m: float = 2000.0,
+                    **changes) -> Scenario:
+    """``nodes`` nodes uniform in a side x side square, flown from (0, 0) to (side, side) in
+    ``slots`` slots of 1 s at 100 m/s, the letter's radio; ``changes`` override any setting.
+    ``seed`` is an integer or a generator to draw from.
+    The benchmark's generator (:func:`uav_comm_planner.tools.bench.random_scenario`)."""
+    return bench.random_scenario(nodes, slots, seed, side_m=side_m, **changes)
+
+
+DEADLINE_S = 30.0
+PROCESS_DEADLINE_S = 90.0
+SLOTS = 20
+HORIZON_S = 40.0
+SLOT_S = HORIZON_S / SLOTS
+MAX_STEP_M = 100.0 * SLOT_S
+NODES_A = [(300.0, 200.0), (900.0, -150.0), (1500.0, 250.0)]
+NODES_B = [(400.0, -200.0), (1100.0, 300.0)]
+#: How close the flight must pass over each node (the optimum hovers within about 20 m).
+NEAR_M = 50.0
+
+
+def small_scenario(nodes=NODES_A, **changes):
+    """The scenario the harness's node plans for ``nodes``, as the core sees it."""
+    return paper_scenario('I', ground_nodes_m=nodes, num_slots=SLOTS, horizon_s=HORIZON_S,
+                          **changes)
+
+
+class Harness:
+    """The node under test, a probe node that talks to it, and one executor for both."""
+
+    def __init__(self, context, *, planner=plan, **parameters) -> None:
+        # The letter's own speed, planned as the optimiser plans it: these tests are about the
+        # node's mechanics; the vehicle-aware plan has tests of its own below.
+        values = {'num_slots': SLOTS, 'horizon_s': HORIZON_S, 'max_speed_mps': 100.0,
+                  'vehicle_aware': False, **parameters}
+        self.node = PlannerNode(context=context, planner=planner, parameter_overrides=[
+            Parameter(name, value=value) for name, value in values.items()])
+        self.probe = Node('planner_test_probe', context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.probe)
+        self.received: dict[str, list] = {topic: [] for topic in (
+            TOPIC_PATH, TOPIC_POWER, TOPIC_MIN_THROUGHPUT, TOPIC_MARKERS)}
+        for message_type, topic in ((Path, TOPIC_PATH), (Float64MultiArray, TOPIC_POWER),
+                                    (Float64, TOPIC_MIN_THROUGHPUT),
+                                    (MarkerArray, TOPIC_MARKERS)):
+            self.probe.create_subscription(message_type, topic, self.received[topic].append,
+                                           OUTPUT_QOS)
+        self.error_logs: list[str] = []
+        self.probe.create_subscription(Log, '/rosout', self._on_log, QoSProfile(
+            depth=100, reliability=ReliabilityPolicy.RELIABLE))
+        self.nodes_pub = self.probe.create_publisher(PoseArray, TOPIC_GROUND_NODES,
+                                                     GROUND_NODES_QOS)
+        self.pose_pub = self.probe.create_publisher(PoseStamped, TOPIC_UAV_POSE, 10)
+
+    def _on_log(self, message: Log) -> None:
+        if message.name == NODE_NAME and message.level == Log.ERROR:
+            self.error_logs.append(message.msg)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.probe.destroy_node()
+
+    def spin_until(self, condition: Callable[[], bool], what: str) -> None:
+        deadline = time.monotonic() + DEADLINE_S
+        while not condition():
+            if time.monotonic() > deadline:
+                pytest.fail(f'no {what} within {DEADLINE_S} s')
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def latest(self, topic: str):
+        messages = self.received[topic]
+        return messages[-1] if messages else None
+
+    def published(self, plans: int) -> None:
+        """Spin until the node has published ``plans`` plans and the probe holds the last."""
+        self.spin_until(lambda: self.node.plans_published >= plans, f'plan number {plans}')
+        outcome = self.node.current_plan
+        expected_power = outcome.result.power.T.ravel().tolist()
+        start_ns = outcome.request.start_ns
+
+        def arrived() -> bool:
+            path, power, rate, markers = (self.latest(t) for t in self.received)
+            return (path is not None and nanoseconds_of(path.header.stamp) == start_ns
+                    and markers is not None
+                    and nanoseconds_of(markers.markers[0].header.stamp) == start_ns
+                    and power is not None and list(power.data) == expected_power
+                    and rate is not None and rate.data == outcome.min_throughput)
+        self.spin_until(arrived, 'plan on every output topic')
+
+    def send_nodes(self, points, frame_id: str = 'map') -> None:
+        self.spin_until(lambda: self.nodes_pub.get_subscription_count() > 0,
+                        'subscriber of ground_nodes')
+        self.nodes_pub.publish(pose_array(points, frame_id))
+
+    def send_pose(self, x: float, y: float) -> None:
+        self.spin_until(lambda: self.pose_pub.get_subscription_count() > 0,
+                        'subscriber of uav_pose')
+        message = PoseStamped()
+        message.header.frame_id = 'map'
+        message.pose.position.x, message.pose.position.y = x, y
+        self.pose_pub.publish(message)
+
+    def call(self, service: str, request):
+        kind = Trigger if isinstance(request, Trigger.Request) else SetParameters
+        client = self.probe.create_client(kind, f'/{NODE_NAME}/{service}')
+        self.spin_until(client.service_is_ready, f'service {service}')
+        future = client.call_async(request)
+        self.spin_until(future.done, f'answer of {service}')
+        self.probe.destroy_client(client)
+        return future.result()
+
+    def errors_after(self, count: int) -> None:
+        self.spin_until(lambda: self.node.error_count > count, 'error')
