@@ -15,9 +15,9 @@ import pytest
 from uav_comm_planner import (ComputeBudgetError, InvalidScenarioError, MissionExportError,
                               paper_scenario, plan, PlanCancelledError, PlannerError, Scenario,
                               SolverSettings)
+from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.model import leg_lengths, snr_per_watt, spectral_efficiencies
-from uav_comm_planner.core.optimizer import within_speed_limit
 from uav_comm_planner.core.power import waterfilling_power
 from uav_comm_planner.files import NotARegularFileError, PARTIAL_MARK, write_text_atomic
 from uav_comm_planner.tools import cli
@@ -154,13 +154,13 @@ def test_projection_onto_the_speed_limit_moves_only_what_is_too_long():
     base = straight_line(scenario) + rng.normal(0.0, 150.0, (scenario.num_slots, 2))
     # The wiggle breaks the limit, so the projection has work to do.
     assert leg_lengths(base, scenario).max() > scenario.max_step_m * 1.1
-    feasible = within_speed_limit(base, scenario)
+    feasible = project_onto_speed_limit(base, scenario)
     assert leg_lengths(feasible, scenario).max() <= scenario.max_step_m * (1 + 1e-12)
     # A path within the limit is returned exactly as it is.
-    np.testing.assert_array_equal(within_speed_limit(feasible, scenario), feasible)
+    np.testing.assert_array_equal(project_onto_speed_limit(feasible, scenario), feasible)
     # A leg 5e-6 too long, as a solver's round-off leaves it, moves by about that much.
     stretched = feasible * (1 + 5e-6)
-    projected = within_speed_limit(stretched, scenario)
+    projected = project_onto_speed_limit(stretched, scenario)
     assert leg_lengths(projected, scenario).max() <= scenario.max_step_m * (1 + 1e-12)
     assert np.abs(projected - stretched).max() < 1.0
 

@@ -78,9 +78,9 @@ def test_every_step_of_the_letters_loop_is_monotone_without_a_guard(case):
     # Not flat: the trajectory steps do the work (cases I and II gain 2.7 % and 1.5 %).
     assert rates[-1] > rates[0] * 1.01
     # And the package's loop, which keeps the guard, records the same climb.
-    _, _, history, _, inner, converged = alternate(
-        scenario, straight_line(scenario), SolverSettings.letter())
-    assert converged and inner >= 2
+    run = alternate(scenario, straight_line(scenario), SolverSettings.letter())
+    history = run.history
+    assert run.converged and run.trajectory_steps >= 2
     assert history[0].min_throughput == pytest.approx(rates[0], rel=1e-12)
     assert history[0].min_throughput == pytest.approx(
         baseline_rates(scenario)['straight'], rel=1e-12)

@@ -8,6 +8,7 @@ recomputed from the concatenated schedule with the model alone.
 from __future__ import annotations
 
 import itertools
+import math
 
 import numpy as np
 import pytest
@@ -233,3 +234,30 @@ def test_the_case_that_stopped_short_of_the_tight_gap_is_certified():
     bound = power_dual_bound(a, budget, mu / mu.sum(), 1.0 / (a.shape[1] * np.log(2) * mu.sum()),
                              offsets=offsets)
     assert bound == pytest.approx(exact.efficiency, rel=1e-9)
+
+
+def test_a_vehicle_replan_is_solved_for_its_offsets_once():
+    """The plan as flown carries the offsets of its ideal plan: its power is the water-filling
+    for them at the flown positions, its rates count them, so nothing solves it again."""
+    from uav_comm_planner.core.model import average_rates
+    from uav_comm_planner.core.optimizer import optimal_power
+    from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+
+    mission = paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0, num_slots=100)
+    first = plan_for_vehicle(mission).flown
+    k = 30
+    flown = flown_as_planned(first, k)
+    rest = rest_of_mission(mission, first.trajectory[k - 1], flown)
+    offsets = delivered_bits(mission, flown) / (rest.slot_s * rest.bandwidth_hz
+                                                / rest.num_nodes * rest.num_slots)
+    vehicle = plan_for_vehicle(rest, planner=lambda s, settings: plan(s, settings,
+                                                                      offsets=offsets))
+    as_flown = vehicle.flown
+    np.testing.assert_array_equal(as_flown.offsets, offsets)
+    np.testing.assert_array_equal(
+        as_flown.power, optimal_power(as_flown.trajectory, rest, offsets=offsets))
+    np.testing.assert_allclose(
+        as_flown.rates, average_rates(as_flown.trajectory, as_flown.power, rest, offsets),
+        rtol=1e-12)
+    assert as_flown.min_throughput == pytest.approx(as_flown.rates.min(), rel=1e-12)
+    assert as_flown.upper_bound == math.inf

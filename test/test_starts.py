@@ -163,3 +163,20 @@ def test_unknown_starts_are_refused(starts):
 
 def test_starts_may_be_given_as_a_list_and_repeats_are_dropped():
     assert SolverSettings(starts=['hover', 'hover']).starts == ('hover',)
+
+
+def test_an_extra_start_of_a_builtin_name_replaces_it():
+    """Starts are objects, not names looked up twice: an extra start called 'straight' is the
+    trajectory given, and the plan from it alone is Algorithm 1 from that trajectory."""
+    scenario = random_scenario(5, nodes=4, slots=40)
+    settings = SolverSettings(starts=('straight',), compute_baselines=False)
+    hover = hover_and_fly(scenario)
+    given = plan(scenario, settings, extra_starts={'straight': hover})
+    from_hover = plan(scenario, SolverSettings(starts=('hover',), compute_baselines=False))
+    assert set(given.start_throughputs) == {'straight'}
+    assert given.min_throughput == from_hover.min_throughput
+    np.testing.assert_array_equal(given.trajectory, from_hover.trajectory)
+    # The array handed in is neither kept writable nor changed.
+    before = hover.copy()
+    plan(scenario, settings, extra_starts={'mine': hover})
+    np.testing.assert_array_equal(hover, before)

@@ -33,7 +33,7 @@ import clarabel
 import numpy as np
 from scipy import sparse
 
-from uav_comm_planner.core.model import leg_lengths
+from uav_comm_planner.core.feasibility import within_speed_limit
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.trajectory import (kilometre_rows, KM, surrogate_coefficients,
                                               TrajectoryStep, with_offsets)
@@ -385,18 +385,15 @@ class ClarabelTrajectoryStep:
         return np.array(x[1:1 + 2 * self.scenario.num_slots]).reshape(-1, 2)
 
     def _within_speed_limits(self, z: np.ndarray | None) -> bool:
-        """Whether z (M, 2) km, centred, keeps every leg within V delta (1 + 1e-7).
+        """Whether z (M, 2) km, centred, keeps every leg within V delta (the one check,
+        :func:`~uav_comm_planner.core.feasibility.within_speed_limit`).
 
         Clarabel reports AlmostSolved when its gap stalls just above the 1e-8 tolerance although
         the iterate is feasible to its residual tolerance; such a step is kept once the speed
         limits are checked here, since its bound is then recomputed exactly and the caller
         keeps it only if the true minimum rate does not drop.
         """
-        if z is None or not np.all(np.isfinite(z)):
-            return False
-        q = z * KM + self.centre_m
-        return bool(leg_lengths(q, self.scenario).max()
-                    <= self.scenario.max_step_m * (1 + 1e-7))
+        return z is not None and within_speed_limit(z * KM + self.centre_m, self.scenario)
 
 
 def trajectory_step_clarabel(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,

@@ -51,15 +51,23 @@ def spectral_efficiency_to_rate(bits_per_use: np.ndarray, scenario: Scenario) ->
     return scenario.bandwidth_hz / scenario.num_nodes * bits_per_use
 
 
-def spectral_efficiencies(a: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """mean_m log2(1 + p_n[m] a_n[m]): (N,) bits per channel use, for a and p (N, M)."""
-    return np.log1p(np.asarray(p, dtype=float) * a).sum(axis=1) / (LN2 * a.shape[1])
+def spectral_efficiencies(a: np.ndarray, p: np.ndarray,
+                          offsets: np.ndarray | None = None) -> np.ndarray:
+    """o_n + mean_m log2(1 + p_n[m] a_n[m]): (N,) bits per channel use, for a and p (N, M).
+
+    ``offsets`` o (N,) bits per use are the data a node already holds (the receding horizon,
+    :mod:`uav_comm_planner.core.receding`); without them o = 0, the letter's rates.
+    """
+    bits = np.log1p(np.asarray(p, dtype=float) * a).sum(axis=1) / (LN2 * a.shape[1])
+    return bits if offsets is None else bits + offsets
 
 
-def average_rates(q: np.ndarray, p: np.ndarray, scenario: Scenario) -> np.ndarray:
-    """R_n: (N,) bit/s, the average throughput of each node over the horizon."""
-    return spectral_efficiency_to_rate(spectral_efficiencies(snr_per_watt(q, scenario), p),
-                                       scenario)
+def average_rates(q: np.ndarray, p: np.ndarray, scenario: Scenario,
+                  offsets: np.ndarray | None = None) -> np.ndarray:
+    """R_n = (B/N) (o_n + mean_m log2(1 + p_n[m] a_n[m])): (N,) bit/s, the average throughput
+    of each node over the horizon (o = 0 without ``offsets``)."""
+    return spectral_efficiency_to_rate(
+        spectral_efficiencies(snr_per_watt(q, scenario), p, offsets), scenario)
 
 
 def min_rate(q: np.ndarray, p: np.ndarray, scenario: Scenario) -> float:

@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import functools
 import logging
 import math
 import time
-from typing import Callable
+from typing import Callable, Mapping
 
 import numpy as np
 
 from uav_comm_planner.core import initial
 from uav_comm_planner.core.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
-from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt, snr_scale,
+from uav_comm_planner.core.feasibility import project_onto_speed_limit
+from uav_comm_planner.core.model import (average_rates, LN2, snr_per_watt, snr_scale,
                                          spectral_efficiencies, spectral_efficiency_to_rate)
 from uav_comm_planner.core.power import (checked_offsets, conic_power, PowerAllocation,
                                          waterfilling_power)
@@ -40,10 +40,28 @@ TRAJECTORY_SOLVERS: dict[str, TrajectorySolver] = {
 TRAJECTORY_STEPPERS: dict[str, Callable[[Scenario], TrajectorySolver]] = {
     'clarabel': ClarabelTrajectoryStep,
 }
+
+
+@dataclass(frozen=True)
+class Start:
+    """An initial trajectory for Algorithm 1: its ``name`` (as plans report it) and ``make``,
+    which gives q (M, 2) metres for a scenario."""
+
+    name: str
+    make: Callable[[Scenario], np.ndarray] = field(repr=False, compare=False)
+
+    @classmethod
+    def given(cls, name: str, q: np.ndarray) -> 'Start':
+        """A start that is the trajectory q (M, 2) metres itself, whatever the scenario."""
+        trajectory = np.array(q, dtype=float)
+        trajectory.setflags(write=False)
+        return cls(name, lambda scenario: trajectory.copy())
+
+
 #: Initial trajectories, by the names :attr:`SolverSettings.starts` uses.
-STARTS: dict[str, Callable[[Scenario], np.ndarray]] = {
-    'straight': initial.straight_line,
-    'hover': initial.hover_and_fly,
+STARTS: dict[str, Start] = {
+    'straight': Start('straight', initial.straight_line),
+    'hover': Start('hover', initial.hover_and_fly),
 }
 
 
@@ -53,6 +71,24 @@ class Step:
 
     kind: str            # 'power' or 'trajectory'
     min_throughput: float
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of Algorithm 1 from one start: the trajectory q (M, 2) metres and power p
+    (N, M) watts it ends with, the objective after every step, and how it ended."""
+
+    q: np.ndarray
+    p: np.ndarray
+    history: tuple[Step, ...]
+    outer_iterations: int
+    trajectory_steps: int
+    converged: bool
+
+    @property
+    def min_throughput(self) -> float:
+        """The true min rate of (q, p), bit/s: the value after the last step."""
+        return self.history[-1].min_throughput
 
 
 @dataclass(frozen=True)
@@ -112,15 +148,6 @@ def _offset_keywords(offsets: np.ndarray | None) -> dict[str, np.ndarray]:
     return {} if offsets is None else {'offsets': offsets}
 
 
-def offset_rates(q: np.ndarray, p: np.ndarray, scenario: Scenario,
-                 offsets: np.ndarray | None = None) -> np.ndarray:
-    """R_n = (B/N) (o_n + mean_m log2(1 + p_n[m] a_n[m])): (N,) bit/s (o = 0 without offsets)."""
-    if offsets is None:
-        return average_rates(q, p, scenario)
-    bits = spectral_efficiencies(snr_per_watt(q, scenario), p) + offsets
-    return spectral_efficiency_to_rate(bits, scenario)
-
-
 def optimal_power(q: np.ndarray, scenario: Scenario,
                   power_solver: PowerSolver = waterfilling_power, *,
                   offsets: np.ndarray | None = None) -> np.ndarray:
@@ -136,7 +163,7 @@ def baseline_rates(scenario: Scenario, power_solver: PowerSolver = waterfilling_
     for name, q in (('straight', initial.straight_line(scenario)),
                     ('static', initial.static_point(scenario))):
         p = optimal_power(q, scenario, power_solver, offsets=offsets)
-        rates[name] = float(offset_rates(q, p, scenario, offsets).min())
+        rates[name] = float(average_rates(q, p, scenario, offsets).min())
     return rates
 
 
@@ -144,16 +171,16 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
               power_solver: PowerSolver = waterfilling_power,
               trajectory_solver: TrajectorySolver = trajectory_step_cvxpy,
               should_stop: StopCheck | None = None,
-              offsets: np.ndarray | None = None,
-              ) -> tuple[np.ndarray, np.ndarray, list[Step], int, int, bool]:
-    """Algorithm 1 from trajectory q (M, 2): returns (q, p, history, outer, inner, converged).
+              offsets: np.ndarray | None = None) -> Run:
+    """Algorithm 1 from trajectory q (M, 2) metres, as a :class:`Run`.
 
     Each outer iteration solves the power step, then runs SCA trajectory steps until one
     gains at most the tolerance; it stops when a power step gains at most the tolerance over
     the previous one (the letter's rule). A last power step on the final trajectory follows,
     which can only raise the objective. A trajectory step that would lower the true minimum
     rate (possible only through solver round-off) is discarded and ends its loop. Every
-    trajectory is projected onto the speed limit (:func:`within_speed_limit`), so solver
+    trajectory is projected onto the speed limit (:func:`~uav_comm_planner.core.feasibility.
+    project_onto_speed_limit`), so solver
     round-off never lets a leg exceed V delta. ``should_stop`` is asked before every step;
     when it returns True the run ends with :class:`~uav_comm_planner.errors.PlanCancelledError`.
     With ``offsets`` o (N,) bits per use, every step maximises min_n (o_n + mean_m log2(...)).
@@ -164,9 +191,7 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
     extra = _offset_keywords(offsets)
 
     def min_rate(a_now: np.ndarray, p_now: np.ndarray) -> float:
-        efficiencies = spectral_efficiencies(a_now, p_now)
-        if offsets is not None:
-            efficiencies = efficiencies + offsets
+        efficiencies = spectral_efficiencies(a_now, p_now, offsets)
         return float(spectral_efficiency_to_rate(efficiencies.min(), scenario))
 
     def power_step(a_now: np.ndarray) -> tuple[np.ndarray, float]:
@@ -177,7 +202,7 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
         history.append(Step('power', value))
         return allocation.p, value
 
-    q = within_speed_limit(q, scenario)
+    q = project_onto_speed_limit(q, scenario)
     a = snr_per_watt(q, scenario)
     previous_power_value = -np.inf
     inner_total = 0
@@ -194,7 +219,7 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
             check_stop()
             step = trajectory_solver(q, p, scenario, **extra)
             inner_total += 1
-            q_new = within_speed_limit(step.q, scenario)
+            q_new = project_onto_speed_limit(step.q, scenario)
             a_new = snr_per_watt(q_new, scenario)
             new_value = min_rate(a_new, p)
             if new_value < value:
@@ -210,7 +235,7 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
         p, value = power_step(a)
     if p is None:
         raise SolverError('Algorithm 1 ran no iteration; max_outer_iterations must be >= 1')
-    return q, p, history, outer, inner_total, converged
+    return Run(q, p, tuple(history), outer, inner_total, converged)
 
 
 def throughput_upper_bound(scenario: Scenario) -> float:
@@ -225,31 +250,6 @@ def throughput_upper_bound(scenario: Scenario) -> float:
     best_snr_per_watt = snr_scale(scenario) / scenario.altitude_m ** 2
     bits = math.log1p(best_snr_per_watt * scenario.power_budget_w / (n * m)) / LN2
     return float(spectral_efficiency_to_rate(np.float64(bits), scenario))
-
-
-def within_speed_limit(q: np.ndarray, scenario: Scenario) -> np.ndarray:
-    """q (M, 2) metres, moved just enough toward the straight line that no leg exceeds V delta.
-
-    With s the straight line q0 -> qF at uniform speed (legs D / (M + 1) <= V delta, D =
-    ||qF - q0||) and L the longest leg of q, the blend (1 - lam) q + lam s has legs at most
-    (1 - lam) L + lam D / (M + 1) (triangle inequality), which is V delta for
-    lam = (L - V delta) / (L - D / (M + 1)). A solver's answer is within round-off of the
-    limit, so lam is of that order; at the goal's maximum reach, D = (M + 1) V delta, lam = 1
-    and the only feasible path, the straight line, is returned. q itself is returned when
-    every leg is within the limit.
-    """
-    q = np.asarray(q, dtype=float).reshape(-1, 2)
-    limit = scenario.max_step_m
-    longest = float(np.linalg.norm(np.diff(flown_path(q, scenario), axis=0), axis=1).max())
-    if longest <= limit:
-        return q
-    straight = initial.straight_line(scenario)
-    straight_leg = math.dist(scenario.start_m, scenario.goal_m) / (scenario.num_slots + 1)
-    if not math.isfinite(longest) or longest - straight_leg <= 0:
-        return straight
-    # A few ulps more than the exact lam, so that the blend's round-off stays within V delta.
-    lam = min(1.0, (longest - limit) / (longest - straight_leg) * (1 + 1e-12) + 1e-15)
-    return (1.0 - lam) * q + lam * straight
 
 
 def _stop_checker(should_stop: StopCheck | None) -> Callable[[], None]:
@@ -280,7 +280,7 @@ def _solvers(scenario: Scenario, power_method: str,
 def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
          power_method: str = 'waterfilling', trajectory_method: str = 'clarabel',
          should_stop: StopCheck | None = None, offsets: np.ndarray | None = None,
-         extra_starts: dict[str, np.ndarray] | None = None) -> PlanResult:
+         extra_starts: Mapping[str, np.ndarray] | None = None) -> PlanResult:
     """Jointly optimise the trajectory and the transmit power for ``scenario``.
 
     Runs the letter's Algorithm 1 from every start in ``settings.starts`` (by default the
@@ -299,8 +299,9 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     ``offsets`` o (N,), bits per use, credit each node with data it already holds (the
     receding horizon, :func:`uav_comm_planner.core.receding.replan`); all zero is the same
     as none, the letter's problem exactly. ``extra_starts`` adds initial trajectories
-    (M, 2) metres by name (for example the rest of the previous plan); each must keep the
-    speed limit, since Algorithm 1 only improves on its start.
+    (M, 2) metres by name (for example the rest of the previous plan; a name of
+    ``settings.starts`` is replaced by the trajectory given); each should keep the speed
+    limit, since Algorithm 1 only improves on its start (projected onto it otherwise).
     """
     if settings is None:
         settings = SolverSettings()
@@ -316,31 +317,30 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     power_solver, trajectory_solver = _solvers(scenario, power_method, trajectory_method)
     starts = {name: STARTS[name] for name in settings.starts}
     for name, trajectory in (extra_starts or {}).items():
-        starts[name] = functools.partial(np.array, trajectory, dtype=float)
+        starts[name] = Start.given(name, trajectory)
     order = list(starts)
-    runs = {}
-    for name, start in starts.items():
-        runs[name] = alternate(scenario, start(scenario) if name in STARTS else start(),
-                               settings, power_solver=power_solver,
-                               trajectory_solver=trajectory_solver, should_stop=should_stop,
-                               offsets=offsets)
-    # The last step of each run is the true min rate of the (q, p) it returns.
-    values = {name: run[2][-1].min_throughput for name, run in runs.items()}
+    runs = {name: alternate(scenario, start.make(scenario), settings, power_solver=power_solver,
+                            trajectory_solver=trajectory_solver, should_stop=should_stop,
+                            offsets=offsets)
+            for name, start in starts.items()}
+    values = {name: run.min_throughput for name, run in runs.items()}
     best = max(values, key=lambda name: (values[name], -order.index(name)))
-    q, p, history, outer, inner, converged = runs[best]
-    rates = offset_rates(q, p, scenario, offsets)
+    run = runs[best]
+    q, p = run.q, run.p
+    rates = average_rates(q, p, scenario, offsets)
     check_stop()
     baselines = (baseline_rates(scenario, power_solver, offsets=offsets)
                  if settings.compute_baselines else {})
     return PlanResult(
         scenario=scenario, trajectory=q, times=scenario.times_s, power=p, rates=rates,
-        min_throughput=float(rates.min()), history=tuple(history), baselines=baselines,
-        outer_iterations=outer, trajectory_steps=inner, converged=converged,
+        min_throughput=float(rates.min()), history=run.history, baselines=baselines,
+        outer_iterations=run.outer_iterations, trajectory_steps=run.trajectory_steps,
+        converged=run.converged,
         solve_time_s=time.perf_counter() - began, start=best,
         upper_bound=(throughput_upper_bound(scenario) if offsets is None else math.inf),
         start_throughputs=values, offsets=offsets)
 
 
-__all__ = ['PlanResult', 'Step', 'StopCheck', 'alternate', 'within_speed_limit',
+__all__ = ['PlanResult', 'Run', 'Start', 'Step', 'StopCheck', 'alternate',
            'baseline_rates', 'optimal_power', 'plan',
            'spectral_efficiency_to_rate', 'throughput_upper_bound']

@@ -62,10 +62,7 @@ def _within_budget(p: np.ndarray, a: np.ndarray, power_budget_w: float,
     total = float(p.sum())
     if total > power_budget_w:
         p *= power_budget_w / total
-    efficiencies = spectral_efficiencies(a, p)
-    if offsets is not None:
-        efficiencies = efficiencies + offsets
-    return PowerAllocation(p=p, efficiency=float(efficiencies.min()))
+    return PowerAllocation(p=p, efficiency=float(spectral_efficiencies(a, p, offsets).min()))
 
 
 def has_offsets(offsets: np.ndarray | None) -> bool:

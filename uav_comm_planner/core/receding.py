@@ -26,16 +26,14 @@ Notation: p (N, k) watts, positions (k, 2) metres, D (N,) bits.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
-import math
 from typing import Callable, Sequence
 
 import numpy as np
 
-from uav_comm_planner.core.model import leg_lengths, snr_per_watt
-from uav_comm_planner.core.optimizer import offset_rates, optimal_power, plan, PlanResult, Step
-from uav_comm_planner.core.power import checked_offsets
+from uav_comm_planner.core.feasibility import within_speed_limit
+from uav_comm_planner.core.model import snr_per_watt, spectral_efficiencies
+from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.scenario import DUPLICATE_NODE_DISTANCE_M, Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 
@@ -117,7 +115,7 @@ def delivered_bits(mission: Scenario, flown: FlownSlots) -> np.ndarray:
     if flown.num_slots == 0:
         return np.zeros(mission.num_nodes)
     a = snr_per_watt(flown.positions_m, mission)
-    bits_per_use = np.log2(1.0 + flown.power_w * a).sum(axis=1)
+    bits_per_use = spectral_efficiencies(a, flown.power_w) * flown.num_slots
     return mission.slot_s * mission.bandwidth_hz / mission.num_nodes * bits_per_use
 
 
@@ -172,32 +170,8 @@ class RecedingPlan:
 Planner = Callable[..., PlanResult]
 
 
-def as_flown(result: PlanResult, offsets: np.ndarray | None) -> PlanResult:
-    """``result`` (a plan at the positions a vehicle will fly, with the letter's power for
-    them) with the power that is optimal there for the offsets o (N,) instead, and its rates
-    counting them: R_n = (B/N) (o_n + mean_m log2(1 + p_n[m] a_n[m])). Without offsets (or
-    all zero) ``result`` itself."""
-    offsets = checked_offsets(offsets, result.scenario.num_nodes)
-    if offsets is None:
-        return result
-    p = optimal_power(result.trajectory, result.scenario, offsets=offsets)
-    rates = offset_rates(result.trajectory, p, result.scenario, offsets)
-    value = float(rates.min())
-    return dataclasses.replace(result, power=p, rates=rates, min_throughput=value,
-                               history=result.history + (Step('power', value),),
-                               upper_bound=math.inf, offsets=offsets)
-
-
 #: Name of the start that continues the previous plan (see :func:`replan`).
 PREVIOUS_PLAN_START = 'previous'
-
-
-def within_speed_limit(q: np.ndarray, scenario: Scenario) -> bool:
-    """Whether q (M, 2) metres, with q0 and qF of ``scenario``, keeps every leg <= V delta."""
-    q = np.asarray(q, dtype=float).reshape(-1, 2)
-    if q.shape[0] != scenario.num_slots or not np.all(np.isfinite(q)):
-        return False
-    return bool(leg_lengths(q, scenario).max() <= scenario.max_step_m * (1 + 1e-9))
 
 
 def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
@@ -235,6 +209,5 @@ def mission_rates_flown(mission: Scenario, power_w: np.ndarray,
     return delivered_bits(mission, flown) / mission.horizon_s
 
 
-__all__ = ['PREVIOUS_PLAN_START', 'FlownSlots', 'RecedingPlan', 'as_flown', 'delivered_bits',
-           'mission_rates_flown', 'power_for_nodes', 'replan', 'rest_of_mission',
-           'within_speed_limit']
+__all__ = ['PREVIOUS_PLAN_START', 'FlownSlots', 'RecedingPlan', 'delivered_bits',
+           'mission_rates_flown', 'power_for_nodes', 'replan', 'rest_of_mission']

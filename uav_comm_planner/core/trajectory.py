@@ -27,6 +27,7 @@ import cvxpy as cp
 import numpy as np
 
 from uav_comm_planner.core.conic import Certificate, solve_checked
+from uav_comm_planner.core.feasibility import LEG_SLACK
 from uav_comm_planner.core.model import LN2, snr_scale, squared_distances
 from uav_comm_planner.core.scenario import Scenario
 
@@ -106,9 +107,6 @@ CERTIFIED_GAP = 1e-7
 #: Tried when the solver's defaults stop short of optimal: more iterations, tighter
 #: tolerances, the answer still judged by its duality gap.
 CLARABEL_RETRY = dict(max_iter=400, tol_gap_abs=1e-9, tol_gap_rel=1e-9, tol_feas=1e-9)
-#: Legs may exceed V delta by this share (the solver's feasibility tolerance), as in
-#: :mod:`uav_comm_planner.core.fast_trajectory`.
-_LEG_SLACK = 1e-7
 
 
 def sca_duality_gap(z: np.ndarray, weights: np.ndarray, leg_prices: np.ndarray,
@@ -123,13 +121,13 @@ def sca_duality_gap(z: np.ndarray, weights: np.ndarray, leg_prices: np.ndarray,
     (max_step - ||leg_l||). L is concave, and strongly so in each z[m] with modulus
     mu_m = (2/M) sum_n lambda_n weight_{n,m}, so max_z L <= L(z) + sum_m ||g_m||^2 / (2 mu_m)
     with g a supergradient of L at z. The gap is that bound minus min_n f_n(z); infinite if z
-    breaks a speed limit (beyond the solver's feasibility tolerance).
+    breaks a speed limit (beyond :data:`~uav_comm_planner.core.feasibility.LEG_SLACK`).
     """
     m = z.shape[0]
     path = np.vstack([start, z, goal])
     legs = np.diff(path, axis=0)
     length = np.linalg.norm(legs, axis=1)
-    if not np.all(np.isfinite(z)) or length.max() > max_step * (1 + _LEG_SLACK):
+    if not np.all(np.isfinite(z)) or length.max() > max_step * (1 + LEG_SLACK):
         return math.inf
     lam = np.maximum(weights, 0.0)
     nu = np.maximum(leg_prices, 0.0)

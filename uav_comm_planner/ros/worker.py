@@ -14,7 +14,7 @@ import threading
 from typing import Callable, Generic, TypeVar
 
 from uav_comm_planner.core.optimizer import PlanResult
-from uav_comm_planner.core.receding import as_flown, FlownSlots, RecedingPlan, replan
+from uav_comm_planner.core.receding import FlownSlots, RecedingPlan, replan
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import PlanCancelledError, PlannerError
 from uav_comm_planner.ros.params import NodeSettings
@@ -182,7 +182,7 @@ def _plan_rest(planner: Planner, request: PlanRequest, planned: list, scenario: 
                                     firmware=request.output.mission_firmware,
                                     planner=optimiser)
     planned.append(vehicle_plan)
-    return as_flown(vehicle_plan.flown, offsets)
+    return vehicle_plan.flown
 
 
 def attempt(planner: Planner, request: PlanRequest, *,

@@ -282,18 +282,23 @@ def check_speed(scenario: Scenario, limits: VehicleLimits) -> None:
 
 
 def flown_result(ideal: PlanResult, schedule: Schedule) -> PlanResult:
-    """The plan as flown: predicted positions at the slot times, power optimal for them."""
+    """The plan as flown: predicted positions at the slot times, power optimal for them.
+
+    A replan in flight keeps its offsets (the data each node already holds): the power is
+    optimal for them and the rates count them, as in the ideal plan.
+    """
     scenario = ideal.scenario
     q = schedule.flight.positions(scenario.times_s)
-    p = optimal_power(q, scenario)
-    rates = average_rates(q, p, scenario)
+    p = optimal_power(q, scenario, offsets=ideal.offsets)
+    rates = average_rates(q, p, scenario, ideal.offsets)
     value = float(rates.min())
     return PlanResult(
         scenario=scenario, trajectory=q, times=scenario.times_s, power=p, rates=rates,
         min_throughput=value, history=(Step('power', value),), baselines=ideal.baselines,
         outer_iterations=ideal.outer_iterations, trajectory_steps=ideal.trajectory_steps,
         converged=ideal.converged, solve_time_s=ideal.solve_time_s, start=ideal.start,
-        upper_bound=ideal.upper_bound, start_throughputs=ideal.start_throughputs)
+        upper_bound=ideal.upper_bound, start_throughputs=ideal.start_throughputs,
+        offsets=ideal.offsets)
 
 
 def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits(),
