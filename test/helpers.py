@@ -108,7 +108,7 @@ class Harness:
 
     def published(self, plans: int) -> None:
         """Spin until the node has published ``plans`` plans and the probe holds the last."""
-        self.spin_until(lambda: self.node.plans_published >= plans, f'plan number {plans}')
+        self.spin_until(lambda: self.node.stats.plans_published >= plans, f'plan number {plans}')
         outcome = self.node.current_plan
         expected_power = outcome.result.power.T.ravel().tolist()
         start_ns = outcome.request.start_ns
@@ -145,4 +145,4 @@ class Harness:
         return future.result()
 
     def errors_after(self, count: int) -> None:
-        self.spin_until(lambda: self.node.error_count > count, 'error')
+        self.spin_until(lambda: self.node.stats.error_count > count, 'error')

@@ -20,8 +20,8 @@ from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
+from uav_comm_planner.mission.progress import planned_position
 from uav_comm_planner.ros.messages import nanoseconds_of, nodes_text, status_values
-from uav_comm_planner.ros.progress import planned_position
 from uav_comm_planner.ros.publishing import (OUTPUT_QOS, STATUS_QOS, TOPIC_MARKERS,
                                              TOPIC_MIN_THROUGHPUT, TOPIC_PATH, TOPIC_POWER_PLAN,
                                              TOPIC_STATUS)
@@ -132,14 +132,14 @@ def test_mission_clock_starts_on_start_and_output_parameters_never_replan(harnes
     start = h.node.progress.segments[0].start_s
     assert not h.call('start', Trigger.Request()).success       # already running
 
-    requests = h.node.requests_made
+    requests = h.node.stats.requests_made
     for name, value in (('mission_file', 'f.waypoints'),
                         ('mission_firmware', 'px4'), ('mission_end', 'rtl'),
                         ('replan_interval_s', 3.0)):
         answer = h.call('set_parameters', SetParameters.Request(
             parameters=[Parameter(name, value=value).to_parameter_msg()]))
         assert answer.results[0].successful, answer.results[0].reason
-    assert h.node.requests_made == requests
+    assert h.node.stats.requests_made == requests
     assert h.node.progress.segments[0].start_s == start
 
     # A planning parameter in flight replans the rest under the whole mission's budget.
@@ -178,17 +178,17 @@ def test_a_20_hz_pose_stream_replans_a_bounded_number_of_times(harness):
         elapsed = h.node.get_clock().now().nanoseconds / 1e9 - segment.start_s
         return tuple(planned_position(segment.result, elapsed))
 
-    requests = h.node.requests_made
+    requests = h.node.stats.requests_made
     sent = stream_poses(h, 2.0, on_plan)
     assert sent >= 30
-    assert h.node.requests_made == requests, 'a pose on the plan replanned'
+    assert h.node.stats.requests_made == requests, 'a pose on the plan replanned'
 
     seconds = 3.0
     sent = stream_poses(h, seconds, lambda: (500.0, -300.0))
-    replans = h.node.requests_made - requests
+    replans = h.node.stats.requests_made - requests
     print(f'{sent} poses off the plan in {seconds:g} s: {replans} replans')
     assert 1 <= replans <= seconds / interval_s + 1
-    h.published(h.node.plans_published)
+    h.published(h.node.stats.plans_published)
     assert h.node.current_plan.receding is not None
 
 

@@ -8,8 +8,8 @@ import pytest
 
 from uav_comm_planner import paper_scenario, plan, SolverSettings
 from uav_comm_planner.core.receding import delivered_bits, replan
-from uav_comm_planner.ros.progress import (MissionProgress, off_plan, planned_position,
-                                           PoseTrack, TRACK_GAP_S)
+from uav_comm_planner.mission.progress import (MissionProgress, off_plan, planned_position,
+                                               PoseTrack, TRACK_GAP_S)
 
 FAST = SolverSettings(compute_baselines=False)
 

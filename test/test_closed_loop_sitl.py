@@ -21,8 +21,8 @@ from rclpy.parameter import Parameter
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.core.receding import mission_rates_flown
 from uav_comm_planner.ros.messages import pose_array
-from uav_comm_planner.ros.node import (GROUND_NODES_QOS, PlannerNode, TOPIC_GROUND_NODES,
-                                       TOPIC_VEHICLE_POSE)
+from uav_comm_planner.ros.node import GROUND_NODES_QOS, PlannerNode, TOPIC_GROUND_NODES
+from uav_comm_planner.ros.vehicle import TOPIC_VEHICLE_POSE
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.sitl import (open_link, request_position_stream, set_mode,
                                            set_parameter, start_sitl, take_off,
@@ -101,7 +101,7 @@ def test_the_node_flies_a_changing_mission_within_budget(ros_context, tmp_path):
                 assert time.monotonic() < deadline, f'no {what} within {WALL_LIMIT_S} s'
                 time.sleep(0.05)
 
-        wait(lambda: node.uploads_verified >= 1, 'first mission on the vehicle')
+        wait(lambda: node.vehicle.uploads_verified >= 1, 'first mission on the vehicle')
         take_off(link, 100.0)
         set_mode(link, 'AUTO')
         request_position_stream(link, 10.0)
@@ -121,10 +121,10 @@ def test_the_node_flies_a_changing_mission_within_budget(ros_context, tmp_path):
                     and segment.first_slot + segment.num_slots == SLOTS
                     and now >= segment.slot_times_s(segment.num_slots)[-1] + 0.5):
                 break
-        assert node.uploads_verified >= 2
-        assert node.error_count == 0, node.last_error
+        assert node.vehicle.uploads_verified >= 2
+        assert node.stats.error_count == 0, node.stats.last_error
         # The replan was flown from its q0 item on: the vehicle never went back to the takeoff.
-        assert node.mission_item is not None and node.mission_item > 2
+        assert node.vehicle.mission_item is not None and node.vehicle.mission_item > 2
         assert vehicle_poses, 'no vehicle_pose published'
         last = vehicle_poses[-1].pose.position
         assert abs(last.z - 100.0) < 5.0

@@ -36,13 +36,14 @@ def test_an_oversized_node_set_is_refused_before_conversion_and_the_node_keeps_s
     h = harness()
     h.published(1)
     before = h.node.current_plan
-    errors = h.node.error_count
+    errors = h.node.stats.error_count
     points = [(float(i), float(i % 7)) for i in range(12_000)]
     began = time.perf_counter()
     h.send_nodes(points)
     h.errors_after(errors)
     print(f'12 000 poses refused {time.perf_counter() - began:.3f} s after sending')
-    assert 'too many ground nodes: 12000 given, the limit max_nodes is 100' in h.node.last_error
+    assert ('too many ground nodes: 12000 given, the limit max_nodes is 100'
+            in h.node.stats.last_error)
     assert h.node.current_plan is before
     # The executor still serves: a normal update is planned.
     h.send_nodes(NODES_B)
@@ -81,12 +82,12 @@ def test_mission_file_goes_into_mission_dir_and_refuses_a_link_in_its_place(harn
                 horizon_s=400.0, num_slots=100, vehicle_aware=True)
     h.published(1)
     assert (folder / 'flight.waypoints').read_text().startswith('QGC WPL 110')
-    errors = h.node.error_count
+    errors = h.node.stats.error_count
     assert set_parameter(h, 'mission_file', 'linked.waypoints').successful
     # The mission file is an output: it is written with the next plan.
     assert h.call('export_mission', Trigger.Request()).success is False
     h.errors_after(errors)
-    assert 'symbolic link' in h.node.last_error
+    assert 'symbolic link' in h.node.stats.last_error
     assert outside.read_text() == 'foreign'
 
 
@@ -107,10 +108,10 @@ def test_a_newer_request_preempts_the_running_plan(harness):
     h = harness(planner=slow_first)
     h.spin_until(running.is_set, 'first plan running')
     h.send_nodes(NODES_B)
-    h.spin_until(lambda: h.node.plans_published >= 1, 'plan for the newer request')
-    assert h.node.plans_cancelled == 1
+    h.spin_until(lambda: h.node.stats.plans_published >= 1, 'plan for the newer request')
+    assert h.node.stats.plans_cancelled == 1
     assert h.node.current_plan.request.scenario.ground_nodes_m == tuple(NODES_B)
-    assert h.node.error_count == 0
+    assert h.node.stats.error_count == 0
 
 
 def test_a_burst_of_service_requests_is_answered_in_full(harness):
@@ -121,7 +122,7 @@ def test_a_burst_of_service_requests_is_answered_in_full(harness):
     futures = [client.call_async(Trigger.Request()) for _ in range(60)]
     h.spin_until(lambda: all(f.done() for f in futures), 'answers to all 60 requests')
     assert all(f.result().success for f in futures)
-    h.spin_until(lambda: h.node.plans_run >= 2, 'a plan after the burst')
+    h.spin_until(lambda: h.node.stats.plans_run >= 2, 'a plan after the burst')
 
 
 def start_planner(*ros_args: str) -> subprocess.Popen:

@@ -4,8 +4,9 @@
 | --------- | ----------------------------------------------------------------------- |
 | core/     | numpy, scipy, cvxpy, clarabel                                           |
 | vehicle/  | core, pymavlink, pymap3d                                                |
-| ros/      | core, vehicle, rclpy and ROS messages                                   |
-| tools/    | core, vehicle, scipy, matplotlib, dask, pyarrow; never rclpy            |
+| mission/  | core, vehicle (the pipeline the node and the command line share)        |
+| ros/      | core, vehicle, mission, rclpy and ROS messages                          |
+| tools/    | core, vehicle, mission, scipy, matplotlib, dask, pyarrow; never rclpy   |
 | top level | errors and files import nothing of the package; ``__init__`` re-exports |
 |           | the public API from core                                                |
 """
@@ -20,19 +21,21 @@ import pytest
 
 PACKAGE = 'uav_comm_planner'
 ROOT = Path(__file__).resolve().parents[1] / PACKAGE
-FOLDERS = ('core', 'vehicle', 'ros', 'tools')
+FOLDERS = ('core', 'vehicle', 'mission', 'ros', 'tools')
 
 #: For each folder, the package's own folders it may import.
 ALLOWED_INSIDE = {
     'core': {'core'},
     'vehicle': {'core', 'vehicle'},
-    'ros': {'core', 'vehicle', 'ros'},
-    'tools': {'core', 'vehicle', 'tools'},
+    'mission': {'core', 'vehicle', 'mission'},
+    'ros': {'core', 'vehicle', 'mission', 'ros'},
+    'tools': {'core', 'vehicle', 'mission', 'tools'},
 }
 #: Third-party top-level modules each folder may import.
 THIRD_PARTY = {
     'core': {'numpy', 'scipy', 'cvxpy', 'clarabel'},
     'vehicle': {'numpy', 'pymavlink', 'pymap3d'},
+    'mission': {'numpy'},
     'ros': {'numpy', 'rclpy', 'builtin_interfaces', 'geometry_msgs', 'nav_msgs', 'std_msgs',
             'std_srvs', 'visualization_msgs', 'rcl_interfaces', 'diagnostic_msgs',
             'trajectory_msgs'},

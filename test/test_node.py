@@ -113,13 +113,13 @@ def test_bad_parameter_is_refused_with_its_reason_and_the_plan_stays(harness):
     h = harness()
     h.published(1)
     before = h.node.current_plan
-    requests = h.node.requests_made
+    requests = h.node.stats.requests_made
     too_short = Parameter('horizon_s', value=5.0).to_parameter_msg()
     answer = h.call('set_parameters', SetParameters.Request(parameters=[too_short]))
     assert not answer.results[0].successful
     assert 'goal unreachable' in answer.results[0].reason
     assert h.node.get_parameter('horizon_s').value == HORIZON_S
-    assert h.node.requests_made == requests
+    assert h.node.stats.requests_made == requests
     assert h.node.current_plan is before
     assert nanoseconds_of(h.latest(TOPIC_PATH).header.stamp) == before.request.start_ns
 
@@ -143,18 +143,18 @@ def test_bad_ground_nodes_are_logged_and_publish_no_plan(harness, points, frame_
     h = harness(max_nodes=3)
     h.published(1)
     before = h.node.current_plan
-    requests, errors = h.node.requests_made, h.node.error_count
+    requests, errors = h.node.stats.requests_made, h.node.stats.error_count
     h.send_nodes(points, frame_id)
     h.errors_after(errors)
-    assert reason in h.node.last_error
+    assert reason in h.node.stats.last_error
     h.spin_until(lambda: any(reason in line for line in h.error_logs), 'error on /rosout')
-    assert h.node.requests_made == requests
+    assert h.node.stats.requests_made == requests
     assert h.node.current_plan is before
-    assert h.node.plans_run == 1
+    assert h.node.stats.plans_run == 1
 
     h.send_nodes(NODES_B)
     h.published(2)
-    assert h.node.plans_run == 2
+    assert h.node.stats.plans_run == 2
 
 
 class GatedPlanner:
@@ -165,17 +165,17 @@ class GatedPlanner:
         self.gate.set()
         self.planned: list[tuple] = []
 
-    def __call__(self, scenario, settings):
+    def __call__(self, scenario, settings, **options):
         self.planned.append(scenario.ground_nodes_m)
         self.gate.wait(DEADLINE_S)
-        return plan(scenario, settings)
+        return plan(scenario, settings, **options)
 
 
 def test_burst_of_updates_coalesces_and_ends_with_the_last(harness):
     gated = GatedPlanner()
     h = harness(planner=gated)
     h.published(1)
-    runs, requests = h.node.plans_run, h.node.requests_made
+    runs, requests = h.node.stats.plans_run, h.node.stats.requests_made
     gated.gate.clear()
     updates = [[(300.0 + i, 200.0), (900.0, -150.0 + i), (1500.0, 250.0)] for i in range(50)]
     for i, points in enumerate(updates):
@@ -185,12 +185,12 @@ def test_burst_of_updates_coalesces_and_ends_with_the_last(harness):
                      'update taken')
         if i == len(updates) // 2:
             assert h.call('replan', Trigger.Request()).success
-    assert h.node.requests_made - requests == len(updates) + 1
+    assert h.node.stats.requests_made - requests == len(updates) + 1
     gated.gate.set()
     h.spin_until(lambda: h.node.current_plan.request.scenario.ground_nodes_m == tuple(
         updates[-1]), 'plan for the last update')
-    h.published(h.node.plans_published)
-    assert 1 <= h.node.plans_run - runs <= 2
+    h.published(h.node.stats.plans_published)
+    assert 1 <= h.node.stats.plans_run - runs <= 2
     assert gated.planned[-1] == tuple(updates[-1])
     markers = h.latest(TOPIC_MARKERS).markers[0]
     assert [(p.x, p.y) for p in markers.points] == updates[-1]
@@ -215,32 +215,32 @@ def test_uav_pose_replans_the_rest_and_refuses_an_unreachable_goal(harness):
     assert receding is not None
     assert receding.mission_energy_w <= paper_scenario().power_budget_w * (1 + 1e-9)
 
-    errors = h.node.error_count
-    h.node._last_pose_replan_s = -math.inf        # past the replan interval
+    errors = h.node.stats.error_count
+    h.node.flight._last_pose_replan_s = -math.inf        # past the replan interval
     h.send_pose(100000.0, 0.0)
     h.errors_after(errors)
-    assert 'goal unreachable' in h.node.last_error
-    assert h.node.plans_published == 2
+    assert 'goal unreachable' in h.node.stats.last_error
+    assert h.node.stats.plans_published == 2
 
 
 def test_solver_failure_is_logged_and_the_last_plan_stays(harness):
     calls = []
 
-    def failing_after_first(scenario, settings):
+    def failing_after_first(scenario, settings, **options):
         calls.append(scenario)
         if len(calls) > 1:
             raise SolverError('trajectory step: solver reported NUMERICAL_ERROR')
-        return plan(scenario, settings)
+        return plan(scenario, settings, **options)
 
     h = harness(planner=failing_after_first)
     h.published(1)
     before = h.node.current_plan
-    errors = h.node.error_count
+    errors = h.node.stats.error_count
     assert h.call('replan', Trigger.Request()).success
     h.errors_after(errors)
-    assert 'NUMERICAL_ERROR' in h.node.last_error
+    assert 'NUMERICAL_ERROR' in h.node.stats.last_error
     assert h.node.current_plan is before
-    assert h.node.plans_run == 2 and h.node.plans_published == 1
+    assert h.node.stats.plans_run == 2 and h.node.stats.plans_published == 1
 
 
 MULTIROTOR = {'max_speed_mps': 10.0, 'horizon_s': 400.0, 'num_slots': 100,
@@ -276,15 +276,15 @@ def test_mission_written_on_every_plan_and_on_demand(harness, tmp_path):
 
     (tmp_path / 'taken.waypoints').mkdir()
     nowhere = Parameter('mission_file', value='taken.waypoints')
-    errors, requests = h.node.error_count, h.node.requests_made
+    errors, requests = h.node.stats.error_count, h.node.stats.requests_made
     answer = h.call('set_parameters', SetParameters.Request(
         parameters=[nowhere.to_parameter_msg()]))
     assert answer.results[0].successful
-    assert h.node.requests_made == requests      # an output parameter never replans
+    assert h.node.stats.requests_made == requests      # an output parameter never replans
     assert h.call('replan', Trigger.Request()).success
     h.published(2)
     h.errors_after(errors)
-    assert 'mission export failed' in h.node.last_error
+    assert 'mission export failed' in h.node.stats.last_error
     assert not h.call('export_mission', Trigger.Request()).success
 
 

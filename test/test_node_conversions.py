@@ -14,12 +14,12 @@ import yaml
 from uav_comm_planner import (InfeasibleHorizonError, InvalidScenarioError, paper_scenario, plan,
                               Scenario, SolverSettings)
 from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.ros.handoff import LatestOnlyWorker
 from uav_comm_planner.ros.messages import (ground_nodes_of, headings, marker_array, nanoseconds_of,
                                            path_message, pose_array, power_message)
 from uav_comm_planner.ros.params import (config_from_parameters, NodeSettings, PARAMETER_NAMES,
                                          parameter_specs)
 from uav_comm_planner.ros.publishing import summary_line
-from uav_comm_planner.ros.worker import LatestOnlyWorker
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
 CONFIG = Path(__file__).resolve().parent.parent / 'config' / 'planner.yaml'

@@ -174,6 +174,51 @@ Planner = Callable[..., PlanResult]
 PREVIOUS_PLAN_START = 'previous'
 
 
+@dataclass(frozen=True)
+class RecedingProblem:
+    """The rest of a mission as the optimiser must solve it, and how its answer counts.
+
+    rest: :func:`rest_of_mission`; delivered_bits: D_n (N,) bits so far; offsets: o (N,) bits
+    per use, D_n over the rest's slots; plan_options: the keywords for the core's
+    :func:`~uav_comm_planner.core.optimizer.plan` (the offsets, and the rest of the plan in
+    force as one more start when it keeps the speed limit).
+    """
+
+    mission: Scenario
+    flown: FlownSlots
+    rest: Scenario
+    delivered_bits: np.ndarray
+    offsets: np.ndarray
+    plan_options: dict
+
+    def outcome(self, result: PlanResult) -> RecedingPlan:
+        """What the plan ``result`` of :attr:`rest` (its rates counting the offsets) promises
+        for the whole mission."""
+        share = self.rest.num_slots / self.mission.num_slots
+        mission_rates = np.asarray(result.rates, dtype=float) * share
+        return RecedingPlan(mission=self.mission, flown=self.flown, result=result,
+                            delivered_bits=self.delivered_bits, offsets=self.offsets,
+                            mission_rates=mission_rates,
+                            mission_min_throughput=float(mission_rates.min()))
+
+
+def receding_problem(mission: Scenario, position_m: Sequence[float], flown: FlownSlots, *,
+                     previous_q: np.ndarray | None = None) -> RecedingProblem:
+    """The rest of ``mission`` from ``position_m`` after the slots ``flown``, as a problem for
+    the optimiser (module docstring). ``previous_q`` (M - k, 2) metres, the rest of the plan
+    being flown, becomes one more start when it keeps the speed limit from ``position_m``.
+    Raises the errors of :func:`rest_of_mission`."""
+    rest = rest_of_mission(mission, position_m, flown)
+    delivered = delivered_bits(mission, flown)
+    per_use = rest.slot_s * rest.bandwidth_hz / rest.num_nodes * rest.num_slots
+    offsets = delivered / per_use
+    options: dict = {'offsets': offsets}
+    if previous_q is not None and within_speed_limit(previous_q, rest):
+        options['extra_starts'] = {PREVIOUS_PLAN_START: np.asarray(previous_q, float)}
+    return RecedingProblem(mission=mission, flown=flown, rest=rest, delivered_bits=delivered,
+                           offsets=offsets, plan_options=options)
+
+
 def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
            settings: SolverSettings | None = None, *, planner: Planner = plan,
            previous_q: np.ndarray | None = None, **plan_options) -> RecedingPlan:
@@ -187,18 +232,9 @@ def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
     and ``position_m`` = q0 it returns the letter's plan exactly. Raises the errors of
     :func:`rest_of_mission` and of the planner.
     """
-    rest = rest_of_mission(mission, position_m, flown)
-    delivered = delivered_bits(mission, flown)
-    per_use = rest.slot_s * rest.bandwidth_hz / rest.num_nodes * rest.num_slots
-    offsets = delivered / per_use
-    if previous_q is not None and within_speed_limit(previous_q, rest):
-        plan_options['extra_starts'] = {PREVIOUS_PLAN_START: np.asarray(previous_q, float)}
-    result = planner(rest, settings, offsets=offsets, **plan_options)
-    share = rest.num_slots / mission.num_slots
-    mission_rates = np.asarray(result.rates, dtype=float) * share
-    return RecedingPlan(mission=mission, flown=flown, result=result, delivered_bits=delivered,
-                        offsets=offsets, mission_rates=mission_rates,
-                        mission_min_throughput=float(mission_rates.min()))
+    problem = receding_problem(mission, position_m, flown, previous_q=previous_q)
+    result = planner(problem.rest, settings, **problem.plan_options, **plan_options)
+    return problem.outcome(result)
 
 
 def mission_rates_flown(mission: Scenario, power_w: np.ndarray,
@@ -209,5 +245,6 @@ def mission_rates_flown(mission: Scenario, power_w: np.ndarray,
     return delivered_bits(mission, flown) / mission.horizon_s
 
 
-__all__ = ['PREVIOUS_PLAN_START', 'FlownSlots', 'RecedingPlan', 'delivered_bits',
-           'mission_rates_flown', 'power_for_nodes', 'replan', 'rest_of_mission']
+__all__ = ['PREVIOUS_PLAN_START', 'FlownSlots', 'RecedingPlan', 'RecedingProblem',
+           'delivered_bits', 'mission_rates_flown', 'power_for_nodes', 'receding_problem',
+           'replan', 'rest_of_mission']

@@ -22,7 +22,7 @@ from visualization_msgs.msg import MarkerArray
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.ros.messages import (marker_array, nodes_text, path_message, power_message,
                                            power_plan_message, status_message)
-from uav_comm_planner.ros.worker import PlanOutcome
+from uav_comm_planner.ros.planning import PlanOutcome
 
 TOPIC_PATH = 'planned_path'
 TOPIC_POWER = 'power_schedule'

@@ -112,9 +112,7 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
     A :class:`~uav_comm_planner.vehicle.flyable.VehiclePlan` keeps its own timing; a plain
     :class:`PlanResult` is timed here for ``limits`` (ArduCopter's defaults when None).
     """
-    if not isinstance(home, Home):
-        raise MissionExportError(f'home must be a Home(latitude, longitude, altitude), got '
-                                 f'{home!r}')
+    check_home(home)
     if end not in MISSION_ENDS:
         raise MissionExportError(f'unknown mission end {end!r}: choose land or rtl')
     _check_firmware(firmware)
@@ -269,17 +267,36 @@ def export_mission(plan: PlanResult | VehiclePlan, path: str | os.PathLike, home
     QGroundControl JSON. The file is replaced atomically; on any failure a
     :class:`MissionExportError` says why and a previous file at ``path`` is left as it was.
     """
+    check_mission_path(path)
+    check_home(home)
+    items = build_mission_items(plan, home, end=end, firmware=firmware, limits=limits)
+    return write_mission_file(items, path, home, firmware=firmware)
+
+
+def check_mission_path(path: str | os.PathLike) -> None:
+    """Refuse (:class:`MissionExportError`) a mission file name of an unknown format."""
     target = Path(path)
-    suffix = target.suffix.lower()
-    if suffix not in MISSION_FORMATS:
+    if target.suffix.lower() not in MISSION_FORMATS:
         raise MissionExportError(
             f'unknown mission format {target.suffix or "(no extension)"!r} for {str(target)!r}: '
             f'use a .waypoints or .plan file')
+
+
+def check_home(home: object) -> None:
+    """Refuse (:class:`MissionExportError`) a home that is not a :class:`Home`."""
     if not isinstance(home, Home):
         raise MissionExportError(f'home must be a Home(latitude, longitude, altitude), got '
                                  f'{home!r}')
-    items = build_mission_items(plan, home, end=end, firmware=firmware, limits=limits)
-    if suffix == '.plan':
+
+
+def write_mission_file(items: Sequence[MissionItem], path: str | os.PathLike, home: Home, *,
+                       firmware: str = 'ardupilot') -> Path:
+    """Write mission ``items`` (:func:`build_mission_items`) as the file ``path``, its format
+    from the extension, atomically (as :func:`export_mission`); return the path written."""
+    check_mission_path(path)
+    check_home(home)
+    target = Path(path)
+    if target.suffix.lower() == '.plan':
         def writer(temporary: Path) -> None:
             write_plan(items, temporary, home, firmware=firmware)
     else:
@@ -300,6 +317,7 @@ def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
 
 
 __all__ = [
-    'DEFAULT_HOME', 'Home', 'MissionItem', 'build_mission_items', 'export_mission',
-    'plan_document', 'write_plan', 'write_waypoints',
+    'DEFAULT_HOME', 'Home', 'MissionItem', 'build_mission_items', 'check_home',
+    'check_mission_path', 'export_mission', 'plan_document', 'write_mission_file', 'write_plan',
+    'write_waypoints',
 ]

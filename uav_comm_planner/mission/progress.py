@@ -1,8 +1,8 @@
 """The mission in flight: its clock, the plan each slot was flown under, and where the UAV was.
 
-No ROS here: the node feeds times (seconds on one clock: the vehicle's boot time with a
-MAVLink link, the node's clock without) and positions (metres in the planning frame), and
-asks what a receding replan needs (:func:`uav_comm_planner.core.receding.replan`).
+The node feeds times (seconds on one clock: the vehicle's boot time with a MAVLink link, the
+node's clock without) and positions (metres in the planning frame), and asks what a receding
+replan needs (:func:`uav_comm_planner.core.receding.replan`).
 
 A mission is M slots of delta seconds. Its first plan starts when the UAV reaches that plan's
 q0 (or on ``~/start``); slot m of a plan covers ((m - 1) delta, m delta] after the plan's start,
@@ -16,6 +16,7 @@ sums over the slots of its plans, each cut where the next one took over.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import itertools
 import math
 
 import numpy as np
@@ -32,6 +33,8 @@ TRACK_LENGTH = 60_000
 TRACK_GAP_S = 2.0
 #: Samples of the planned path per slot when looking for the nearest planned point.
 PATH_SAMPLES_PER_SLOT = 10
+#: Tells missions apart: every mission begun gets the next number.
+_MISSION_IDS = itertools.count(1)
 
 
 class PoseTrack:
@@ -116,11 +119,13 @@ class MissionProgress:
     """The plans of the mission in flight, in order, on one clock.
 
     ``segments[-1]`` is the plan in force (or waiting for its q0). ``mission`` is the whole
-    mission's scenario as last planned (the node set and budget of the latest plan).
+    mission's scenario as last planned (the node set and budget of the latest plan);
+    ``mission_id`` tells this mission from any other begun before or after it.
     """
 
     mission: Scenario | None = None
     segments: list[Segment] = field(default_factory=list)
+    mission_id: int = 0
 
     @property
     def started(self) -> bool:
@@ -134,6 +139,7 @@ class MissionProgress:
         """A new mission whose first plan is ``result``; its clock is not running yet."""
         self.mission = mission
         self.segments = [Segment(result, 0)]
+        self.mission_id = next(_MISSION_IDS)
 
     def start_clock(self, now_s: float) -> None:
         """The plan in force starts now (the UAV is at its q0)."""
@@ -174,6 +180,20 @@ class MissionProgress:
             # The plan it replaces never started: drop it, it flew no slot.
             self.segments.pop()
         self.segments.append(Segment(result, first_slot))
+
+    def take_over(self, mission_id: int, segment: int, slots_kept: int, mission: Scenario,
+                  result: PlanResult) -> bool:
+        """A replan asked while plan number ``segment`` of mission ``mission_id`` was in force
+        takes over after that plan's first ``slots_kept`` slots. False, and nothing changes,
+        when the mission is another by now or a later plan has started already."""
+        if (mission_id != self.mission_id or not 0 <= segment < len(self.segments)
+                or any(later.start_s is not None for later in self.segments[segment + 1:])):
+            return False
+        del self.segments[segment + 1:]
+        kept = self.segments[segment]
+        kept.slots_kept = slots_kept
+        self.follow_with(mission, result, kept.first_slot + slots_kept)
+        return True
 
     def over(self, now_s: float) -> bool:
         """Whether every slot of the mission has begun."""

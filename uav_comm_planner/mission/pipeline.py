@@ -1,0 +1,128 @@
+"""The one planning pipeline: plan, make the plan flyable, build its mission items once.
+
+:func:`plan_mission` is what the node's worker and the ``uav-comm-planner plan`` command both
+call, so that the same request gives the same plan and the same items on either route:
+
+1. the optimiser (the core's :func:`~uav_comm_planner.core.optimizer.plan`, or any function
+   of the same signature) plans the whole mission, or the rest of a mission in flight by the
+   receding horizon (:mod:`uav_comm_planner.core.receding`);
+2. for a vehicle-aware request, :func:`~uav_comm_planner.vehicle.flyable.plan_for_vehicle`
+   times it for the vehicle and the plan returned is the plan as flown;
+3. the mission items are built from that plan, once; writing a mission file or uploading it
+   uses these items.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+import os
+from pathlib import Path
+from typing import Callable
+
+from uav_comm_planner.core.optimizer import plan, PlanResult
+from uav_comm_planner.core.receding import receding_problem, RecedingPlan
+from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.mission.request import MissionRequest
+from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
+from uav_comm_planner.vehicle.geodesy import Home
+from uav_comm_planner.vehicle.mission import build_mission_items, MissionItem, write_mission_file
+
+#: ``planner(scenario, settings, **options) -> PlanResult``, with the keywords of the core's
+#: plan() (``should_stop``, ``offsets``, ``extra_starts``).
+Planner = Callable[..., PlanResult]
+
+
+@dataclass(frozen=True)
+class MissionPlan:
+    """A planned mission.
+
+    result: the plan to publish (as the vehicle flies it, for a vehicle-aware request);
+    vehicle_plan: the optimiser's plan and the mission's timing (vehicle-aware requests);
+    receding: for a replan in flight, what it promises for the whole mission; items: the
+    mission items (None when not asked for, or when they cannot be built: ``items_error``
+    then says why; the plan itself stands).
+    """
+
+    request: MissionRequest
+    result: PlanResult
+    vehicle_plan: VehiclePlan | None = None
+    receding: RecedingPlan | None = None
+    items: tuple[MissionItem, ...] | None = None
+    items_error: str = ''
+
+    @property
+    def min_throughput(self) -> float:
+        """The min average throughput over the whole mission, bit/s."""
+        if self.receding is not None:
+            return self.receding.mission_min_throughput
+        return float(self.result.min_throughput)
+
+    def for_output(self, *, home: Home, end: str, firmware: str) -> 'MissionPlan':
+        """This plan with its items for another home, mission end or firmware (a change of
+        output settings after planning); itself when they are the same."""
+        request = self.request
+        if (home, end, firmware) == (request.home, request.end, request.firmware) \
+                and request.items:
+            return self
+        request = replace(request, home=home, end=end, firmware=firmware, items=True)
+        return replace(self, request=request,
+                       **_items(request, self.vehicle_plan or self.result))
+
+    def write(self, path: str | os.PathLike) -> Path:
+        """Write the mission items as the file ``path`` (.waypoints or .plan), atomically;
+        raises :class:`~uav_comm_planner.errors.MissionExportError` (or the reason the items
+        could not be built) on failure."""
+        if self.items is None:
+            raise PlannerError(self.items_error or 'this plan was made without mission items')
+        return write_mission_file(self.items, path, self.request.home,
+                                  firmware=self.request.firmware)
+
+
+def _bound(planner: Planner, **options) -> Callable[[Scenario, SolverSettings | None],
+                                                    PlanResult]:
+    """``planner`` with the keywords that are given (None ones left out)."""
+    given = {name: value for name, value in options.items() if value is not None}
+    return lambda scenario, settings: planner(scenario, settings, **given)
+
+
+def plan_mission(request: MissionRequest, *, planner: Planner = plan,
+                 should_stop: Callable[[], bool] | None = None) -> MissionPlan:
+    """Plan ``request`` (module docstring); ``should_stop`` is passed on to the planner, which
+    asks it between steps. Raises the planner's errors
+    (:class:`~uav_comm_planner.errors.PlannerError` and its subclasses)."""
+    scenario = request.scenario
+    receding = None
+    problem = None
+    options: dict = {'should_stop': should_stop}
+    if request.in_flight is not None:
+        rest = request.in_flight
+        problem = receding_problem(scenario, rest.position_m, rest.flown,
+                                   previous_q=rest.previous_q)
+        scenario = problem.rest
+        options.update(problem.plan_options)
+    optimiser = _bound(planner, **options)
+    vehicle_plan = None
+    if request.vehicle_aware:
+        vehicle_plan = plan_for_vehicle(scenario, request.vehicle, request.settings,
+                                        firmware=request.firmware, planner=optimiser)
+        result = vehicle_plan.flown
+    else:
+        result = optimiser(scenario, request.settings)
+    if problem is not None:
+        receding = problem.outcome(result)
+    items = _items(request, vehicle_plan or result) if request.items else {}
+    return MissionPlan(request, result, vehicle_plan, receding, **items)
+
+
+def _items(request: MissionRequest, planned: VehiclePlan | PlanResult) -> dict:
+    """``items`` (or ``items_error``) of a :class:`MissionPlan` for ``request``."""
+    try:
+        return {'items': tuple(build_mission_items(planned, request.home, end=request.end,
+                                                   firmware=request.firmware,
+                                                   limits=request.vehicle))}
+    except PlannerError as exc:
+        return {'items': None, 'items_error': str(exc)}
+
+
+__all__ = ['MissionPlan', 'Planner', 'plan_mission']

@@ -1,0 +1,165 @@
+"""The mission in flight, as the node runs it: its clock, the UAV's positions, the replans.
+
+A :class:`MissionFlight` takes the node (as tf2_ros's TransformListener does) and keeps the
+mission's :class:`~uav_comm_planner.mission.progress.MissionProgress` and the UAV's
+:class:`~uav_comm_planner.mission.progress.PoseTrack`. The mission clock starts when the UAV
+reaches the plan's q0 (within :data:`START_RADIUS_M`, with a link only once the plan is
+uploaded) or on ``~/start``. While it runs, new inputs replan the rest of the mission from the
+UAV's position (the receding horizon), and a position off the plan does too, within the
+``replan_*`` parameters' limits.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import numpy as np
+
+from uav_comm_planner.core.receding import rest_of_mission
+from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.mission.progress import (MissionProgress, off_plan, planned_position,
+                                               PoseTrack)
+from uav_comm_planner.mission.request import InFlight
+from uav_comm_planner.ros.messages import nodes_text
+from uav_comm_planner.ros.params import PlannerConfig
+from uav_comm_planner.ros.planning import PlanOutcome
+from uav_comm_planner.ros.vehicle import VehicleAdapter
+
+#: The UAV is at q0, and the mission clock starts, within this distance of it (metres);
+#: ArduCopter counts a waypoint reached within WPNAV_RADIUS, 2 m by default.
+START_RADIUS_M = 2.5
+
+
+class FlightHost(Protocol):
+    """What :class:`MissionFlight` asks of its node (the planner node provides it)."""
+
+    config: PlannerConfig
+    vehicle: VehicleAdapter
+
+    def get_logger(self): ...
+
+    def submit(self, reason: str, in_flight: InFlight | None = None) -> None: ...
+
+    def refuse(self, request: str, message: str, *, nodes: str | None = None) -> None: ...
+
+    def clock_s(self) -> float: ...
+
+
+class MissionFlight:
+    """The mission of ``node`` in flight (module docstring)."""
+
+    def __init__(self, node: FlightHost) -> None:
+        self._node = node
+        self.progress = MissionProgress()
+        self.track = PoseTrack()
+        self._last_pose_replan_s = -math.inf
+
+    def on_position(self, time_s: float, x_m: float, y_m: float, *, source: str,
+                    height_m: float | None = None) -> None:
+        """The UAV at (x, y) metres (``height_m`` above the ground, when known) at ``time_s``
+        on the mission clock's time base: starts the clock at q0, replans when off the plan."""
+        node = self._node
+        if not (math.isfinite(x_m) and math.isfinite(y_m) and math.isfinite(time_s)):
+            node.refuse(source, f'{source} refused: position ({x_m}, {y_m}) is not finite')
+            return
+        self.track.add(time_s, x_m, y_m)
+        segment = self.progress.current
+        if segment is None:
+            return
+        if segment.start_s is None:
+            scenario = segment.result.scenario
+            climb = 0.0 if height_m is None else height_m - scenario.altitude_m
+            uploaded = not node.vehicle.linked or not node.vehicle.upload_pending
+            if uploaded and math.hypot(math.dist(scenario.start_m, (x_m, y_m)),
+                                       climb) <= START_RADIUS_M:
+                self.start_clock(time_s, f'the UAV reached q0 ({source})')
+            return
+        if self.progress.over(time_s):
+            return
+        output = node.config.node
+        elapsed = time_s - segment.start_s
+        left_s = (self.progress.mission.num_slots - segment.first_slot
+                  - segment.slots_begun(time_s)) * segment.result.scenario.slot_s
+        if left_s < output.replan_interval_s:
+            return              # too late in the mission for a replan to be flown
+        reason = off_plan(segment.result, elapsed, (x_m, y_m),
+                          distance_m=output.replan_distance_m, delay_s=output.replan_delay_s)
+        if not reason or time_s - self._last_pose_replan_s < output.replan_interval_s:
+            return
+        self._last_pose_replan_s = time_s
+        node.get_logger().info(f'{source}: the UAV is {reason}; replanning the rest')
+        self._request_rest(source, time_s, (x_m, y_m))
+
+    def start_clock(self, time_s: float, why: str) -> None:
+        self.progress.start_clock(time_s)
+        self._node.get_logger().info(f'mission clock started: {why}')
+
+    def running(self, time_s: float) -> bool:
+        """Whether a mission is in flight that a replan should continue."""
+        mission = self.progress.mission
+        scenario = self._node.config.scenario
+        return (self.progress.started and not self.progress.over(time_s)
+                and mission is not None and mission.num_slots == scenario.num_slots
+                and mission.horizon_s == scenario.horizon_s)
+
+    def request_update(self, reason: str) -> None:
+        """New inputs: replan the rest of the mission in flight, else the whole mission."""
+        now = self._node.clock_s()
+        if not self.running(now):
+            self.request_plan(reason)
+            return
+        latest = self.track.latest
+        segment = self.progress.current
+        if latest is not None and now - latest[0] <= self._node.config.scenario.slot_s:
+            position = (latest[1], latest[2])
+        else:
+            elapsed = now - segment.start_s if segment.start_s is not None else 0.0
+            position = tuple(planned_position(segment.result, elapsed))
+        self._request_rest(reason, now, position)
+
+    def request_plan(self, reason: str) -> None:
+        """Plan the whole mission from ``start_m`` with the current parameters; a mission in
+        flight ends (its clock stops)."""
+        self.progress = MissionProgress()
+        self._node.submit(reason)
+
+    def _request_rest(self, reason: str, time_s: float, position: tuple[float, float]) -> None:
+        """Replan the rest of the mission in flight from ``position`` at ``time_s``."""
+        mission = self._node.config.scenario
+        segment = self.progress.current
+        flown = self.progress.flown_slots(time_s, mission.ground_nodes_m, self.track)
+        begun = segment.slots_begun(time_s) if segment.start_s is not None else 0
+        try:
+            rest_of_mission(mission, position, flown)
+        except PlannerError as exc:
+            self._node.refuse(reason, f'{reason} refused: {exc}',
+                              nodes=nodes_text(mission.ground_nodes_m))
+            return
+        previous = np.array(segment.result.trajectory[begun:], dtype=float)
+        self._node.submit(reason, InFlight(
+            position_m=(float(position[0]), float(position[1])), flown=flown,
+            previous_q=previous, mission_id=self.progress.mission_id,
+            segment=len(self.progress.segments) - 1, slots_kept=begun))
+
+    def take(self, outcome: PlanOutcome) -> bool:
+        """Make ``outcome`` the plan in force of the mission; False if it came too late."""
+        node = self._node
+        request = outcome.request
+        rest = request.mission.in_flight
+        if rest is None:
+            self.progress.begin(request.scenario, outcome.result)
+            return True
+        if not self.progress.take_over(rest.mission_id, rest.segment, rest.slots_kept,
+                                       request.scenario, outcome.result):
+            node.get_logger().info(f'{request.reason}: a newer plan is flown already; this '
+                                   f'replan is dropped')
+            return False
+        if not request.output.mavlink_url:
+            # The UAV was at the new q0 when the replan was asked; without a link to say when
+            # it flies the new plan, the plan is in force from now.
+            self.start_clock(node.clock_s(), 'the replan is in force')
+        return True
+
+
+__all__ = ['FlightHost', 'MissionFlight', 'START_RADIUS_M']

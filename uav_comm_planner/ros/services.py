@@ -1,0 +1,101 @@
+"""The node's services: ``~/replan``, ``~/start`` and ``~/export_mission`` (std_srvs/Trigger).
+
+:class:`PlannerServices` takes the node (as tf2_ros's TransformListener does) and answers
+each request at once; a plan asked for follows on the plan topics.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_srvs.srv import Trigger
+
+from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.ros.flight import MissionFlight
+from uav_comm_planner.ros.params import PlannerConfig
+from uav_comm_planner.ros.planning import PlanOutcome, write_mission
+from uav_comm_planner.ros.publishing import TOPIC_PATH
+
+SERVICE_REPLAN = '~/replan'
+SERVICE_START = '~/start'
+SERVICE_EXPORT_MISSION = '~/export_mission'
+#: Service requests are queued, not dropped, up to this many in flight (the default is 10).
+SERVICE_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+
+
+class ServiceHost(Protocol):
+    """What :class:`PlannerServices` asks of its node (the planner node provides it)."""
+
+    config: PlannerConfig
+    flight: MissionFlight
+    current_plan: PlanOutcome | None
+
+    def create_service(self, *args, **kwargs): ...
+
+    def clock_s(self) -> float: ...
+
+    def report_error(self, message: str) -> None: ...
+
+
+class PlannerServices:
+    """The services of ``node`` (module docstring)."""
+
+    def __init__(self, node: ServiceHost) -> None:
+        self._node = node
+        for name, callback in ((SERVICE_REPLAN, self._on_replan),
+                               (SERVICE_START, self._on_start),
+                               (SERVICE_EXPORT_MISSION, self._on_export_mission)):
+            node.create_service(Trigger, name, callback, qos_profile=SERVICE_QOS)
+
+    def _on_replan(self, _request: Trigger.Request,
+                   response: Trigger.Response) -> Trigger.Response:
+        self._node.flight.request_plan(SERVICE_REPLAN)
+        response.success = True
+        response.message = (f'planning the mission from start_m; the plan follows on '
+                            f'{TOPIC_PATH}; the mission clock starts at q0 or on '
+                            f'{SERVICE_START}')
+        return response
+
+    def _on_start(self, _request: Trigger.Request,
+                  response: Trigger.Response) -> Trigger.Response:
+        node = self._node
+        response.success = False
+        segment = node.flight.progress.current
+        if node.config.node.mavlink_url:
+            response.message = ('the vehicle link starts the mission clock when the vehicle '
+                                'reaches q0 (parameter mavlink_url is set)')
+        elif segment is None:
+            response.message = 'no plan yet'
+        elif segment.start_s is not None:
+            response.message = 'the mission clock is already running'
+        else:
+            node.flight.start_clock(node.clock_s(), SERVICE_START)
+            response.success = True
+            response.message = 'mission clock started: the plan in force is flown from now'
+        return response
+
+    def _on_export_mission(self, _request: Trigger.Request,
+                           response: Trigger.Response) -> Trigger.Response:
+        node = self._node
+        response.success = False
+        if not node.config.node.mission_file:
+            response.message = ('parameter mission_file is empty: set a .waypoints or .plan '
+                                'file name')
+        elif node.current_plan is None:
+            response.message = 'no plan yet'
+        else:
+            try:
+                written = write_mission(node.current_plan, node.config.node)
+            except PlannerError as exc:
+                node.report_error(f'mission export failed: {exc}')
+                response.message = str(exc)
+            else:
+                response.success = True
+                response.message = f'mission written to {written}'
+        return response
+
+
+__all__ = ['PlannerServices', 'ServiceHost', 'SERVICE_EXPORT_MISSION', 'SERVICE_QOS',
+           'SERVICE_REPLAN', 'SERVICE_START']

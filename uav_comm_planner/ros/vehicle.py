@@ -1,0 +1,132 @@
+"""The vehicle side of the node: the MAVLink link's events on the executor, the vehicle's
+pose on ``vehicle_pose``, and every plan uploaded.
+
+A :class:`VehicleAdapter` takes the node (as tf2_ros's TransformListener does): with
+``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.telemetry.VehicleBridge`,
+whose thread hands positions, mission progress and link events to the executor through an
+:class:`~uav_comm_planner.ros.handoff.ExecutorHandoff`; positions go on to ``on_position``.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from geometry_msgs.msg import PoseStamped
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from uav_comm_planner.ros.handoff import ExecutorHandoff
+from uav_comm_planner.ros.params import NodeSettings
+from uav_comm_planner.ros.planning import PlanOutcome
+from uav_comm_planner.vehicle.telemetry import (Event, LinkEvent, MissionProgressReport,
+                                                Position, VehicleBridge)
+
+TOPIC_VEHICLE_POSE = 'vehicle_pose'
+#: The mission item at q0 (0 home, 1 takeoff): a plan made in flight is flown from it.
+Q0_ITEM = 2
+#: Link events kept for the executor at most (the oldest go first).
+EVENTS_KEPT = 10_000
+#: Reliable, so that subscribers of either reliability hear the vehicle's pose.
+VEHICLE_POSE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                              durability=DurabilityPolicy.VOLATILE)
+
+#: on_position(time_s, east_m, north_m, up_m): the vehicle's position on the executor.
+PositionCallback = Callable[[float, float, float, float], None]
+#: report(message, is_error): a line for the node's log.
+Reporter = Callable[[str, bool], None]
+
+
+class VehicleAdapter:
+    """The vehicle link of ``node``, (re)made by :meth:`connect` from the node settings.
+
+    ``time_s`` is the vehicle's time of its latest position (None before any);
+    ``mission_item`` the item it flies to; ``uploads_verified`` counts uploads read back;
+    ``upload_pending`` is True while the latest plan's upload is not yet verified or failed.
+    ``frame_id`` gives the frame of the poses published.
+    """
+
+    def __init__(self, node: Node, on_position: PositionCallback, report: Reporter, *,
+                 frame_id: Callable[[], str]) -> None:
+        self._node = node
+        self._on_position = on_position
+        self._report = report
+        self._frame_id = frame_id
+        self._bridge: VehicleBridge | None = None
+        self._events: ExecutorHandoff[Event] = ExecutorHandoff(node, self._drain,
+                                                               maxlen=EVENTS_KEPT)
+        self._pose = node.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE, VEHICLE_POSE_QOS)
+        self._pending_tag: int | None = None
+        self.time_s: float | None = None
+        self.mission_item: int | None = None
+        self.uploads_verified = 0
+
+    @property
+    def linked(self) -> bool:
+        return self._bridge is not None
+
+    @property
+    def upload_pending(self) -> bool:
+        return self._pending_tag is not None
+
+    def connect(self, output: NodeSettings) -> None:
+        """(Re)start the link for ``output.mavlink_url``; stop it when the URL is empty."""
+        self.stop()
+        self.time_s = None
+        if output.mavlink_url:
+            self._bridge = VehicleBridge(output.mavlink_url, output.home, self._events.put)
+            self._report(f'vehicle link: connecting to {output.mavlink_url}', False)
+
+    def upload(self, outcome: PlanOutcome) -> None:
+        """Put the plan's mission items on the vehicle; a plan made in flight is flown from
+        its q0 item."""
+        plan = outcome.plan
+        if plan.items is None:
+            self._report(f'mission upload skipped, the plan cannot be flown: '
+                         f'{plan.items_error}', True)
+            return
+        in_flight = plan.request.in_flight is not None
+        self._pending_tag = outcome.request.start_ns
+        self._bridge.upload(plan.items, current_seq=Q0_ITEM if in_flight else None,
+                            tag=outcome.request.start_ns)
+
+    def stop(self) -> None:
+        if self._bridge is not None:
+            self._bridge.stop()
+            self._bridge = None
+
+    def _drain(self, events: list[Event]) -> None:
+        """Executor thread: positions, mission progress and link events from the vehicle."""
+        for event in events:
+            if isinstance(event, Position):
+                self.time_s = event.time_s
+                self._publish_pose(event)
+                self._on_position(event.time_s, event.east_m, event.north_m, event.up_m)
+            elif isinstance(event, MissionProgressReport):
+                self.mission_item = event.seq
+            elif isinstance(event, LinkEvent):
+                self._on_link_event(event)
+
+    def _on_link_event(self, event: LinkEvent) -> None:
+        if event.kind == 'error':
+            if event.tag is not None and event.tag == self._pending_tag:
+                self._pending_tag = None
+            self._report(event.message, True)
+            return
+        if event.kind == 'uploaded':
+            self.uploads_verified += 1
+            if event.tag == self._pending_tag:
+                self._pending_tag = None
+        self._report(event.message, False)
+
+    def _publish_pose(self, event: Position) -> None:
+        message = PoseStamped()
+        message.header.frame_id = self._frame_id()
+        message.header.stamp = self._node.get_clock().now().to_msg()
+        message.pose.position.x = event.east_m
+        message.pose.position.y = event.north_m
+        message.pose.position.z = event.up_m
+        message.pose.orientation.w = 1.0
+        self._pose.publish(message)
+
+
+__all__ = ['Q0_ITEM', 'TOPIC_VEHICLE_POSE', 'VEHICLE_POSE_QOS', 'VehicleAdapter']
