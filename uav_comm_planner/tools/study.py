@@ -38,12 +38,12 @@ from typing import Callable, Iterator, Mapping, Sequence, TextIO
 import numpy as np
 
 from uav_comm_planner.core import initial
+from uav_comm_planner.core.drops import AREAS, random_nodes, random_scenario
 from uav_comm_planner.core.model import average_rates
 from uav_comm_planner.core.optimizer import optimal_power, plan, throughput_upper_bound
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError, PlannerError
 from uav_comm_planner.files import write_text_atomic, write_with
-from uav_comm_planner.tools.bench import AREAS, random_nodes, random_scenario
 from uav_comm_planner.tools.plots import METHOD_LABELS
 
 INSTALL_HINT = ("pip install 'uav_comm_planner[study]' (or `make install`, which includes the "
