@@ -19,10 +19,11 @@ import pytest
 from uav_comm_planner.core.optimizer import plan, throughput_upper_bound
 from uav_comm_planner.core.scenario import SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
-from uav_comm_planner.tools import cli, study
-from uav_comm_planner.tools.study import (columns, Draw, evaluate, open_table, plan_batch,
-                                          read_table, row_settings, run_study, scenario_at,
-                                          StudyDesign, StudyError)
+from uav_comm_planner.tools import cli
+from uav_comm_planner.tools.study import tables as study
+from uav_comm_planner.tools.study.tables import (columns, Draw, evaluate, open_table,
+                                                 plan_batch, read_table, row_settings,
+                                                 run_study, scenario_at, StudyDesign, StudyError)
 
 #: The quick study of the tests: 40 drops, N 2..4, M 20 (tens of milliseconds each).
 QUICK = dict(cases=40, seed=7, draws={'nodes': '2:4', 'slots': '20', 'side_m': '800'})
@@ -373,7 +374,7 @@ def test_bad_options_end_with_one_line_and_status_2(tmp_path, monkeypatch, argv,
 # --- figures ---------------------------------------------------------------------------------
 
 def test_mean_interval_uses_student_t():
-    from uav_comm_planner.tools.study_plots import mean_interval
+    from uav_comm_planner.tools.study.plots import mean_interval
     mean, half = mean_interval(np.array([1.0, 3.0]))
     # t_{0.975, 1} = 12.706; s = sqrt(2), s / sqrt(2) = 1.
     assert (mean, half) == (2.0, pytest.approx(12.7062, abs=1e-4))
@@ -383,7 +384,7 @@ def test_mean_interval_uses_student_t():
 
 
 def test_a_drawn_real_setting_is_grouped_into_equal_count_bins():
-    from uav_comm_planner.tools.study_plots import groups
+    from uav_comm_planner.tools.study.plots import groups
     x = np.random.default_rng(1).uniform(1.0, 10.0, 100)
     bins = groups(x)
     assert len(bins) == 8 and sorted(np.concatenate(bins).tolist()) == list(range(100))
@@ -394,7 +395,7 @@ def test_a_drawn_real_setting_is_grouped_into_equal_count_bins():
 
 
 def test_gain_table_groups_rows_by_the_setting(quick_tables):
-    from uav_comm_planner.tools.study_plots import gain_table
+    from uav_comm_planner.tools.study.plots import gain_table
     design, folder, _, _ = quick_tables
     _, rows = read_table(folder / 'one.parquet')
     table = gain_table(design, rows, 'nodes')

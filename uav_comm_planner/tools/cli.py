@@ -20,11 +20,12 @@ from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, write_text_atomic
-from uav_comm_planner.tools import bench, study
+from uav_comm_planner.tools import bench
 from uav_comm_planner.tools.plots import check_figure_path, METHOD_LABELS
 from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
                                               scenario_from_dict, scenario_to_dict,
                                               settings_from_dict)
+from uav_comm_planner.tools.study import tables as study
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 
 #: The budgets of the letter's Fig. 2, watts.

@@ -1082,14 +1082,14 @@ def draw_figures(args: argparse.Namespace, out: Path) -> list[Path]:
     """The figures the options ask for, from the table at ``out``."""
     if args.figure is None and args.figures_dir is None:
         return []
-    from uav_comm_planner.tools import study_plots
+    from uav_comm_planner.tools.study import plots
     design, rows = read_table(out)
     written = []
     if args.figure is not None:
-        written.append(study_plots.cdf_figure(design, rows, args.figure))
+        written.append(plots.cdf_figure(design, rows, args.figure))
     if args.figures_dir is not None:
-        written += study_plots.all_figures(design, rows, args.figures_dir,
-                                           fmt=args.figure_format, against=args.gain_against)
+        written += plots.all_figures(design, rows, args.figures_dir,
+                                     fmt=args.figure_format, against=args.gain_against)
     return written
 
 
@@ -1149,10 +1149,3 @@ def main(argv: Sequence[str] | None = None) -> int:
     except PlannerError as exc:
         print(f'montecarlo: error: {exc}', file=sys.stderr)
         return 2
-
-
-if __name__ == '__main__':
-    # Run the module under its own name, so that the tasks sent to the workers refer to
-    # uav_comm_planner.tools.study (which they import) rather than to this __main__.
-    from uav_comm_planner.tools import study
-    sys.exit(study.main())
