@@ -20,10 +20,12 @@ from uav_comm_planner.core.optimizer import plan, throughput_upper_bound
 from uav_comm_planner.core.scenario import SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.tools import cli
-from uav_comm_planner.tools.study import tables as study
-from uav_comm_planner.tools.study.tables import (columns, Draw, evaluate, open_table,
-                                                 plan_batch, read_table, row_settings,
-                                                 run_study, scenario_at, StudyDesign, StudyError)
+from uav_comm_planner.tools.study import methods
+from uav_comm_planner.tools.study.design import (Draw, row_settings, scenario_at, StudyDesign,
+                                                 StudyError)
+from uav_comm_planner.tools.study.runner import dask_client, Progress, run_study, worker_info
+from uav_comm_planner.tools.study.tables import (columns, evaluate, open_table, plan_batch,
+                                                 read_table, saved_design)
 
 #: The quick study of the tests: 40 drops, N 2..4, M 20 (tens of milliseconds each).
 QUICK = dict(cases=40, seed=7, draws={'nodes': '2:4', 'slots': '20', 'side_m': '800'})
@@ -177,7 +179,7 @@ def test_a_refused_scenario_and_a_failing_method_become_rows_with_their_error(mo
     def broken(scenario):
         raise ZeroDivisionError('solver exploded')
 
-    monkeypatch.setitem(study.METHODS, 'letter', study.Method('broken', broken))
+    monkeypatch.setitem(methods.METHODS, 'letter', methods.Method('broken', broken))
     row = evaluate(StudyDesign(cases=1, draws={'nodes': '3', 'slots': '20',
                                                'side_m': '800'}), 0)
     assert row['status'] == 'failed'
@@ -219,7 +221,7 @@ def test_a_table_of_another_study_is_refused(tmp_path):
         open_table(tmp_path / 't.parquet', other)
     more = StudyDesign(**{**QUICK, 'cases': 80})
     assert open_table(tmp_path / 't.parquet', more)[1] == set()
-    assert study.saved_design(tmp_path / 't.parquet').cases == 80
+    assert saved_design(tmp_path / 't.parquet').cases == 80
 
 
 # --- on Dask ---------------------------------------------------------------------------------
@@ -231,8 +233,8 @@ def scheduler():
     saved = os.environ.get('OMP_NUM_THREADS')
     os.environ['OMP_NUM_THREADS'] = '4'
     try:
-        with study.dask_client(workers=2) as client:
-            threads = {info['omp_num_threads'] for info in client.run(study.worker_info).values()}
+        with dask_client(workers=2) as client:
+            threads = {info['omp_num_threads'] for info in client.run(worker_info).values()}
             assert os.environ['OMP_NUM_THREADS'] == '4'
             yield client.scheduler.address, threads, client.nthreads()
     finally:
@@ -329,7 +331,7 @@ def test_progress_shows_the_rows_the_rate_and_the_time_left():
             return True
 
     terminal = Terminal()
-    bar = study.Progress(100, 20, terminal)
+    bar = Progress(100, 20, terminal)
     bar.began -= 2.0
     bar.update(10, 1)
     line = terminal.getvalue()
@@ -338,7 +340,7 @@ def test_progress_shows_the_rows_the_rate_and_the_time_left():
     assert float(rate) == pytest.approx(5.0, rel=0.05)
     assert int(left) == pytest.approx(14, abs=1)
     log = io.StringIO()
-    bar = study.Progress(10, 0, log, every_s=3600.0)
+    bar = Progress(10, 0, log, every_s=3600.0)
     bar.update(3, 0)
     bar.update(3, 0)
     bar.show(final=True)

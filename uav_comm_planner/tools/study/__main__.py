@@ -6,6 +6,6 @@ workers import, never to this ``__main__``.
 
 import sys
 
-from uav_comm_planner.tools.study.tables import main
+from uav_comm_planner.tools.study.command import main
 
 sys.exit(main())
