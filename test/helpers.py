@@ -20,12 +20,12 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from uav_comm_planner import paper_scenario, plan, Scenario
+from uav_comm_planner.core import drops
 from uav_comm_planner.ros.messages import nanoseconds_of, pose_array
 from uav_comm_planner.ros.node import (GROUND_NODES_QOS, NODE_NAME, PlannerNode,
                                        TOPIC_GROUND_NODES, TOPIC_UAV_POSE)
 from uav_comm_planner.ros.publishing import (OUTPUT_QOS, TOPIC_MARKERS, TOPIC_MIN_THROUGHPUT,
                                              TOPIC_PATH, TOPIC_POWER)
-from uav_comm_planner.tools import bench
 #: Six nodes uniform in a 1500 m x 800 m field, flown from (0, 0) to (1500, 0) at 10 m/s: the
 #: field the flights and the vehicle-aware tests use (the package's own, for the benchmark).
 from uav_comm_planner.tools.flights import random_six_nodes  # noqa: F401
@@ -36,8 +36,8 @@ def random_scenario(seed: int, nodes: int = 6, slots: int = 60, *, side_m: float
     """``nodes`` nodes uniform in a side x side square, flown from (0, 0) to (side, side) in
     ``slots`` slots of 1 s at 100 m/s, the letter's radio; ``changes`` override any setting.
     ``seed`` is an integer or a generator to draw from.
-    The benchmark's generator (:func:`uav_comm_planner.tools.bench.random_scenario`)."""
-    return bench.random_scenario(nodes, slots, seed, side_m=side_m, **changes)
+    The core's generator (:func:`uav_comm_planner.core.drops.random_scenario`)."""
+    return drops.random_scenario(nodes, slots, seed, side_m=side_m, **changes)
 
 
 DEADLINE_S = 30.0

@@ -6,8 +6,9 @@ import re
 
 import pytest
 
+from uav_comm_planner.core.drops import random_scenario
 from uav_comm_planner.tools import cli
-from uav_comm_planner.tools.bench import peak_memory_mib, random_scenario
+from uav_comm_planner.tools.bench import peak_memory_mib
 
 
 @pytest.fixture(scope='module')

@@ -61,7 +61,8 @@ def imported_modules(path: Path) -> set[str]:
 
 
 def modules_of(folder: str) -> list[Path]:
-    return sorted((ROOT / folder).glob('*.py'))
+    """Every module of ``folder``, those of its subpackages (``tools/study/``) too."""
+    return sorted((ROOT / folder).rglob('*.py'))
 
 
 def package_part(name: str) -> str | None:
@@ -114,6 +115,55 @@ def test_the_public_api_comes_from_core_and_errors():
                  'PlannerError', 'InvalidScenarioError', 'InfeasibleHorizonError',
                  'SolverError', 'MissionExportError'):
         assert hasattr(uav_comm_planner, name), name
+
+
+def module_name(path: Path) -> str:
+    """``uav_comm_planner.tools.study`` for ``uav_comm_planner/tools/study/__init__.py``."""
+    parts = path.relative_to(ROOT.parent).with_suffix('').parts
+    return '.'.join(parts[:-1] if parts[-1] == '__init__' else parts)
+
+
+def package_imports(path: Path, modules: set[str]) -> set[str]:
+    """The modules of ``modules`` that ``path`` imports, lazily or not; ``from A import B``
+    imports ``A.B`` when that is a module, else ``A``."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            names.update(f'{node.module}.{alias.name}' if f'{node.module}.{alias.name}'
+                         in modules else node.module for alias in node.names)
+    return names & modules
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import cycles of ``graph`` (module -> the modules it imports), one per back edge of
+    a depth-first walk, each as the path from a module back to itself."""
+    found, done, trail = [], set(), []
+
+    def walk(name: str) -> None:
+        trail.append(name)
+        for imported in sorted(graph[name]):
+            if imported in trail:
+                found.append(trail[trail.index(imported):] + [imported])
+            elif imported not in done:
+                walk(imported)
+        trail.pop()
+        done.add(name)
+
+    for name in sorted(graph):
+        if name not in done:
+            walk(name)
+    return found
+
+
+def test_imports_go_one_way():
+    """No module imports itself through others, counting the imports inside functions: a
+    cycle would make the import order matter (study imported its figures, which imported it)."""
+    paths = {module_name(path): path for path in ROOT.rglob('*.py')}
+    graph = {name: package_imports(path, set(paths)) for name, path in paths.items()}
+    assert cycles(graph) == []
+    assert cycles({'a': {'b'}, 'b': {'c'}, 'c': {'a'}}) == [['a', 'b', 'c', 'a']]
 
 
 def test_the_rule_reader_sees_a_violation(tmp_path):

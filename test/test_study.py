@@ -19,10 +19,13 @@ import pytest
 from uav_comm_planner.core.optimizer import plan, throughput_upper_bound
 from uav_comm_planner.core.scenario import SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
-from uav_comm_planner.tools import cli, study
-from uav_comm_planner.tools.study import (columns, Draw, evaluate, open_table, plan_batch,
-                                          read_table, row_settings, run_study, scenario_at,
-                                          StudyDesign, StudyError)
+from uav_comm_planner.tools import cli
+from uav_comm_planner.tools.study import methods
+from uav_comm_planner.tools.study.design import (Draw, row_settings, scenario_at, StudyDesign,
+                                                 StudyError)
+from uav_comm_planner.tools.study.runner import dask_client, Progress, run_study, worker_info
+from uav_comm_planner.tools.study.tables import (columns, evaluate, open_table, plan_batch,
+                                                 read_table, saved_design)
 
 #: The quick study of the tests: 40 drops, N 2..4, M 20 (tens of milliseconds each).
 QUICK = dict(cases=40, seed=7, draws={'nodes': '2:4', 'slots': '20', 'side_m': '800'})
@@ -176,7 +179,7 @@ def test_a_refused_scenario_and_a_failing_method_become_rows_with_their_error(mo
     def broken(scenario):
         raise ZeroDivisionError('solver exploded')
 
-    monkeypatch.setitem(study.METHODS, 'letter', study.Method('broken', broken))
+    monkeypatch.setitem(methods.METHODS, 'letter', methods.Method('broken', broken))
     row = evaluate(StudyDesign(cases=1, draws={'nodes': '3', 'slots': '20',
                                                'side_m': '800'}), 0)
     assert row['status'] == 'failed'
@@ -218,7 +221,7 @@ def test_a_table_of_another_study_is_refused(tmp_path):
         open_table(tmp_path / 't.parquet', other)
     more = StudyDesign(**{**QUICK, 'cases': 80})
     assert open_table(tmp_path / 't.parquet', more)[1] == set()
-    assert study.saved_design(tmp_path / 't.parquet').cases == 80
+    assert saved_design(tmp_path / 't.parquet').cases == 80
 
 
 # --- on Dask ---------------------------------------------------------------------------------
@@ -230,8 +233,8 @@ def scheduler():
     saved = os.environ.get('OMP_NUM_THREADS')
     os.environ['OMP_NUM_THREADS'] = '4'
     try:
-        with study.dask_client(workers=2) as client:
-            threads = {info['omp_num_threads'] for info in client.run(study.worker_info).values()}
+        with dask_client(workers=2) as client:
+            threads = {info['omp_num_threads'] for info in client.run(worker_info).values()}
             assert os.environ['OMP_NUM_THREADS'] == '4'
             yield client.scheduler.address, threads, client.nthreads()
     finally:
@@ -328,7 +331,7 @@ def test_progress_shows_the_rows_the_rate_and_the_time_left():
             return True
 
     terminal = Terminal()
-    bar = study.Progress(100, 20, terminal)
+    bar = Progress(100, 20, terminal)
     bar.began -= 2.0
     bar.update(10, 1)
     line = terminal.getvalue()
@@ -337,7 +340,7 @@ def test_progress_shows_the_rows_the_rate_and_the_time_left():
     assert float(rate) == pytest.approx(5.0, rel=0.05)
     assert int(left) == pytest.approx(14, abs=1)
     log = io.StringIO()
-    bar = study.Progress(10, 0, log, every_s=3600.0)
+    bar = Progress(10, 0, log, every_s=3600.0)
     bar.update(3, 0)
     bar.update(3, 0)
     bar.show(final=True)
@@ -373,7 +376,7 @@ def test_bad_options_end_with_one_line_and_status_2(tmp_path, monkeypatch, argv,
 # --- figures ---------------------------------------------------------------------------------
 
 def test_mean_interval_uses_student_t():
-    from uav_comm_planner.tools.study_plots import mean_interval
+    from uav_comm_planner.tools.study.plots import mean_interval
     mean, half = mean_interval(np.array([1.0, 3.0]))
     # t_{0.975, 1} = 12.706; s = sqrt(2), s / sqrt(2) = 1.
     assert (mean, half) == (2.0, pytest.approx(12.7062, abs=1e-4))
@@ -383,7 +386,7 @@ def test_mean_interval_uses_student_t():
 
 
 def test_a_drawn_real_setting_is_grouped_into_equal_count_bins():
-    from uav_comm_planner.tools.study_plots import groups
+    from uav_comm_planner.tools.study.plots import groups
     x = np.random.default_rng(1).uniform(1.0, 10.0, 100)
     bins = groups(x)
     assert len(bins) == 8 and sorted(np.concatenate(bins).tolist()) == list(range(100))
@@ -394,7 +397,7 @@ def test_a_drawn_real_setting_is_grouped_into_equal_count_bins():
 
 
 def test_gain_table_groups_rows_by_the_setting(quick_tables):
-    from uav_comm_planner.tools.study_plots import gain_table
+    from uav_comm_planner.tools.study.plots import gain_table
     design, folder, _, _ = quick_tables
     _, rows = read_table(folder / 'one.parquet')
     table = gain_table(design, rows, 'nodes')

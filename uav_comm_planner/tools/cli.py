@@ -20,11 +20,12 @@ from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, write_text_atomic
-from uav_comm_planner.tools import bench, study
+from uav_comm_planner.tools import bench
 from uav_comm_planner.tools.plots import check_figure_path, METHOD_LABELS
 from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
                                               scenario_from_dict, scenario_to_dict,
                                               settings_from_dict)
+from uav_comm_planner.tools.study import command as montecarlo
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 
 #: The budgets of the letter's Fig. 2, watts.
@@ -420,10 +421,10 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_arguments(bench_parser)
     bench_parser.set_defaults(handler=_command_bench)
 
-    study_parser = commands.add_parser('montecarlo', help=study.DESCRIPTION,
-                                       description=study.DESCRIPTION)
-    study.add_arguments(study_parser)
-    study_parser.set_defaults(handler=study.command)
+    study_parser = commands.add_parser('montecarlo', help=montecarlo.DESCRIPTION,
+                                       description=montecarlo.DESCRIPTION)
+    montecarlo.add_arguments(study_parser)
+    study_parser.set_defaults(handler=montecarlo.command)
     return parser
 
 

@@ -21,7 +21,8 @@ from scipy import stats
 
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.tools.plots import _pyplot, save_figure
-from uav_comm_planner.tools.study import BASELINES, METHODS, SETTINGS, StudyDesign
+from uav_comm_planner.tools.study.design import SETTINGS, StudyDesign
+from uav_comm_planner.tools.study.methods import BASELINES, METHODS
 
 #: Confidence level of the intervals.
 CONFIDENCE = 0.95
