@@ -31,7 +31,10 @@ class ParameterBinding:
         node.declare_parameters('', [(spec.name, spec.default, spec.descriptor())
                                      for spec in specs])
         self._names = tuple(spec.name for spec in specs)
-        self.config: PlannerConfig = config_from_parameters(self._values())
+        # Set explicitly: given at start-up (a value other than the default) or set since.
+        self._explicit = {spec.name for spec in specs
+                          if node.get_parameter(spec.name).value != spec.default}
+        self.config: PlannerConfig = config_from_parameters(self._values(), self._explicit)
         node.add_on_set_parameters_callback(self._check)
         node.add_post_set_parameters_callback(self._changed)
 
@@ -43,7 +46,8 @@ class ParameterBinding:
     def _check(self, changes: list[Parameter]) -> SetParametersResult:
         """Refuse a change that does not make a valid configuration, saying why."""
         try:
-            config_from_parameters(self._values(changes))
+            config_from_parameters(self._values(changes),
+                                   self._explicit | {p.name for p in changes})
         except PlannerError as exc:
             if self._on_refused is not None:
                 self._on_refused([p.name for p in changes], str(exc))
@@ -53,5 +57,6 @@ class ParameterBinding:
     def _changed(self, changes: list[Parameter]) -> None:
         names = [p.name for p in changes if p.name in self._names]
         if names:
-            self.config = config_from_parameters(self._values())
+            self._explicit.update(names)
+            self.config = config_from_parameters(self._values(), self._explicit)
             self._on_change(names)

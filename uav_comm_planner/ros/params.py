@@ -21,15 +21,16 @@ import math
 import os
 from pathlib import Path, PurePath
 import typing
-from typing import Any, Mapping, Sequence
+from typing import Any, Collection, Mapping, Sequence
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
 from uav_comm_planner.core.scenario import paper_scenario, Point, Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.mission.request import vehicle_limits
 from uav_comm_planner.vehicle.flyable import check_speed
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
-from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
+from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mission import FIRMWARE_TYPES, MISSION_ENDS, MISSION_FORMATS
 
 MISSION_FIRMWARES = tuple(FIRMWARE_TYPES)
@@ -191,7 +192,8 @@ DESCRIPTIONS = {
     'vehicle_aware': 'plan for the vehicle_* limits and publish the plan as the vehicle flies '
                      'it (S-curve legs, holds shortened by starts and stops)',
     'vehicle_params_file': 'ground-station parameter file (NAME,VALUE lines) whose WPNAV_* / '
-                           'MPC_* values replace the vehicle_* parameters; empty: none',
+                           'MPC_* values replace the defaults of the vehicle_* parameters not '
+                           'set explicitly; empty: none',
     'vehicle_max_speed_mps': 'waypoint speed of the vehicle (WPNAV_SPEED / 100, MPC_XY_CRUISE; '
                              'm/s)',
     'vehicle_max_accel_mpss': 'waypoint acceleration (WPNAV_ACCEL / 100, MPC_ACC_HOR; m/s/s)',
@@ -353,12 +355,18 @@ def parameter_specs() -> tuple[ParameterSpec, ...]:
     return tuple(spec for owner in OWNERS for spec in _specs_of(owner))
 
 
-def config_from_parameters(values: Mapping[str, Any]) -> PlannerConfig:
+def config_from_parameters(values: Mapping[str, Any],
+                           explicit: Collection[str] | None = None) -> PlannerConfig:
     """Validated settings from parameter values by ROS name; missing names take defaults.
 
-    Raises :class:`~uav_comm_planner.errors.InvalidScenarioError` (or its subclass
+    The vehicle's limits follow the one precedence rule
+    (:func:`~uav_comm_planner.mission.request.vehicle_limits`): the ``vehicle_*`` parameters
+    set explicitly (named in ``explicit``; None: every name in ``values``) over the limits
+    ``vehicle_params_file`` sets over the defaults. Raises
+    :class:`~uav_comm_planner.errors.InvalidScenarioError` (or its subclass
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError`) with the reason.
     """
+    explicit = set(values if explicit is None else explicit)
     chosen: dict[type, dict[str, Any]] = {owner: {} for owner in OWNERS}
     for spec in parameter_specs():
         value = values.get(spec.name, spec.default)
@@ -369,10 +377,11 @@ def config_from_parameters(values: Mapping[str, Any]) -> PlannerConfig:
     scenario = Scenario(**chosen[Scenario])
     settings.check(scenario)
     node = NodeSettings(**chosen[NodeSettings])
-    vehicle = VehicleLimits(**chosen[VehicleLimits])
-    if node.vehicle_params_file:
-        vehicle = read_parameter_file(node.vehicle_params_file,
-                                      firmware=node.mission_firmware, base=vehicle)
+    # Every value checked, those a file gives way to included.
+    VehicleLimits(**chosen[VehicleLimits])
+    given = {spec.field: chosen[VehicleLimits][spec.field] for spec in parameter_specs()
+             if spec.owner is VehicleLimits and spec.name in explicit}
+    vehicle = vehicle_limits(given, node.vehicle_params_file, firmware=node.mission_firmware)
     if node.vehicle_aware:
         check_speed(scenario, vehicle)
     return PlannerConfig(scenario, settings, node, vehicle)

@@ -204,14 +204,13 @@ def format_plan(result: PlanResult) -> str:
 
 
 def _vehicle_limits(args: argparse.Namespace):
-    """The vehicle's limits: ArduCopter's defaults, a parameter file over them, flags over it."""
-    from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
-    limits = VehicleLimits()
-    if args.vehicle_params is not None:
-        limits = read_parameter_file(args.vehicle_params, firmware=args.firmware)
-    changes = {field: getattr(args, field) for field in _VEHICLE_FLAGS
-               if getattr(args, field) is not None}
-    return VehicleLimits(**{**limits.__dict__, **changes})
+    """The vehicle's limits by the one precedence rule
+    (:func:`~uav_comm_planner.mission.request.vehicle_limits`): flags over the parameter file
+    over ArduCopter's defaults."""
+    from uav_comm_planner.mission.request import vehicle_limits
+    explicit = {field: getattr(args, field) for field in _VEHICLE_FLAGS
+                if getattr(args, field) is not None}
+    return vehicle_limits(explicit, args.vehicle_params, firmware=args.firmware)
 
 
 def _vehicle_asked(args: argparse.Namespace) -> bool:
@@ -259,35 +258,32 @@ def _command_plan(args: argparse.Namespace) -> int:
         if args.mission.suffix.lower() not in MISSION_FORMATS:
             raise PlannerError(f'unknown mission format for {str(args.mission)!r}: use a '
                                f'.waypoints or .plan file')
-    scenario, settings = _scenario(args), _settings(args)
-    vehicle_plan = None
-    if _vehicle_asked(args):
-        from uav_comm_planner.vehicle.flyable import plan_for_vehicle
-        vehicle_plan = plan_for_vehicle(scenario, _vehicle_limits(args), settings,
-                                        firmware=args.firmware)
-        print(format_plan(vehicle_plan.ideal))
-        print(format_flown(vehicle_plan))
-        result = vehicle_plan.flown
+    from uav_comm_planner.mission.pipeline import plan_mission
+    from uav_comm_planner.mission.request import MissionRequest
+    vehicle_aware = _vehicle_asked(args)
+    request = MissionRequest(
+        _scenario(args), _settings(args), _vehicle_limits(args),
+        vehicle_aware=vehicle_aware, firmware=args.firmware, end=args.mission_end,
+        home=args.home, items=args.mission is not None)
+    planned = plan_mission(request)
+    if vehicle_aware:
+        print(format_plan(planned.vehicle_plan.ideal))
+        print(format_flown(planned.vehicle_plan))
     else:
-        result = plan(scenario, settings)
-        print(format_plan(result))
+        print(format_plan(planned.result))
+    result = planned.result
     # Every check before the first file: the JSON text and the mission's rows.
-    text = (json_text(result_to_dict(result, settings=settings))
+    text = (json_text(result_to_dict(result, settings=request.settings))
             if args.json is not None else None)
-    if args.mission is not None:
-        from uav_comm_planner.vehicle.mission import build_mission_items
-        build_mission_items(vehicle_plan, args.home, end=args.mission_end,
-                            firmware=args.firmware)
+    if args.mission is not None and planned.items is None:
+        raise PlannerError(planned.items_error)
     if text is not None:
         print(f'wrote {write_text_atomic(args.json, text)}')
     if args.figure is not None:
         from uav_comm_planner.tools.plots import plan_figure
         print(f'wrote {plan_figure(result, args.figure)}')
     if args.mission is not None:
-        from uav_comm_planner.vehicle.mission import export_mission
-        written = export_mission(vehicle_plan, args.mission, args.home, end=args.mission_end,
-                                 firmware=args.firmware)
-        print(f'wrote {written}')
+        print(f'wrote {planned.write(args.mission)}')
     return 0
 
 
