@@ -173,3 +173,23 @@ def test_the_rule_reader_sees_a_violation(tmp_path):
                    'def f():\n    from uav_comm_planner.ros import node\n')
     assert imported_modules(bad) == {'rclpy', 'uav_comm_planner.vehicle',
                                      'uav_comm_planner.ros'}
+
+
+#: Rooms small enough to read: a module over this many lines, or a class over
+#: MAX_CLASS_LINES, is to be split by concept.
+MAX_MODULE_LINES = 600
+MAX_CLASS_LINES = 200
+
+
+def test_no_module_or_class_outgrows_its_room():
+    too_long = []
+    for path in sorted(ROOT.rglob('*.py')):
+        text = path.read_text()
+        if len(text.splitlines()) > MAX_MODULE_LINES:
+            too_long.append(f'{path.relative_to(ROOT)}: {len(text.splitlines())} lines')
+        for node in ast.walk(ast.parse(text, str(path))):
+            if isinstance(node, ast.ClassDef):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > MAX_CLASS_LINES:
+                    too_long.append(f'{path.relative_to(ROOT)}: class {node.name}, {lines} lines')
+    assert too_long == []
