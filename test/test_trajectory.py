@@ -112,17 +112,18 @@ def test_the_reference_step_is_certified_by_its_duality_gap(monkeypatch):
     weight, constant = trajectory.kilometre_rows(
         trajectory.surrogate_coefficients(q_k, p, scenario))
     km = trajectory.KM
-    args = (np.array([float(d) for d in seen['duals'][1:]]),
-            np.asarray(seen['duals'][0], dtype=float), weight, constant,
+    disc = trajectory.LegDisc(np.zeros(2), scenario.max_step_m / km,
+                              np.asarray(seen['duals'][0], dtype=float))
+    args = (np.array([float(d) for d in seen['duals'][1:]]), [disc], weight, constant,
             np.reshape(scenario.start_m, (1, 2)) / km, np.reshape(scenario.goal_m, (1, 2)) / km,
-            scenario.nodes / km, scenario.max_step_m / km)
+            scenario.nodes / km)
     z = seen['z']
     np.testing.assert_allclose(z * km, step.q)
     assert trajectory.sca_duality_gap(z, *args) < 1e-8
     # The straight line is feasible and worse than the optimum: its gap is at least the
     # difference of the two values (weak duality makes the bound hold at any feasible point).
     line = q_k / km
-    values = [float((constant - (weight * ((x[None] - args[6][:, None]) ** 2).sum(axis=2))
+    values = [float((constant - (weight * ((x[None] - args[-1][:, None]) ** 2).sum(axis=2))
                      .sum(axis=1) / scenario.num_slots).min()) for x in (z, line)]
     assert values[0] > values[1]
     assert trajectory.sca_duality_gap(line, *args) * max(1, abs(values[1])) \

@@ -75,7 +75,8 @@ class ConeLayout:
     Columns: x = (t, z[1]_x, z[1]_y, ..., z[M]_x, z[M]_y, u[1], ..., u[M], e (N, B)), with
     B = ceil(M / K) blocks. Rows, in cone order: N node rows t + sum_k e_{n,k} <= C'_n and
     N B block rows (1/M) sum_{m in block k} W_{n,m} (u[m] - 2 w_n . z[m]) <= e_{n,k}
-    (non-negative cone), 3 (M + 1) speed rows, 4 M epigraph rows. ``values`` holds A's
+    (non-negative cone), 3 (M + 1) speed rows, with ``air_legs`` 3 (M + 1) airspeed rows (the
+    same legs less the drift), 4 M epigraph rows. ``values`` holds A's
     entries in build order, where the 3 N M block coefficients, in (n, m, (z_x, z_y, u))
     order, start at ``first_coefficient``; ``to_csc`` reorders such a list into CSC order.
     """
@@ -83,6 +84,7 @@ class ConeLayout:
     num_nodes: int
     num_slots: int
     block_slots: int
+    air_legs: bool
     indices: np.ndarray
     indptr: np.ndarray
     to_csc: np.ndarray
@@ -102,8 +104,13 @@ class ConeLayout:
         return self.num_nodes + self.num_sums
 
     @property
+    def num_leg_cones(self) -> int:
+        """M + 1 speed cones, twice that with the airspeed's."""
+        return (2 if self.air_legs else 1) * (self.num_slots + 1)
+
+    @property
     def num_rows(self) -> int:
-        return self.num_nodes + self.num_sums + 3 * (self.num_slots + 1) + 4 * self.num_slots
+        return self.num_nodes + self.num_sums + 3 * self.num_leg_cones + 4 * self.num_slots
 
     @property
     def num_columns(self) -> int:
@@ -137,10 +144,10 @@ class ConeLayout:
 
     @functools.cached_property
     def cones(self) -> tuple:
-        """Node and block rows (non-negative), speed limits (M + 1 of dim 3), epigraphs (M of
-        dim 4)."""
+        """Node and block rows (non-negative), speed limits (M + 1 of dim 3, and as many for
+        the airspeed), epigraphs (M of dim 4)."""
         return ((clarabel.NonnegativeConeT(self.num_nodes + self.num_sums),)
-                + (clarabel.SecondOrderConeT(3),) * (self.num_slots + 1)
+                + (clarabel.SecondOrderConeT(3),) * self.num_leg_cones
                 + (clarabel.SecondOrderConeT(4),) * self.num_slots)
 
 
@@ -198,21 +205,25 @@ def _sum_entries(num_nodes: int, num_slots: int,
 
 
 @functools.lru_cache(maxsize=8)
-def cone_layout(num_nodes: int, num_slots: int, block: int | None = None) -> ConeLayout:
+def cone_layout(num_nodes: int, num_slots: int, block: int | None = None, *,
+                air_legs: bool = False) -> ConeLayout:
     """The fixed sparsity pattern for N nodes, M slots and blocks of ``block`` slots
-    (:func:`block_slots` by default; M or more for none). Cached; arrays are read-only."""
+    (:func:`block_slots` by default; M or more for none), with the airspeed cones when
+    ``air_legs``. Cached; arrays are read-only."""
     block = block_slots(num_nodes) if block is None else block
     sums = _num_sums(num_nodes, num_slots, block)
     first_speed_row = num_nodes + sums
+    leg_sets = 2 if air_legs else 1
     parts = (_sum_entries(num_nodes, num_slots, block),
-             _speed_entries(first_speed_row, num_slots),
-             _epigraph_entries(first_speed_row + 3 * (num_slots + 1), num_slots))
+             *(_speed_entries(first_speed_row + 3 * (num_slots + 1) * k, num_slots)
+               for k in range(leg_sets)),
+             _epigraph_entries(first_speed_row + 3 * (num_slots + 1) * leg_sets, num_slots))
     rows, cols, values = (np.concatenate(arrays) for arrays in zip(*parts))
     # CSC order: by column, then by row; no entry repeats, so this is a permutation.
     to_csc = np.lexsort((rows, cols))
     counts = np.bincount(cols, minlength=1 + 3 * num_slots + sums)
     layout = ConeLayout(num_nodes=num_nodes, num_slots=num_slots, block_slots=block,
-                        indices=rows[to_csc].astype(np.int32),
+                        air_legs=air_legs, indices=rows[to_csc].astype(np.int32),
                         indptr=np.concatenate([[0], np.cumsum(counts)]).astype(np.int32),
                         to_csc=to_csc, values=values)
     for array in (layout.indices, layout.indptr, layout.to_csc, layout.values):
@@ -288,7 +299,8 @@ class ClarabelTrajectoryStep:
         """Set up the form of :data:`ATTEMPTS` [self.attempt]; the solver is built on use."""
         blocks, self.refine = ATTEMPTS[self.attempt]
         n, m = self.scenario.num_nodes, self.scenario.num_slots
-        self.layout = cone_layout(n, m, block_slots(n) if blocks else m)
+        self.layout = cone_layout(n, m, block_slots(n) if blocks else m,
+                                  air_legs=self.scenario.airspeed_limited)
         self.b_fixed = self._fixed_right_hand_side()
         self.objective = np.zeros(self.layout.num_columns)
         self.objective[0] = -1.0
@@ -303,9 +315,16 @@ class ClarabelTrajectoryStep:
         speed[:, 0] = self.scenario.max_step_m / KM
         speed[0, 1:] = -start
         speed[m, 1:] = goal
+        legs = [speed.ravel()]
+        if self.layout.air_legs:
+            # The same legs less the slot's drift, within V_air delta.
+            air = speed.copy()
+            air[:, 0] = self.scenario.max_air_step_m / KM
+            air[:, 1:] -= self.scenario.drift_m / KM
+            legs.append(air.ravel())
         epigraph = np.tile([0.5, 0.0, 0.0, -0.5], m)
         sum_rows = np.zeros(self.layout.num_nodes + self.layout.num_sums)
-        return np.concatenate([sum_rows, speed.ravel(), epigraph])
+        return np.concatenate([sum_rows, *legs, epigraph])
 
     def node_rows(self, q_k: np.ndarray, p: np.ndarray,
                   offsets: np.ndarray | None = None) -> NodeRows:

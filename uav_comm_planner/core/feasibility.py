@@ -1,9 +1,11 @@
-"""The speed limit ||q[m] - q[m-1]|| <= V delta: one check and one projection for the package.
+"""The speed limits: one check and one projection for the package.
 
-Every leg counts, q0 -> q[1] and q[M] -> qF included (:func:`~uav_comm_planner.core.model.
-leg_lengths`). An interior-point solver meets a constraint to its feasibility tolerance, not
-exactly, so the check allows a leg :data:`LEG_SLACK` longer than V delta; the projection then
-removes even that (Algorithm 1 projects every trajectory it keeps).
+Every leg l = q[m] - q[m-1] counts, q0 -> q[1] and q[M] -> qF included: ||l|| <= V delta over
+the ground and, in wind or with an airspeed below V, ||l - w delta|| <= V_air delta through
+the air (:class:`~uav_comm_planner.core.scenario.Scenario`). An interior-point solver meets a
+constraint to its feasibility tolerance, not exactly, so the check allows a leg
+:data:`LEG_SLACK` beyond a limit; the projection then removes even that (Algorithm 1
+projects every trajectory it keeps).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import math
 import numpy as np
 
 from uav_comm_planner.core import initial
-from uav_comm_planner.core.model import leg_lengths
+from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.scenario import Scenario
 
 #: The share by which a leg may exceed V delta and still count as within the limit: the
@@ -21,40 +23,65 @@ from uav_comm_planner.core.scenario import Scenario
 LEG_SLACK = 1e-7
 
 
+def limit_discs(scenario: Scenario) -> list[tuple[np.ndarray, float]]:
+    """The discs every leg must lie in, as (centre (2,) metres, radius metres): the ground
+    speed disc, and the airspeed disc centred on the slot's drift when it constrains more."""
+    discs = [(np.zeros(2), scenario.max_step_m)]
+    if scenario.airspeed_limited:
+        discs.append((scenario.drift_m, scenario.max_air_step_m))
+    return discs
+
+
+def legs_of(q: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """The M + 1 legs q[1] - q0, ..., qF - q[M]: (M + 1, 2) metres."""
+    return np.diff(flown_path(q, scenario), axis=0)
+
+
 def within_speed_limit(q: np.ndarray | None, scenario: Scenario) -> bool:
     """Whether q (M, 2) metres is a finite path of ``scenario``'s M slots whose every leg, with
-    q0 and qF, is at most V delta (1 + :data:`LEG_SLACK`)."""
+    q0 and qF, keeps every limit (:func:`limit_discs`) to within :data:`LEG_SLACK`."""
     if q is None:
         return False
     q = np.asarray(q, dtype=float)
     if q.shape != (scenario.num_slots, 2) or not np.all(np.isfinite(q)):
         return False
-    return bool(leg_lengths(q, scenario).max() <= scenario.max_step_m * (1 + LEG_SLACK))
+    legs = legs_of(q, scenario)
+    return all(float(np.linalg.norm(legs - centre, axis=1).max()) <= radius * (1 + LEG_SLACK)
+               for centre, radius in limit_discs(scenario))
 
 
 def project_onto_speed_limit(q: np.ndarray, scenario: Scenario) -> np.ndarray:
-    """q (M, 2) metres, moved just enough toward the straight line that no leg exceeds V delta.
+    """q (M, 2) metres, moved just enough toward the straight line that every leg keeps every
+    limit.
 
-    With s the straight line q0 -> qF at uniform speed (legs D / (M + 1) <= V delta, D =
-    ||qF - q0||) and L the longest leg of q, the blend (1 - lam) q + lam s has legs at most
-    (1 - lam) L + lam D / (M + 1) (triangle inequality), which is V delta for
-    lam = (L - V delta) / (L - D / (M + 1)). A solver's answer is within round-off of the
-    limit, so lam is of that order; at the goal's maximum reach, D = (M + 1) V delta, lam = 1
-    and the only feasible path, the straight line, is returned. q itself is returned when
-    every leg is within the limit.
+    With s the straight line q0 -> qF at uniform speed (each of its legs feasible, since the
+    scenario's goal is reachable) and, for a limit disc of centre c and radius r, L the largest
+    ||l - c|| over the legs l of q and S = ||s_leg - c|| <= r, the blend (1 - lam) q + lam s has
+    ||l' - c|| <= (1 - lam) L + lam S (triangle inequality), which is r for
+    lam = (L - r) / (L - S); the largest lam over the discs serves all. A solver's answer is
+    within round-off of the limits, so lam is of that order; at the goal's maximum reach
+    (S = r) lam = 1 and the only feasible path, the straight line, is returned. q itself is
+    returned when every leg is within the limits.
     """
     q = np.asarray(q, dtype=float).reshape(-1, 2)
-    limit = scenario.max_step_m
-    longest = float(leg_lengths(q, scenario).max())
-    if longest <= limit:
+    legs = legs_of(q, scenario)
+    straight_leg = (np.asarray(scenario.goal_m, float) - np.asarray(scenario.start_m, float)) \
+        / (scenario.num_slots + 1)
+    lam = 0.0
+    for centre, radius in limit_discs(scenario):
+        longest = float(np.linalg.norm(legs - centre, axis=1).max())
+        if longest <= radius:
+            continue
+        straight = float(np.linalg.norm(straight_leg - centre))
+        if not math.isfinite(longest) or longest - straight <= 0:
+            return initial.straight_line(scenario)
+        lam = max(lam, (longest - radius) / (longest - straight))
+    if lam == 0.0:
         return q
-    straight = initial.straight_line(scenario)
-    straight_leg = math.dist(scenario.start_m, scenario.goal_m) / (scenario.num_slots + 1)
-    if not math.isfinite(longest) or longest - straight_leg <= 0:
-        return straight
-    # A few ulps more than the exact lam, so that the blend's round-off stays within V delta.
-    lam = min(1.0, (longest - limit) / (longest - straight_leg) * (1 + 1e-12) + 1e-15)
-    return (1.0 - lam) * q + lam * straight
+    # A few ulps more than the exact lam, so that the blend's round-off stays within the limit.
+    lam = min(1.0, lam * (1 + 1e-12) + 1e-15)
+    return (1.0 - lam) * q + lam * initial.straight_line(scenario)
 
 
-__all__ = ['LEG_SLACK', 'project_onto_speed_limit', 'within_speed_limit']
+__all__ = ['LEG_SLACK', 'legs_of', 'limit_discs', 'project_onto_speed_limit',
+           'within_speed_limit']

@@ -73,10 +73,14 @@ def tour_order(scenario: Scenario) -> list[int]:
     return two_opt(start, goal, scenario.nodes, order)
 
 
-def _legs_needed(points: np.ndarray, max_step_m: float) -> np.ndarray:
-    """Legs of at most V delta that each straight stretch of ``points`` needs at speed V."""
-    lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    return np.ceil(lengths / max_step_m).astype(int)
+def _legs_needed(points: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """The legs each straight stretch of ``points`` needs at the fastest ground speed along it
+    (V, or less against the wind: :meth:`Scenario.fastest_ground_speed_mps`)."""
+    steps = np.diff(points, axis=0)
+    lengths = np.linalg.norm(steps, axis=1)
+    fastest = np.array([scenario.fastest_ground_speed_mps(step / length) if length > 0 else 1.0
+                        for step, length in zip(steps, lengths)])
+    return np.ceil(lengths / (fastest * scenario.slot_s)).astype(int)
 
 
 def _drop_until_flyable(scenario: Scenario, order: list[int]) -> list[int]:
@@ -86,7 +90,7 @@ def _drop_until_flyable(scenario: Scenario, order: list[int]) -> list[int]:
     order = list(order)
     while order:
         points = np.vstack([start, w[order], goal])
-        if _legs_needed(points, scenario.max_step_m).sum() <= scenario.num_slots + 1:
+        if _legs_needed(points, scenario).sum() <= scenario.num_slots + 1:
             break
         detour = (np.linalg.norm(points[1:-1] - points[:-2], axis=1)
                   + np.linalg.norm(points[2:] - points[1:-1], axis=1)
@@ -106,7 +110,8 @@ def hover_and_fly(scenario: Scenario) -> np.ndarray:
     """Fly a short tour of the nodes at speed V and hover over each one: q (M, 2) metres.
 
     The nodes are visited in :func:`tour_order`. Stretch k of the tour (length L_k) is flown
-    in ceil(L_k / (V delta)) equal legs, so every leg is at most V delta; the M + 1 legs left
+    in ceil(L_k / (g_k delta)) equal legs, g_k the fastest ground speed along it (V in still
+    air), so every leg keeps the speed limits; the M + 1 legs left
     over become hover slots (zero-length legs) split evenly over the visited nodes. An even
     split is the max-min choice before any rate is known: with equal bandwidth, each node's
     rate grows with the time the UAV spends close to it, and no node is favoured a priori;
@@ -118,7 +123,7 @@ def hover_and_fly(scenario: Scenario) -> np.ndarray:
     if not order:
         return straight_line(scenario)
     points = np.vstack([scenario.start_m, scenario.nodes[order], scenario.goal_m])
-    legs = _legs_needed(points, scenario.max_step_m)
+    legs = _legs_needed(points, scenario)
     hovers = even_hovers(scenario.num_slots + 1 - int(legs.sum()), len(order))
     waypoints = [np.asarray(scenario.start_m, dtype=float)]
     for k, count in enumerate(legs):

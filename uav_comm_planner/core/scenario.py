@@ -87,6 +87,36 @@ def _finite_positive(name: str, compute: Callable[[], float], reason: str) -> fl
     return value
 
 
+def _check_scales(scenario: 'Scenario') -> None:
+    """Refuse settings whose derived quantities leave floating point (overflow, underflow).
+
+    Checked: sigma^2 (W/Hz), H^2, delta and V delta, the SNR per watt right above a node
+    a_max = N beta0 / (H^2 B sigma^2), at the far corner of the area, and P_T a_max.
+    """
+    _finite_positive('sigma^2 (W/Hz)', lambda: scenario.noise_psd_w_per_hz,
+                     'noise_psd_dbm_per_hz is outside what a double holds')
+    _finite_positive('H^2 (m^2)', lambda: scenario.altitude_m ** 2, 'change altitude_m')
+    _finite_positive('delta = T / M (s)', lambda: scenario.slot_s, 'change horizon_s or num_slots')
+    step = _finite_positive('V delta (m)', lambda: scenario.max_step_m,
+                            'change max_speed_mps, horizon_s or num_slots')
+    if step < MIN_STEP_M:
+        raise InvalidScenarioError(
+            f'the longest leg V delta = {step:g} m is below {MIN_STEP_M:g} m: the UAV cannot '
+            f'move measurably; raise max_speed_mps or horizon_s, or lower num_slots')
+    scale = _finite_positive(
+        'the SNR per watt at 1 m, N beta0 / (B sigma^2)',
+        lambda: scenario.num_nodes * scenario.reference_gain / scenario.bandwidth_hz
+        / scenario.noise_psd_w_per_hz, 'change reference_gain, bandwidth_hz or the noise')
+    best = _finite_positive('the SNR per watt above a node, a_max', lambda: scale
+                            / scenario.altitude_m ** 2, 'change altitude_m or the noise')
+    _finite_positive('P_T a_max', lambda: best * scenario.power_budget_w,
+                     'change power_budget_w or the noise')
+    points = np.array((*scenario.ground_nodes_m, scenario.start_m, scenario.goal_m))
+    span = float(np.ptp(points, axis=0).max())
+    _finite_positive('the SNR per watt across the area', lambda: scale / (
+        2 * span ** 2 + scenario.altitude_m ** 2), 'change altitude_m or the noise')
+
+
 @dataclass(frozen=True)
 class Scenario:
     """One planning problem (letter, Section II).
@@ -95,6 +125,13 @@ class Scenario:
     start_m, goal_m: launch point q0 and landing point qF, metres, flown at ``altitude_m``.
     The horizon ``horizon_s`` = T is split into ``num_slots`` = M slots of delta = T / M.
     ``noise_psd_dbm_per_hz`` is sigma^2; ``reference_gain`` is beta0 (linear, at 1 m).
+
+    ``max_speed_mps`` V bounds the speed over the ground (the letter's speed limit). Wind:
+    ``wind_speed_mps`` blowing *from* ``wind_from_deg`` (clockwise from north, as weather
+    reports and ArduPilot's SIM_WIND_DIR give it) moves the air at w (:attr:`wind_mps`), and a
+    slot's ground velocity v must then also keep ||v - w|| <= V_air, the airspeed
+    ``max_airspeed_mps`` (None: V). Without wind and with V_air >= V that adds nothing: the
+    letter's problem exactly.
     """
 
     ground_nodes_m: tuple[Point, ...]
@@ -108,6 +145,9 @@ class Scenario:
     noise_psd_dbm_per_hz: float = -169.0
     reference_gain: float = 1e-3
     power_budget_w: float = 5.0
+    wind_speed_mps: float = 0.0
+    wind_from_deg: float = 0.0
+    max_airspeed_mps: float | None = None
 
     def __post_init__(self) -> None:
         nodes = self.ground_nodes_m
@@ -132,38 +172,28 @@ class Scenario:
                 f'noise_psd_dbm_per_hz must be finite, got {self.noise_psd_dbm_per_hz!r}')
         object.__setattr__(self, 'noise_psd_dbm_per_hz', noise)
         object.__setattr__(self, 'num_slots', _count('num_slots', self.num_slots))
-        self._check_scales()
+        self._check_wind()
+        _check_scales(self)
         self._check_duplicates()
         self._check_reachable()
 
-    def _check_scales(self) -> None:
-        """Refuse settings whose derived quantities leave floating point (overflow, underflow).
-
-        Checked: sigma^2 (W/Hz), H^2, delta and V delta, the SNR per watt right above a node
-        a_max = N beta0 / (H^2 B sigma^2), at the far corner of the area, and P_T a_max.
-        """
-        _finite_positive('sigma^2 (W/Hz)', lambda: self.noise_psd_w_per_hz,
-                         'noise_psd_dbm_per_hz is outside what a double holds')
-        _finite_positive('H^2 (m^2)', lambda: self.altitude_m ** 2, 'change altitude_m')
-        _finite_positive('delta = T / M (s)', lambda: self.slot_s, 'change horizon_s or num_slots')
-        step = _finite_positive('V delta (m)', lambda: self.max_step_m,
-                                'change max_speed_mps, horizon_s or num_slots')
-        if step < MIN_STEP_M:
-            raise InvalidScenarioError(
-                f'the longest leg V delta = {step:g} m is below {MIN_STEP_M:g} m: the UAV cannot '
-                f'move measurably; raise max_speed_mps or horizon_s, or lower num_slots')
-        scale = _finite_positive(
-            'the SNR per watt at 1 m, N beta0 / (B sigma^2)',
-            lambda: self.num_nodes * self.reference_gain / self.bandwidth_hz
-            / self.noise_psd_w_per_hz, 'change reference_gain, bandwidth_hz or the noise')
-        best = _finite_positive('the SNR per watt above a node, a_max', lambda: scale
-                                / self.altitude_m ** 2, 'change altitude_m or the noise')
-        _finite_positive('P_T a_max', lambda: best * self.power_budget_w,
-                         'change power_budget_w or the noise')
-        points = np.array((*self.ground_nodes_m, self.start_m, self.goal_m))
-        span = float(np.ptp(points, axis=0).max())
-        _finite_positive('the SNR per watt across the area', lambda: scale / (
-            2 * span ** 2 + self.altitude_m ** 2), 'change altitude_m or the noise')
+    def _check_wind(self) -> None:
+        speed = _real('wind_speed_mps', self.wind_speed_mps)
+        direction = _real('wind_from_deg', self.wind_from_deg)
+        if not (math.isfinite(speed) and speed >= 0.0):
+            raise InvalidScenarioError(f'wind_speed_mps must be >= 0 and finite, got {speed!r}')
+        if not math.isfinite(direction):
+            raise InvalidScenarioError(f'wind_from_deg must be finite, got {direction!r}')
+        object.__setattr__(self, 'wind_speed_mps', speed)
+        object.__setattr__(self, 'wind_from_deg', direction)
+        if self.max_airspeed_mps is not None:
+            _positive('max_airspeed_mps', self.max_airspeed_mps)
+            object.__setattr__(self, 'max_airspeed_mps', float(self.max_airspeed_mps))
+        if speed >= self.airspeed_mps:
+            raise InfeasibleHorizonError(
+                f'a wind of {speed:g} m/s is at or above the airspeed the UAV may fly, '
+                f'{self.airspeed_mps:g} m/s: it cannot hold its position against it; raise '
+                f'max_airspeed_mps if the airframe is faster, or wait for less wind')
 
     def _check_duplicates(self) -> None:
         """Refuse two nodes within DUPLICATE_NODE_DISTANCE_M: O(N log N) with a k-d tree."""
@@ -178,13 +208,35 @@ class Scenario:
                 f'{self.ground_nodes_m[i]}; give each node once')
 
     def _check_reachable(self) -> None:
+        """Every leg of the straight line q0 -> qF at uniform speed is feasible: since the
+        limits are the same convex set for every leg, the mean of any feasible path's legs is
+        that leg, so the goal is reachable exactly when it is."""
         distance = math.dist(self.start_m, self.goal_m)
-        reach = (self.num_slots + 1) * self.max_speed_mps * self.slot_s
+        if distance == 0.0:
+            return
+        legs = self.num_slots + 1
+        direction = (np.asarray(self.goal_m) - np.asarray(self.start_m)) / distance
+        fastest = self.fastest_ground_speed_mps(direction)
+        reach = legs * fastest * self.slot_s
         if distance > reach * (1 + 1e-12):
+            needed = distance * self.num_slots / (legs * fastest) if fastest > 0 else math.inf
+            limit = ('the speed limit V' if fastest >= self.max_speed_mps * (1 - 1e-12)
+                     else f'V and the airspeed {self.airspeed_mps:g} m/s in the wind')
             raise InfeasibleHorizonError(
                 f'goal unreachable: start and goal are {distance:.1f} m apart but the UAV covers '
-                f'at most (M + 1) V delta = {reach:.1f} m in {self.num_slots + 1} legs; raise '
-                f'horizon_s or max_speed_mps, or move the goal')
+                f'at most {reach:.1f} m in {legs} legs ({fastest:.3g} m/s over the ground '
+                f'towards the goal, {limit}); raise horizon_s to {needed:.1f} s or more, or '
+                f'max_speed_mps, or move the goal')
+
+    def fastest_ground_speed_mps(self, direction: Sequence[float]) -> float:
+        """The fastest ground speed along the unit vector ``direction`` (east, north): the
+        largest g with g <= V and ||g u - w|| <= V_air, g = u.w + sqrt(V_air^2 - |w|^2 +
+        (u.w)^2) for the airspeed (|w| < V_air, so it is positive)."""
+        u = np.asarray(direction, dtype=float)
+        w = self.wind_mps
+        along = float(u @ w)
+        air = along + math.sqrt(max(self.airspeed_mps ** 2 - float(w @ w) + along ** 2, 0.0))
+        return min(self.max_speed_mps, air)
 
     # Derived quantities, in the letter's notation.
 
@@ -209,6 +261,32 @@ class Scenario:
     def max_step_m(self) -> float:
         """V delta: the longest leg between consecutive waypoints, metres."""
         return self.max_speed_mps * self.slot_s
+
+    @property
+    def wind_mps(self) -> np.ndarray:
+        """w: (2,) m/s east and north, the velocity of the air (it blows *towards* it)."""
+        towards = math.radians(self.wind_from_deg + 180.0)
+        return self.wind_speed_mps * np.array([math.sin(towards), math.cos(towards)])
+
+    @property
+    def airspeed_mps(self) -> float:
+        """V_air: the fastest the UAV moves through the air, m/s (V unless given)."""
+        return self.max_speed_mps if self.max_airspeed_mps is None else self.max_airspeed_mps
+
+    @property
+    def airspeed_limited(self) -> bool:
+        """Whether the airspeed disc ||v - w|| <= V_air constrains more than ||v|| <= V."""
+        return self.wind_speed_mps > 0.0 or self.airspeed_mps < self.max_speed_mps
+
+    @property
+    def drift_m(self) -> np.ndarray:
+        """w delta: (2,) metres the air moves in a slot."""
+        return self.wind_mps * self.slot_s
+
+    @property
+    def max_air_step_m(self) -> float:
+        """V_air delta: the longest a leg may be relative to the moving air, metres."""
+        return self.airspeed_mps * self.slot_s
 
     @property
     def noise_psd_w_per_hz(self) -> float:

@@ -21,13 +21,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import functools
 import math
-from typing import Callable
+from typing import Callable, Sequence
 
 import cvxpy as cp
 import numpy as np
 
 from uav_comm_planner.core.conic import Certificate, solve_checked
-from uav_comm_planner.core.feasibility import LEG_SLACK
+from uav_comm_planner.core.feasibility import LEG_SLACK, limit_discs
 from uav_comm_planner.core.model import LN2, snr_scale, squared_distances
 from uav_comm_planner.core.scenario import Scenario
 
@@ -109,39 +109,54 @@ CERTIFIED_GAP = 1e-7
 CLARABEL_RETRY = dict(max_iter=400, tol_gap_abs=1e-9, tol_gap_rel=1e-9, tol_feas=1e-9)
 
 
-def sca_duality_gap(z: np.ndarray, weights: np.ndarray, leg_prices: np.ndarray,
+@dataclass(frozen=True)
+class LegDisc:
+    """A limit on every leg l of the path (kilometres): ||l - centre|| <= radius, with the
+    solver's multipliers ``prices`` (M + 1,), one per leg (see :func:`sca_duality_gap`)."""
+
+    centre: np.ndarray
+    radius: float
+    prices: np.ndarray
+
+
+def sca_duality_gap(z: np.ndarray, weights: np.ndarray, discs: Sequence[LegDisc],
                     weight: np.ndarray, constant: np.ndarray, start: np.ndarray,
-                    goal: np.ndarray, w: np.ndarray, max_step: float) -> float:
+                    goal: np.ndarray, w: np.ndarray) -> float:
     """An upper bound on how far ``z`` is from the SCA step's optimum, relative to max(1, value).
 
     The step (kilometres): maximise min_n f_n(z), f_n(z) = constant_n - (1/M) sum_m
-    weight_{n,m} ||z[m] - w_n||^2, subject to every leg of the path start, z[1..M], goal being
-    at most ``max_step`` long. For multipliers lambda (N,) >= 0 summing to 1 and nu (M+1,) >= 0,
-    weak duality bounds the optimum by max_z L(z), L = sum_n lambda_n f_n + sum_l nu_l
-    (max_step - ||leg_l||). L is concave, and strongly so in each z[m] with modulus
-    mu_m = (2/M) sum_n lambda_n weight_{n,m}, so max_z L <= L(z) + sum_m ||g_m||^2 / (2 mu_m)
-    with g a supergradient of L at z. The gap is that bound minus min_n f_n(z); infinite if z
-    breaks a speed limit (beyond :data:`~uav_comm_planner.core.feasibility.LEG_SLACK`).
+    weight_{n,m} ||z[m] - w_n||^2, subject to every leg l of the path start, z[1..M], goal
+    keeping ||l - c|| <= r for each disc (c, r) of ``discs``. For multipliers lambda (N,) >= 0
+    summing to 1 and nu >= 0 per disc and leg, weak duality bounds the optimum by max_z L(z),
+    L = sum_n lambda_n f_n + sum_discs sum_l nu_l (r - ||l - c||). L is concave, and strongly
+    so in each z[m] with modulus mu_m = (2/M) sum_n lambda_n weight_{n,m}, so
+    max_z L <= L(z) + sum_m ||g_m||^2 / (2 mu_m) with g a supergradient of L at z. The gap is
+    that bound minus min_n f_n(z); infinite if z breaks a limit (beyond
+    :data:`~uav_comm_planner.core.feasibility.LEG_SLACK`).
     """
     m = z.shape[0]
-    path = np.vstack([start, z, goal])
-    legs = np.diff(path, axis=0)
-    length = np.linalg.norm(legs, axis=1)
-    if not np.all(np.isfinite(z)) or length.max() > max_step * (1 + LEG_SLACK):
+    if not np.all(np.isfinite(z)):
         return math.inf
+    legs = np.diff(np.vstack([start, z, goal]), axis=0)
     lam = np.maximum(weights, 0.0)
-    nu = np.maximum(leg_prices, 0.0)
     if not lam.sum() > 0.0:
         return math.inf
     lam = lam / lam.sum()
-    # Unit vectors of the legs; a leg of length 0 has the supergradient 0 of -||.||.
-    units = np.divide(legs, length[:, None], out=np.zeros_like(legs),
-                      where=length[:, None] > 0.0)
     f = constant - (weight * ((z[None] - w[:, None]) ** 2).sum(axis=2)).sum(axis=1) / m
     value = float(f.min())
-    lagrangian = float(lam @ f) + float(nu @ (max_step - length))
-    g = (-(2.0 / m) * np.einsum('n,nm,nmk->mk', lam, weight, z[None] - w[:, None])
-         - nu[:-1, None] * units[:-1] + nu[1:, None] * units[1:])
+    lagrangian = float(lam @ f)
+    g = -(2.0 / m) * np.einsum('n,nm,nmk->mk', lam, weight, z[None] - w[:, None])
+    for disc in discs:
+        relative = legs - disc.centre
+        length = np.linalg.norm(relative, axis=1)
+        if length.max() > disc.radius * (1 + LEG_SLACK):
+            return math.inf
+        nu = np.maximum(disc.prices, 0.0)
+        # Unit vectors of the legs; a leg at the centre has the supergradient 0 of -||.||.
+        units = np.divide(relative, length[:, None], out=np.zeros_like(relative),
+                          where=length[:, None] > 0.0)
+        lagrangian += float(nu @ (disc.radius - length))
+        g += -nu[:-1, None] * units[:-1] + nu[1:, None] * units[1:]
     modulus = (2.0 / m) * (lam @ weight)                                  # (M,)
     squared = (g ** 2).sum(axis=1)
     if np.any((modulus <= 0.0) & (squared > 0.0)):
@@ -158,9 +173,10 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
 
     Variables are z = q / 1000 (kilometres) and t (bits per use): maximise t subject to
     o_n + mean_m lbr_{n,m}(z) >= t for every node (o = 0 without ``offsets`` (N,)) and every
-    leg at most V delta. The answer is accepted only when its duality gap
-    (:func:`sca_duality_gap`) is at most :data:`CERTIFIED_GAP`; with Clarabel, one that is not
-    is solved again with :data:`CLARABEL_RETRY`.
+    leg within the speed limits (:func:`~uav_comm_planner.core.feasibility.limit_discs`: at
+    most V delta, and in wind within V_air delta of the drift). The answer is accepted only
+    when its duality gap (:func:`sca_duality_gap`) is at most :data:`CERTIFIED_GAP`; with
+    Clarabel, one that is not is solved again with :data:`CLARABEL_RETRY`.
     """
     weight, constant = kilometre_rows(surrogate_coefficients(q_k, p, scenario))
     constant = with_offsets(constant, offsets)
@@ -168,22 +184,25 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
     w = scenario.nodes / KM
     start = np.reshape(scenario.start_m, (1, 2)) / KM
     goal = np.reshape(scenario.goal_m, (1, 2)) / KM
-    max_step = scenario.max_step_m / KM
+    limits = [(centre / KM, radius / KM) for centre, radius in limit_discs(scenario)]
 
     z = cp.Variable((m, 2))
     t = cp.Variable()
     path = cp.vstack([start, z, goal])
-    constraints = [cp.norm(path[1:] - path[:-1], 2, axis=1) <= max_step]
+    legs = path[1:] - path[:-1]
+    constraints = [cp.norm(legs - centre[None, :], 2, axis=1) <= radius
+                   for centre, radius in limits]
     for n in range(scenario.num_nodes):
         spread = cp.sum(cp.square(z - w[n][None, :]), axis=1)
         constraints.append(constant[n] - weight[n] @ spread / m >= t)
     problem = cp.Problem(cp.Maximize(t), constraints)
 
     def certify() -> Certificate:
-        weights = np.array([float(c.dual_value) for c in constraints[1:]])
-        gap = sca_duality_gap(np.asarray(z.value), weights,
-                              np.asarray(constraints[0].dual_value, dtype=float).reshape(-1),
-                              weight, constant, start, goal, w, max_step)
+        weights = np.array([float(c.dual_value) for c in constraints[len(limits):]])
+        discs = [LegDisc(centre, radius, np.asarray(c.dual_value, dtype=float).reshape(-1))
+                 for (centre, radius), c in zip(limits, constraints)]
+        gap = sca_duality_gap(np.asarray(z.value), weights, discs, weight, constant, start,
+                              goal, w)
         return Certificate(gap, CERTIFIED_GAP)
 
     bases = [{}, CLARABEL_RETRY] if solver == 'CLARABEL' else [{}]

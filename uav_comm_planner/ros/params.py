@@ -162,6 +162,9 @@ DESCRIPTIONS = {
     'noise_psd_dbm_per_hz': 'noise power spectral density sigma^2 (dBm/Hz)',
     'reference_gain': 'channel power gain beta0 at 1 m (linear)',
     'power_budget_w': 'total transmit power budget P_T over all nodes and slots (W)',
+    'wind_speed_mps': 'wind speed (m/s) the plan is made for; 0: still air',
+    'wind_from_deg': 'direction the wind blows from, degrees clockwise from north (as '
+                     'weather reports and SIM_WIND_DIR give it)',
     'tolerance_bps': 'stop when an iteration gains at most this much (bit/s); epsilon',
     'relative_tolerance': 'stop when an iteration gains at most this fraction of the objective',
     'max_outer_iterations': 'limit on power steps of Algorithm 1',
@@ -220,6 +223,8 @@ RANGES = {
     'noise_psd_dbm_per_hz': (-300.0, 100.0),
     'reference_gain': (0.0, 1.0e6),
     'power_budget_w': (0.0, 1.0e6),
+    'wind_speed_mps': (0.0, 100.0),
+    'wind_from_deg': (0.0, 360.0),
     'tolerance_bps': (0.0, 1.0e12),
     'relative_tolerance': (0.0, 1.0),
     'max_outer_iterations': (1, 100000),
@@ -347,6 +352,11 @@ def _specs_of(owner: type) -> list[ParameterSpec]:
 
 
 OWNERS = (Scenario, SolverSettings, NodeSettings, VehicleLimits)
+#: Settings fields that are not parameters, and why.
+NOT_PARAMETERS = {
+    (Scenario, 'max_airspeed_mps'): 'a vehicle-aware plan takes the airspeed from the vehicle '
+                                    '(vehicle_airframe_speed_mps less vehicle_gust_margin_mps)',
+}
 
 
 def parameter_specs() -> tuple[ParameterSpec, ...]:
