@@ -9,6 +9,7 @@ schedule on time is the business of test_sitl_flight.py, on the real autopilot.
 from __future__ import annotations
 
 import math
+import re
 
 from helpers import random_six_nodes
 import numpy as np
@@ -143,11 +144,19 @@ def test_a_speed_above_the_vehicles_is_refused_with_the_numbers():
 
 
 def test_a_horizon_too_short_for_the_stops_is_refused_with_the_numbers():
-    # 2000 m at 10 m/s takes 200 s plus the ramps: 201 s of horizon cannot be flown.
+    # 2000 m at 10 m/s takes 200 s plus the ramps: 201 s of horizon cannot be flown, and not
+    # even the straight line fits; the horizon it names is enough, a tenth of a second less
+    # is not.
     scenario = multirotor_case_one(horizon_s=201.0, num_slots=201)
     with pytest.raises(InfeasibleHorizonError,
-                       match=r'reaches the goal at \d+\.\d s, the horizon ends at 202 s'):
+                       match=r'even the straight line from q0 to qF \(2000\.0 m, heading 90 '
+                             r'degrees\) takes \d+\.\d s from rest to rest .* the horizon ends '
+                             r'at 202 s: lengthen horizon_s to (\d+\.\d) s or more') as refused:
         plan_for_vehicle(scenario)
+    needed = float(re.search(r'lengthen horizon_s to (\d+\.\d) s', str(refused.value))[1])
+    assert plan_for_vehicle(multirotor_case_one(horizon_s=needed, num_slots=201)).schedule
+    with pytest.raises(InfeasibleHorizonError, match='even the straight line'):
+        plan_for_vehicle(multirotor_case_one(horizon_s=needed - 0.2, num_slots=201))
 
 
 def test_the_schedule_keeps_every_limit(case_one):

@@ -229,14 +229,20 @@ class Scenario:
                 f'max_speed_mps, or move the goal')
 
     def fastest_ground_speed_mps(self, direction: Sequence[float]) -> float:
-        """The fastest ground speed along the unit vector ``direction`` (east, north): the
-        largest g with g <= V and ||g u - w|| <= V_air, g = u.w + sqrt(V_air^2 - |w|^2 +
-        (u.w)^2) for the airspeed (|w| < V_air, so it is positive)."""
+        """The fastest ground speed along the unit vector ``direction`` (east, north) that keeps
+        both limits: min(V, :meth:`ground_speed_at_airspeed_mps`) (V in still air)."""
+        if not self.airspeed_limited:
+            return self.max_speed_mps
+        return min(self.max_speed_mps, self.ground_speed_at_airspeed_mps(direction))
+
+    def ground_speed_at_airspeed_mps(self, direction: Sequence[float]) -> float:
+        """The ground speed g along the unit vector ``direction`` at which the airspeed is
+        V_air: ||g u - w|| = V_air, g = u.w + sqrt(V_air^2 - |w|^2 + (u.w)^2), positive since
+        |w| < V_air."""
         u = np.asarray(direction, dtype=float)
         w = self.wind_mps
         along = float(u @ w)
-        air = along + math.sqrt(max(self.airspeed_mps ** 2 - float(w @ w) + along ** 2, 0.0))
-        return min(self.max_speed_mps, air)
+        return along + math.sqrt(max(self.airspeed_mps ** 2 - float(w @ w) + along ** 2, 0.0))
 
     # Derived quantities, in the letter's notation.
 

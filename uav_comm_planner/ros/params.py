@@ -204,6 +204,8 @@ DESCRIPTIONS = {
     'vehicle_airframe_speed_mps': 'top speed the airframe reaches, if below the waypoint '
                                   'speed (m/s; .inf: unknown)',
     'vehicle_jerk_time_s': 'time the jerk takes to build up: 2 ATC_INPUT_TC (s)',
+    'vehicle_gust_margin_mps': 'airspeed kept in reserve for gusts when planning for a wind '
+                               '(m/s)',
 }
 
 #: Parameters that change only what is done with a plan, never the plan: changing one never

@@ -35,7 +35,7 @@ import numpy as np
 
 from uav_comm_planner.core.model import average_rates, flown_path
 from uav_comm_planner.core.optimizer import optimal_power, plan, PlanResult, Step
-from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.core.scenario import MIN_STEP_M, Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline
 from uav_comm_planner.vehicle.limits import VehicleLimits
@@ -218,9 +218,10 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
                                                       positions[1:]):
         path = np.vstack([here, points[last + 1:following], there])
         planned_s = times[following] - times[last]
-        speed = max(speed_for_time(length_of(path), planned_s, cruise, limits),
+        leg_cruise = _leg_cruise(path, scenario, cruise)
+        speed = max(speed_for_time(length_of(path), planned_s, leg_cruise, limits),
                     MIN_SPEED_MPS)
-        speed = min(round(speed, 2), cruise)
+        speed = min(round(speed, 2), leg_cruise)
         kept = _drop_short_steps(path, simplify(path, path_tolerance_m),
                                  2.0 * ramp_distance(speed, limits))
         shapes.append((path[kept], speed,
@@ -268,6 +269,18 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     return schedule
 
 
+def _leg_cruise(path: np.ndarray, scenario: Scenario, cruise: float) -> float:
+    """The fastest a leg along ``path`` (K, 2) may be flown over the ground: the vehicle's
+    cruise, and in wind the ground speed at the plan's airspeed on its slowest heading (the
+    autopilot holds one commanded ground speed for the whole leg)."""
+    if not scenario.airspeed_limited:
+        return cruise
+    steps = np.diff(path, axis=0)
+    lengths = np.linalg.norm(steps, axis=1)
+    headings = steps[lengths > 1e-9] / lengths[lengths > 1e-9, None]
+    return min([cruise, *(scenario.ground_speed_at_airspeed_mps(u) for u in headings)])
+
+
 def length_of(vertices: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(vertices, axis=0), axis=1).sum())
 
@@ -307,18 +320,24 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
                      ) -> VehiclePlan:
     """Plan ``scenario`` for a vehicle with ``limits``: the mission and what it delivers.
 
-    When the vehicle cannot fly the plan by the end of the horizon (too little hovering to
-    absorb its starts and stops), it flies through the hovers instead of stopping; if that
-    is still too slow, plans again at 90, 80 and 70 % of ``max_speed_mps`` (the ideal plan
-    returned then carries the slower scenario). ``planner`` is the optimiser (the core's
-    :func:`~uav_comm_planner.core.optimizer.plan`). Raises
+    In wind (``scenario.wind_speed_mps`` > 0) the plan keeps the vehicle's airspeed
+    (:attr:`VehicleLimits.airspeed_mps`, unless the scenario gives its own) and every leg is
+    flown at a ground speed it holds on its slowest heading. When the vehicle cannot fly the
+    plan by the end of the horizon (too little hovering to absorb its starts and stops), it
+    flies through the hovers instead of stopping; if that is still too slow, plans again at
+    90, 80 and 70 % of ``max_speed_mps`` (the ideal plan returned then carries the slower
+    scenario); the last fallback is the straight line q0 -> qF flown rest to rest, so a
+    request whose straight line fits the horizon is never refused. ``planner`` is the
+    optimiser (the core's :func:`~uav_comm_planner.core.optimizer.plan`). Raises
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
-    speed exceeds the vehicle's, and when no attempt can keep the horizon.
+    speed exceeds the vehicle's, or the wind the vehicle's airspeed, and when not even the
+    straight line fits the horizon (saying the horizon it needs).
     """
     if firmware not in HOLD_RESOLUTION_S:
         raise InvalidScenarioError(f'unknown firmware {firmware!r}: choose one of '
                                    f'{", ".join(HOLD_RESOLUTION_S)}')
     check_speed(scenario, limits)
+    scenario = in_wind(scenario, limits)
     first_error = None
     for share in (1.0,) + SLOWER_PLANNING:
         try:
@@ -336,4 +355,60 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
                 first_error = first_error or exc
                 continue
             return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
-    raise first_error
+    return _straight_line_plan(scenario, limits, settings, firmware, planner, first_error)
+
+
+def in_wind(scenario: Scenario, limits: VehicleLimits) -> Scenario:
+    """``scenario`` with the vehicle's airspeed when it is planned for a wind and gives none."""
+    if scenario.wind_speed_mps > 0.0 and scenario.max_airspeed_mps is None:
+        return scenario.replace(max_airspeed_mps=limits.airspeed_mps)
+    return scenario
+
+
+def _straight_line_plan(scenario: Scenario, limits: VehicleLimits,
+                        settings: SolverSettings | None, firmware: str,
+                        planner: Callable[[Scenario, SolverSettings | None], PlanResult],
+                        first_error: Exception | None) -> VehiclePlan:
+    """The last fallback: the straight line q0 -> qF, planned by ``planner`` at exactly its
+    own ground speed (so that it is the only path, with the power optimal for it and any
+    offsets the planner brings) and flown as one leg from rest to rest, leaving at once at the
+    slowest speed that reaches qF by the end of the horizon."""
+    distance = math.dist(scenario.start_m, scenario.goal_m)
+    legs = scenario.num_slots + 1
+    end_s = legs * scenario.slot_s
+    # Just above the straight line's speed, so that round-off keeps the goal in reach.
+    speed = max(distance / end_s * (1 + 1e-9), 2.0 * MIN_STEP_M / scenario.slot_s)
+    ideal = planner(scenario.replace(max_speed_mps=min(speed, scenario.max_speed_mps)), settings)
+    start = np.asarray(scenario.start_m, dtype=float)
+    goal = np.asarray(scenario.goal_m, dtype=float)
+    cruise = _leg_cruise(np.vstack([start, goal]), scenario, limits.cruise_speed_mps)
+    fitted = speed_for_time(distance, end_s - LEG_LATENCY_S, cruise, limits)
+    # Commanded in hundredths, rounded up so that the leg is not late.
+    fitted = min(max(math.ceil(fitted * 100.0) / 100.0, MIN_SPEED_MPS), cruise)
+    profile = Profile.rest_to_rest(distance, fitted, limits)
+    leg = Leg(np.vstack([start, goal]), fitted, LEG_LATENCY_S / 2, profile)
+    arrival = leg.end_s + LEG_LATENCY_S / 2
+    if arrival > end_s + GOAL_TOLERANCE_SLOTS * scenario.slot_s:
+        raise InfeasibleHorizonError(_no_flyable_plan(scenario, limits)) from first_error
+    flight = Flight((Dwell(start, 0.0, 0.0), leg, Dwell(goal, arrival, arrival)))
+    schedule = Schedule((Stop(start, 0.0), Stop(goal, 0.0)), (leg,), flight, firmware)
+    return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
+
+
+def _no_flyable_plan(scenario: Scenario, limits: VehicleLimits) -> str:
+    """Why not even the straight line fits, with the horizon it needs (computed from its
+    rest-to-rest profile at the fastest speed the vehicle holds along it)."""
+    distance = math.dist(scenario.start_m, scenario.goal_m)
+    direction = (np.asarray(scenario.goal_m) - np.asarray(scenario.start_m)) / distance
+    speed = _leg_cruise(np.vstack([scenario.start_m, scenario.goal_m]), scenario,
+                        limits.cruise_speed_mps)
+    flight_s = Profile.rest_to_rest(distance, speed, limits).duration_s + LEG_LATENCY_S
+    # qF may come GOAL_TOLERANCE_SLOTS after (M + 1) delta = T (M + 1) / M.
+    needed = flight_s * scenario.num_slots / (scenario.num_slots + 1 + GOAL_TOLERANCE_SLOTS)
+    heading = math.degrees(math.atan2(direction[0], direction[1])) % 360.0
+    return (f'the vehicle cannot fly this request on time: even the straight line from q0 to '
+            f'qF ({distance:.1f} m, heading {heading:.0f} degrees) takes {flight_s:.1f} s from '
+            f'rest to rest at {speed:.3g} m/s (acceleration {limits.max_accel_mpss:g} m/s/s, '
+            f'jerk {limits.max_jerk_mpsss:g} m/s/s/s), the horizon ends at '
+            f'{scenario.slot_s * (scenario.num_slots + 1):g} s: lengthen horizon_s to '
+            f'{math.ceil(needed * 10) / 10:g} s or more')

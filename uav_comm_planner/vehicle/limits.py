@@ -40,7 +40,9 @@ class VehicleLimits:
     (an ArduCopter quad reaches about 10.3 m/s at the default 30 degree ANGLE_MAX); the
     vehicle cruises at the lesser of it and ``max_speed_mps``;
     jerk_time_s: how long ArduCopter takes to build up the jerk, tj = 2 max(ATC_INPUT_TC, 0.1)
-    (0.3 s by default): the jerk rises and falls as a raised cosine over tj.
+    (0.3 s by default): the jerk rises and falls as a raised cosine over tj;
+    gust_margin_mps: the airspeed kept in reserve for gusts when the plan is made for a wind
+    (:attr:`airspeed_mps`).
     """
 
     max_speed_mps: float = 10.0
@@ -48,6 +50,7 @@ class VehicleLimits:
     max_jerk_mpsss: float = 1.0
     airframe_speed_mps: float = math.inf
     jerk_time_s: float = 0.3
+    gust_margin_mps: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ('max_speed_mps', 'max_accel_mpss', 'max_jerk_mpsss'):
@@ -64,6 +67,20 @@ class VehicleLimits:
         if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not speed > 0:
             raise InvalidScenarioError(f'vehicle airframe_speed_mps must be positive (inf: '
                                        f'unknown), got {speed!r}')
+        margin = self.gust_margin_mps
+        if (isinstance(margin, bool) or not isinstance(margin, (int, float))
+                or not 0 <= margin < min(speed, self.max_speed_mps)):
+            raise InvalidScenarioError(
+                f'vehicle gust_margin_mps must be >= 0 and below the airframe\'s speed, got '
+                f'{margin!r}')
+
+    @property
+    def airspeed_mps(self) -> float:
+        """The airspeed a plan in wind may use: the airframe's top speed (the waypoint speed
+        when that is not known) less the gust margin."""
+        top = self.airframe_speed_mps if math.isfinite(self.airframe_speed_mps) \
+            else self.max_speed_mps
+        return top - self.gust_margin_mps
 
     @property
     def cruise_speed_mps(self) -> float:
