@@ -24,7 +24,8 @@ from uav_comm_planner.tools import cli
 from uav_comm_planner.vehicle.flyable import MAX_HOLD_S, schedule_flight
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mission import build_mission_items, export_mission, NAV_WAYPOINT
+from uav_comm_planner.vehicle.mavlink.items import (build_mission_items, export_mission,
+                                                    NAV_WAYPOINT)
 
 SMALL = dict(num_slots=12, horizon_s=30.0)
 
@@ -311,7 +312,7 @@ def test_a_hold_beyond_ardupilots_uint16_is_split_into_repeated_waypoints(tmp_pa
 
 def test_far_positions_map_to_valid_coordinates_and_non_finite_rows_are_refused(
         tmp_path, monkeypatch):
-    from uav_comm_planner.vehicle import mission
+    from uav_comm_planner.vehicle.mavlink import items as mission
     scenario = Scenario(ground_nodes_m=((0.0, 9.0e6),), start_m=(0.0, 9.0e6),
                         goal_m=(0.0, 9.0e6), max_speed_mps=10.0, **SMALL)
     result = plan(scenario, SolverSettings(compute_baselines=False))

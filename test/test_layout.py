@@ -58,7 +58,8 @@ def imported_modules(path: Path) -> set[str]:
 
 
 def modules_of(folder: str) -> list[Path]:
-    return sorted((ROOT / folder).glob('*.py'))
+    """The modules of ``folder`` and of the packages inside it (``vehicle/mavlink/``)."""
+    return sorted((ROOT / folder).rglob('*.py'))
 
 
 def package_part(name: str) -> str | None:

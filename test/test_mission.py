@@ -17,13 +17,13 @@ import pytest
 from uav_comm_planner import InvalidScenarioError, MissionExportError, paper_scenario, plan
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario
-from uav_comm_planner.vehicle import mission
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline
 from uav_comm_planner.vehicle.flyable import (MERGE_RADIUS_M, MIN_SPEED_MPS, PATH_TOLERANCE_M,
                                               plan_for_vehicle, schedule_flight)
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, geodetic_to_enu, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mission import build_mission_items, export_mission
+from uav_comm_planner.vehicle.mavlink import items as mission
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, export_mission
 from uav_comm_planner.vehicle.timing import ramp_time
 
 WAYPOINT, TAKEOFF, LAND, RTL, CHANGE_SPEED = 16, 22, 21, 20, 178

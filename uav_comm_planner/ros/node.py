@@ -66,9 +66,10 @@ from uav_comm_planner.ros.publishing import PlanPublisher, summary_line, TOPIC_P
 from uav_comm_planner.ros.worker import (accepts_should_stop, attempt, LatestOnlyWorker,
                                          Planner, PlanOutcome, PlanRequest, RecedingRequest,
                                          write_mission)
-from uav_comm_planner.vehicle.mission import build_mission_items
-from uav_comm_planner.vehicle.telemetry import (Event, LinkEvent, MissionProgressReport,
-                                                Position, VehicleBridge)
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items
+from uav_comm_planner.vehicle.mavlink.telemetry import (Event, LinkEvent,
+                                                        MissionProgressReport, Position,
+                                                        VehicleBridge)
 
 NODE_NAME = 'uav_comm_planner'
 

@@ -254,7 +254,7 @@ def json_text(data: object) -> str:
 def _command_plan(args: argparse.Namespace) -> int:
     _check_outputs(args.json, args.mission, figure=args.figure)
     if args.mission is not None:
-        from uav_comm_planner.vehicle.mission import MISSION_FORMATS
+        from uav_comm_planner.vehicle.mavlink.items import MISSION_FORMATS
         if args.mission.suffix.lower() not in MISSION_FORMATS:
             raise PlannerError(f'unknown mission format for {str(args.mission)!r}: use a '
                                f'.waypoints or .plan file')
@@ -274,7 +274,7 @@ def _command_plan(args: argparse.Namespace) -> int:
     text = (json_text(result_to_dict(result, settings=settings))
             if args.json is not None else None)
     if args.mission is not None:
-        from uav_comm_planner.vehicle.mission import build_mission_items
+        from uav_comm_planner.vehicle.mavlink.items import build_mission_items
         build_mission_items(vehicle_plan, args.home, end=args.mission_end,
                             firmware=args.firmware)
     if text is not None:
@@ -283,7 +283,7 @@ def _command_plan(args: argparse.Namespace) -> int:
         from uav_comm_planner.tools.plots import plan_figure
         print(f'wrote {plan_figure(result, args.figure)}')
     if args.mission is not None:
-        from uav_comm_planner.vehicle.mission import export_mission
+        from uav_comm_planner.vehicle.mavlink.items import export_mission
         written = export_mission(vehicle_plan, args.mission, args.home, end=args.mission_end,
                                  firmware=args.firmware)
         print(f'wrote {written}')
@@ -342,8 +342,8 @@ def _command_bench(args: argparse.Namespace) -> int:
 
 
 def _command_upload(args: argparse.Namespace) -> int:
-    from uav_comm_planner.vehicle.link import LinkSettings
-    from uav_comm_planner.vehicle.upload import upload_file
+    from uav_comm_planner.vehicle.mavlink.link import LinkSettings
+    from uav_comm_planner.vehicle.mavlink.upload import upload_file
 
     count = upload_file(args.mission, args.connect,
                         settings=LinkSettings(timeout_s=args.timeout, retries=args.retries),

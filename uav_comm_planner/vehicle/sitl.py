@@ -26,8 +26,8 @@ from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.evaluation import evaluate_flight, FlightReport
 from uav_comm_planner.vehicle.flyable import VehiclePlan
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
-from uav_comm_planner.vehicle.link import connect, upload_and_verify
-from uav_comm_planner.vehicle.mission import build_mission_items, NAV_WAYPOINT
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT
+from uav_comm_planner.vehicle.mavlink.link import connect, upload_and_verify
 
 MAV = mavutil.mavlink
 ENVIRONMENT_VARIABLE = 'UAV_COMM_PLANNER_SITL'

@@ -2,8 +2,8 @@
 
 ``.waypoints`` files (QGC WPL 110, as pymavlink's mavwp reads them) and QGroundControl
 ``.plan`` files (their simple items, after the planned home position as row 0) become the rows
-the link uploads with MISSION_ITEM_INT (:mod:`uav_comm_planner.vehicle.link`); success means the
-vehicle holds exactly the file's items.
+the link uploads with MISSION_ITEM_INT (:mod:`uav_comm_planner.vehicle.mavlink.link`); success
+means the vehicle holds exactly the file's items.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from pathlib import Path
 from pymavlink import mavwp
 
 from uav_comm_planner.errors import VehicleLinkError
-from uav_comm_planner.vehicle.link import connect, LinkSettings, upload_and_verify
-from uav_comm_planner.vehicle.mission import FRAME_GLOBAL, MissionItem, NAV_WAYPOINT
+from uav_comm_planner.vehicle.mavlink.items import FRAME_GLOBAL, MissionItem, NAV_WAYPOINT
+from uav_comm_planner.vehicle.mavlink.link import connect, LinkSettings, upload_and_verify
 
 
 def _number(value: object) -> float:

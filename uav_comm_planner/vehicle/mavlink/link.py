@@ -24,7 +24,7 @@ from typing import Sequence
 from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError
-from uav_comm_planner.vehicle.mission import MissionItem
+from uav_comm_planner.vehicle.mavlink.items import MissionItem
 
 MAV = mavutil.mavlink
 MISSION_TYPE = MAV.MAV_MISSION_TYPE_MISSION

@@ -8,7 +8,7 @@ each position into the planning frame through ``home`` and hands the caller
 ``on_event``, which must be quick and thread-safe (a queue push). Uploads are queued with
 :meth:`VehicleBridge.upload`; the newest waiting mission replaces an older one that has not
 started. An upload is verified by reading the mission back
-(:func:`~uav_comm_planner.vehicle.link.upload_and_verify`) and, when asked, followed by
+(:func:`~uav_comm_planner.vehicle.mavlink.link.upload_and_verify`) and, when asked, followed by
 MISSION_SET_CURRENT so that a vehicle in flight goes on from that item instead of restarting.
 
 Times are the autopilot's (``time_boot_ms`` / 1000, seconds), never the wall clock.
@@ -25,8 +25,8 @@ from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
-from uav_comm_planner.vehicle.link import connect, LinkSettings, upload_and_verify
-from uav_comm_planner.vehicle.mission import MissionItem
+from uav_comm_planner.vehicle.mavlink.items import MissionItem
+from uav_comm_planner.vehicle.mavlink.link import connect, LinkSettings, upload_and_verify
 
 MAV = mavutil.mavlink
 #: Telemetry rate asked of the autopilot (per second of autopilot time).
