@@ -18,8 +18,8 @@ import pytest
 
 from uav_comm_planner import paper_scenario, plan, SolverSettings
 from uav_comm_planner.vehicle.geodesy import Home
-from uav_comm_planner.vehicle.mavlink.items import export_mission
-from uav_comm_planner.vehicle.mavlink.link import download_mission, mismatches
+from uav_comm_planner.vehicle.mavlink.items import export_mission, mismatches
+from uav_comm_planner.vehicle.mavlink.link import download_mission
 from uav_comm_planner.vehicle.mavlink.upload import read_mission_file, read_waypoints
 from uav_comm_planner.vehicle.sitl import open_link, start_sitl, why_not_runnable
 

@@ -1,4 +1,4 @@
-"""MAVLink mission export: the planned flight as items an autopilot flies on the planned timing.
+"""A plan's MAVLink mission: the items an autopilot flies on the planned timing, as messages.
 
 The timing comes from :mod:`uav_comm_planner.vehicle.flyable`: stops where the plan hovers,
 legs of fly-through waypoints between them, one cruise speed per leg, holds shortened by what
@@ -14,6 +14,10 @@ the vehicle's starts and stops cost. The mission is
    (seconds; whole seconds for ArduPilot, which stores a uint16: a longer hold repeats the
    waypoint);
 4. NAV_LAND at qF, or NAV_RETURN_TO_LAUNCH.
+
+A row becomes the MISSION_ITEM_INT the link sends (or the MISSION_ITEM a .waypoints file
+holds) and a message read back becomes a row here, in one place; :func:`mismatches` tells a
+mission from what the vehicle stores of it.
 """
 
 from __future__ import annotations
@@ -55,6 +59,16 @@ THROTTLE_UNCHANGED = -1.0
 DEGREE_DECIMALS = 8
 #: A hold split into more waypoints than this (about 49 days for ArduPilot) is refused.
 MAX_HOLD_PARTS = 64
+#: MISSION_ITEM_INT carries latitude and longitude in 1e-7 degree.
+DEGREES_E7 = 1e7
+MISSION_TYPE = MAV.MAV_MISSION_TYPE_MISSION
+#: Commands whose frame the autopilot does not keep.
+FRAMELESS_COMMANDS_BELOW = MAV.MAV_CMD_NAV_LAST
+#: Parameters stored in float32; a parameter that differs by more than this is a mismatch.
+PARAM_RELATIVE_TOLERANCE = 1e-6
+#: Parameters (0-based) an autopilot does not store for a command: ArduCopter keeps no yaw
+#: for NAV_LAND and reports its param4 as 1.
+UNSTORED_PARAMS = {MAV.MAV_CMD_NAV_LAND: (3,)}
 
 FIRMWARE_TYPES = {'ardupilot': MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 'px4': MAV.MAV_AUTOPILOT_PX4}
 MISSION_ENDS = ('land', 'rtl')
@@ -185,9 +199,22 @@ def _hold_parts(hold_s: float, max_hold_s: float) -> list[float]:
     return [max_hold_s] * int(whole) + ([rest] if rest > 0 else [])
 
 
-# Writers.
+# MAVLink messages: the rows a link sends and reads back, and the rows of a .waypoints file.
 
-def _mavlink_message(item: MissionItem, seq: int) -> object:
+def item_int_message(item: MissionItem, seq: int, mav: MAV.MAVLink, target_system: int,
+                     target_component: int) -> MAV.MAVLink_message:
+    """``item`` as the MISSION_ITEM_INT of row ``seq`` (latitude and longitude in 1e-7 degree),
+    encoded by ``mav``: the link's own encoder, whose dialect follows the protocol version the
+    vehicle speaks."""
+    return mav.mission_item_int_encode(
+        target_system, target_component, seq, item.frame, item.command, int(item.current),
+        int(item.autocontinue), *item.params, int(round(item.x * DEGREES_E7)),
+        int(round(item.y * DEGREES_E7)), float(item.z), MISSION_TYPE)
+
+
+def item_message(item: MissionItem, seq: int) -> MAV.MAVLink_message:
+    """``item`` as the MISSION_ITEM of row ``seq`` (degrees): the rows pymavlink's mavwp writes
+    to a .waypoints file."""
     return MAV.MAVLink_mission_item_message(
         target_system=0, target_component=0, seq=seq, frame=item.frame, command=item.command,
         current=int(item.current), autocontinue=int(item.autocontinue),
@@ -195,11 +222,73 @@ def _mavlink_message(item: MissionItem, seq: int) -> object:
         param4=item.params[3], x=item.x, y=item.y, z=item.z)
 
 
+def from_message(message: MAV.MAVLink_message) -> MissionItem:
+    """The row a MISSION_ITEM_INT (a vehicle's read-back) or a MISSION_ITEM (a row mavwp read
+    from a .waypoints file) holds."""
+    scale = DEGREES_E7 if message.get_type() == 'MISSION_ITEM_INT' else 1.0
+    return MissionItem(
+        command=message.command, frame=message.frame,
+        params=(message.param1, message.param2, message.param3, message.param4),
+        x=message.x / scale, y=message.y / scale, z=message.z,
+        current=bool(message.current), autocontinue=bool(message.autocontinue))
+
+
+def mismatches(sent: Sequence[MissionItem], stored: Sequence[MissionItem]) -> list[str]:
+    """What differs between a mission and its read-back, one line per item; empty if same.
+
+    Compared in the fields the autopilot stores: row 0 (home, which the autopilot replaces
+    with its own) by command only; DO commands without their frame (ArduPilot reports them in
+    frame 0); coordinates to 1e-7 degree (MISSION_ITEM_INT's resolution), the rest to
+    float32's.
+    """
+    if len(sent) != len(stored):
+        return [f'the vehicle holds {len(stored)} items, the mission has {len(sent)}']
+    lines = []
+    for seq, (a, b) in enumerate(zip(sent, stored)):
+        if a.command != b.command:
+            lines.append(f'item {seq}: command {b.command}, expected {a.command}')
+        elif seq > 0 and not _same_item(a, b):
+            lines.append(f'item {seq}: holds {_describe(b)}, expected {_describe(a)}')
+    return lines
+
+
+def _same_item(a: MissionItem, b: MissionItem) -> bool:
+    if a.command >= FRAMELESS_COMMANDS_BELOW or a.frame == MAV.MAV_FRAME_MISSION:
+        positional = False
+    else:
+        positional = True
+        if a.frame != b.frame:
+            return False
+    unstored = UNSTORED_PARAMS.get(a.command, ())
+    close = all(_same_param(p, q) for index, (p, q) in enumerate(zip(a.params, b.params))
+                if index not in unstored)
+    if not positional:
+        return close
+    return (close and round(a.x * DEGREES_E7) == round(b.x * DEGREES_E7)
+            and round(a.y * DEGREES_E7) == round(b.y * DEGREES_E7)
+            and math.isclose(a.z, b.z, rel_tol=PARAM_RELATIVE_TOLERANCE, abs_tol=1e-3))
+
+
+def _same_param(sent: float, stored: float) -> bool:
+    if math.isnan(sent):
+        return True  # NaN asks the autopilot for its own default; it stores what it chose
+    return math.isclose(sent, stored, rel_tol=PARAM_RELATIVE_TOLERANCE, abs_tol=1e-6)
+
+
+def _describe(item: MissionItem) -> str:
+    params = ', '.join(f'{p:g}' for p in item.params)
+    return f'command {item.command} frame {item.frame} ({params}) at {item.x:.7f}, ' \
+           f'{item.y:.7f}, {item.z:g}'
+
+
+# Writers.
+
+
 def write_waypoints(items: Sequence[MissionItem], path: Path) -> None:
     """Write QGC WPL 110 through pymavlink's mavwp, then read it back to check it."""
     loader = mavwp.MAVWPLoader()
     for seq, item in enumerate(items):
-        loader.add(_mavlink_message(item, seq))
+        loader.add(item_message(item, seq))
     loader.save(str(path))
     check = mavwp.MAVWPLoader()
     if check.load(str(path)) != len(items):
@@ -301,5 +390,6 @@ def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
 
 __all__ = [
     'DEFAULT_HOME', 'Home', 'MissionItem', 'build_mission_items', 'export_mission',
-    'plan_document', 'write_plan', 'write_waypoints',
+    'from_message', 'item_int_message', 'item_message', 'mismatches', 'plan_document',
+    'write_plan', 'write_waypoints',
 ]

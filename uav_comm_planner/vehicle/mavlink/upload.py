@@ -16,7 +16,8 @@ from pathlib import Path
 from pymavlink import mavwp
 
 from uav_comm_planner.errors import VehicleLinkError
-from uav_comm_planner.vehicle.mavlink.items import FRAME_GLOBAL, MissionItem, NAV_WAYPOINT
+from uav_comm_planner.vehicle.mavlink.items import (FRAME_GLOBAL, from_message, MissionItem,
+                                                    NAV_WAYPOINT)
 from uav_comm_planner.vehicle.mavlink.link import connect, LinkSettings, upload_and_verify
 
 
@@ -75,10 +76,7 @@ def read_waypoints(path: str | os.PathLike) -> list[MissionItem]:
         loader.load(str(target))
     except Exception as exc:  # noqa: B902 - mavwp raises bare Exceptions for a bad file
         raise VehicleLinkError(f'{str(target)!r} is not a QGC WPL 110 mission: {exc}') from None
-    items = [MissionItem(command=w.command, frame=w.frame,
-                         params=(w.param1, w.param2, w.param3, w.param4), x=w.x, y=w.y, z=w.z,
-                         current=bool(w.current), autocontinue=bool(w.autocontinue))
-             for w in (loader.wp(i) for i in range(loader.count()))]
+    items = [from_message(loader.wp(i)) for i in range(loader.count())]
     if not items:
         raise VehicleLinkError(f'{str(target)!r} holds no mission item')
     return items
