@@ -24,8 +24,8 @@ from uav_comm_planner.tools import cli
 from uav_comm_planner.vehicle.flyable import MAX_HOLD_S, schedule_flight
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mavlink.items import (build_mission_items, export_mission,
-                                                    NAV_WAYPOINT)
+from uav_comm_planner.vehicle.mavlink.files import export_mission
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT
 
 SMALL = dict(num_slots=12, horizon_s=30.0)
 
@@ -312,7 +312,7 @@ def test_a_hold_beyond_ardupilots_uint16_is_split_into_repeated_waypoints(tmp_pa
 
 def test_far_positions_map_to_valid_coordinates_and_non_finite_rows_are_refused(
         tmp_path, monkeypatch):
-    from uav_comm_planner.vehicle.mavlink import items as mission
+    from uav_comm_planner.vehicle.mavlink import items as mission_items
     scenario = Scenario(ground_nodes_m=((0.0, 9.0e6),), start_m=(0.0, 9.0e6),
                         goal_m=(0.0, 9.0e6), max_speed_mps=10.0, **SMALL)
     result = plan(scenario, SolverSettings(compute_baselines=False))
@@ -322,7 +322,7 @@ def test_far_positions_map_to_valid_coordinates_and_non_finite_rows_are_refused(
     def broken(east, north, up, home):
         return np.full(len(east), np.nan), np.full(len(east), np.nan), np.zeros(len(east))
 
-    monkeypatch.setattr(mission, 'enu_to_geodetic', broken)
+    monkeypatch.setattr(mission_items, 'enu_to_geodetic', broken)
     with pytest.raises(MissionExportError, match='non-finite value'):
         export_mission(result, tmp_path / 'm.waypoints', Home(47.0, 8.0, 400.0))
     assert list(tmp_path.iterdir()) == []

@@ -22,8 +22,8 @@ from uav_comm_planner.tools import cli
 from uav_comm_planner.tools.serialize import result_to_dict
 from uav_comm_planner.vehicle.flyable import MAX_HOLD_S
 from uav_comm_planner.vehicle.geodesy import Home
-from uav_comm_planner.vehicle.mavlink.items import (build_mission_items, export_mission,
-                                                    NAV_WAYPOINT)
+from uav_comm_planner.vehicle.mavlink.files import export_mission
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT
 
 FAST = settings(max_examples=40, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])

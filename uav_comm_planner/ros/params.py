@@ -30,7 +30,8 @@ from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.vehicle.flyable import check_speed
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
 from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
-from uav_comm_planner.vehicle.mavlink.items import FIRMWARE_TYPES, MISSION_ENDS, MISSION_FORMATS
+from uav_comm_planner.vehicle.mavlink.files import MISSION_FORMATS
+from uav_comm_planner.vehicle.mavlink.items import FIRMWARE_TYPES, MISSION_ENDS
 
 MISSION_FIRMWARES = tuple(FIRMWARE_TYPES)
 #: Node settings that take one of a few names, and the names.

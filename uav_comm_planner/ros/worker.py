@@ -20,7 +20,7 @@ from uav_comm_planner.errors import PlanCancelledError, PlannerError
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mavlink.items import export_mission
+from uav_comm_planner.vehicle.mavlink.files import export_mission
 
 #: How long shutting down waits for a plan in progress before leaving it to its daemon thread.
 WORKER_STOP_TIMEOUT_S = 5.0

@@ -254,7 +254,7 @@ def json_text(data: object) -> str:
 def _command_plan(args: argparse.Namespace) -> int:
     _check_outputs(args.json, args.mission, figure=args.figure)
     if args.mission is not None:
-        from uav_comm_planner.vehicle.mavlink.items import MISSION_FORMATS
+        from uav_comm_planner.vehicle.mavlink.files import MISSION_FORMATS
         if args.mission.suffix.lower() not in MISSION_FORMATS:
             raise PlannerError(f'unknown mission format for {str(args.mission)!r}: use a '
                                f'.waypoints or .plan file')
@@ -283,7 +283,7 @@ def _command_plan(args: argparse.Namespace) -> int:
         from uav_comm_planner.tools.plots import plan_figure
         print(f'wrote {plan_figure(result, args.figure)}')
     if args.mission is not None:
-        from uav_comm_planner.vehicle.mavlink.items import export_mission
+        from uav_comm_planner.vehicle.mavlink.files import export_mission
         written = export_mission(vehicle_plan, args.mission, args.home, end=args.mission_end,
                                  firmware=args.firmware)
         print(f'wrote {written}')

@@ -23,21 +23,17 @@ mission from what the vehicle stores of it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-import json
 import math
-import os
-from pathlib import Path
-from typing import Callable, Sequence
+from typing import Sequence
 
 import numpy as np
-from pymavlink import mavutil, mavwp
+from pymavlink import mavutil
 
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.errors import InvalidScenarioError, MissionExportError
-from uav_comm_planner.files import write_with
 from uav_comm_planner.vehicle.flyable import (check_speed, MAX_HOLD_S, Schedule,
                                               schedule_flight, VehiclePlan)
-from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, Home
+from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
 MAV = mavutil.mavlink
@@ -72,10 +68,6 @@ UNSTORED_PARAMS = {MAV.MAV_CMD_NAV_LAND: (3,)}
 
 FIRMWARE_TYPES = {'ardupilot': MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 'px4': MAV.MAV_AUTOPILOT_PX4}
 MISSION_ENDS = ('land', 'rtl')
-VEHICLE_TYPE_QUADROTOR = MAV.MAV_TYPE_QUADROTOR
-QGC_ALTITUDE_MODE_RELATIVE = 1
-#: QGroundControl's own default, for a mission that never moves (no speed to report).
-QGC_DEFAULT_HOVER_SPEED_MPS = 5.0
 
 
 @dataclass(frozen=True)
@@ -92,7 +84,8 @@ class MissionItem:
     autocontinue: bool = True
 
 
-def _check_firmware(firmware: str) -> None:
+def check_firmware(firmware: str) -> None:
+    """Refuse a firmware the mission has no dialect for (MissionExportError)."""
     if firmware not in FIRMWARE_TYPES:
         raise MissionExportError(
             f'unknown firmware {firmware!r}: choose one of {", ".join(FIRMWARE_TYPES)}')
@@ -131,7 +124,7 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
                                  f'{home!r}')
     if end not in MISSION_ENDS:
         raise MissionExportError(f'unknown mission end {end!r}: choose land or rtl')
-    _check_firmware(firmware)
+    check_firmware(firmware)
     schedule = _schedule(plan, firmware, limits)
     scenario = (plan.ideal if isinstance(plan, VehiclePlan) else plan).scenario
     # PX4 reads a yaw of 0 as "face north"; NaN keeps its own heading mode. ArduCopter
@@ -281,115 +274,7 @@ def _describe(item: MissionItem) -> str:
            f'{item.y:.7f}, {item.z:g}'
 
 
-# Writers.
-
-
-def write_waypoints(items: Sequence[MissionItem], path: Path) -> None:
-    """Write QGC WPL 110 through pymavlink's mavwp, then read it back to check it."""
-    loader = mavwp.MAVWPLoader()
-    for seq, item in enumerate(items):
-        loader.add(item_message(item, seq))
-    loader.save(str(path))
-    check = mavwp.MAVWPLoader()
-    if check.load(str(path)) != len(items):
-        raise MissionExportError(f'{path}: mavwp read back a different number of items')
-
-
-def _json_number(value: float) -> float | None:
-    return None if math.isnan(value) else value
-
-
-def plan_document(items: Sequence[MissionItem], home: Home, *,
-                  firmware: str = 'ardupilot') -> dict:
-    """The QGroundControl .plan JSON object (file version 1, mission version 2)."""
-    _check_firmware(firmware)
-    speeds = [item.params[1] for item in items if item.command == DO_CHANGE_SPEED]
-    default_speed = speeds[0] if speeds else QGC_DEFAULT_HOVER_SPEED_MPS
-    return {
-        'fileType': 'Plan',
-        'version': 1,
-        'groundStation': 'QGroundControl',
-        'mission': {
-            'version': 2,
-            'firmwareType': FIRMWARE_TYPES[firmware],
-            'vehicleType': VEHICLE_TYPE_QUADROTOR,
-            'cruiseSpeed': default_speed,
-            'hoverSpeed': default_speed,
-            'globalPlanAltitudeMode': QGC_ALTITUDE_MODE_RELATIVE,
-            'plannedHomePosition': [home.latitude_deg, home.longitude_deg, home.altitude_m],
-            'items': [_plan_item(item, seq) for seq, item in enumerate(items[1:], start=1)],
-        },
-        'geoFence': {'circles': [], 'polygons': [], 'version': 2},
-        'rallyPoints': {'points': [], 'version': 2},
-    }
-
-
-def _plan_item(item: MissionItem, seq: int) -> dict:
-    entry = {
-        'type': 'SimpleItem',
-        'autoContinue': item.autocontinue,
-        'command': item.command,
-        'doJumpId': seq,
-        'frame': item.frame,
-        'params': [_json_number(v) for v in (*item.params, item.x, item.y, item.z)],
-    }
-    if item.frame == FRAME_RELATIVE_ALT:
-        entry.update(AMSLAltAboveTerrain=None, Altitude=item.z,
-                     AltitudeMode=QGC_ALTITUDE_MODE_RELATIVE)
-    return entry
-
-
-def write_plan(items: Sequence[MissionItem], path: Path, home: Home, *,
-               firmware: str = 'ardupilot') -> None:
-    """Write a QGroundControl .plan file."""
-    text = json.dumps(plan_document(items, home, firmware=firmware), indent=4, allow_nan=False)
-    path.write_text(text + '\n', encoding='utf-8')
-
-
-MISSION_FORMATS = ('.waypoints', '.plan')
-
-
-def export_mission(plan: PlanResult | VehiclePlan, path: str | os.PathLike, home: Home, *,
-                   end: str = 'land', firmware: str = 'ardupilot',
-                   limits: VehicleLimits | None = None) -> Path:
-    """Write the plan as a mission file, format from the extension; return the path written.
-
-    ``.waypoints``: QGC WPL 110 (QGroundControl, Mission Planner, MAVProxy); ``.plan``:
-    QGroundControl JSON. The file is replaced atomically; on any failure a
-    :class:`MissionExportError` says why and a previous file at ``path`` is left as it was.
-    """
-    target = Path(path)
-    suffix = target.suffix.lower()
-    if suffix not in MISSION_FORMATS:
-        raise MissionExportError(
-            f'unknown mission format {target.suffix or "(no extension)"!r} for {str(target)!r}: '
-            f'use a .waypoints or .plan file')
-    if not isinstance(home, Home):
-        raise MissionExportError(f'home must be a Home(latitude, longitude, altitude), got '
-                                 f'{home!r}')
-    items = build_mission_items(plan, home, end=end, firmware=firmware, limits=limits)
-    if suffix == '.plan':
-        def writer(temporary: Path) -> None:
-            write_plan(items, temporary, home, firmware=firmware)
-    else:
-        def writer(temporary: Path) -> None:
-            write_waypoints(items, temporary)
-    _write_atomically(target, writer)
-    return target
-
-
-def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
-    try:
-        write_with(target, writer)
-    except MissionExportError:
-        raise
-    except (OSError, ValueError, TypeError, mavwp.MAVWPError) as exc:
-        raise MissionExportError(f'cannot write {str(target)!r}: {exc}; the previous file, if '
-                                 f'any, is unchanged') from exc
-
-
 __all__ = [
-    'DEFAULT_HOME', 'Home', 'MissionItem', 'build_mission_items', 'export_mission',
-    'from_message', 'item_int_message', 'item_message', 'mismatches', 'plan_document',
-    'write_plan', 'write_waypoints',
+    'MissionItem', 'build_mission_items', 'check_firmware', 'from_message', 'item_int_message',
+    'item_message', 'mismatches',
 ]
