@@ -21,7 +21,8 @@ from uav_comm_planner.core.optimizer import within_speed_limit
 from uav_comm_planner.core.power import waterfilling_power
 from uav_comm_planner.files import NotARegularFileError, PARTIAL_MARK, write_text_atomic
 from uav_comm_planner.tools import cli
-from uav_comm_planner.vehicle.flyable import MAX_HOLD_S, schedule_flight
+from uav_comm_planner.vehicle.firmware import FIRMWARES
+from uav_comm_planner.vehicle.flyable import schedule_flight
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.files import export_mission
@@ -297,11 +298,11 @@ def test_a_hold_beyond_ardupilots_uint16_is_split_into_repeated_waypoints(tmp_pa
                         horizon_s=200_000.0, max_speed_mps=1.0)
     result = plan(scenario, SolverSettings(compute_baselines=False))
     total_hold = sum(stop.hold_s for stop in schedule_flight(result, VehicleLimits()).stops)
-    assert total_hold > 3 * MAX_HOLD_S['ardupilot']
+    assert total_hold > 3 * FIRMWARES['ardupilot'].max_hold_s
     home = Home(47.0, 8.0, 400.0)
     items = build_mission_items(result, home)
     holds = [item.params[0] for item in items[1:] if item.command == NAV_WAYPOINT]
-    assert max(holds) <= MAX_HOLD_S['ardupilot'] and all(h == int(h) for h in holds)
+    assert max(holds) <= FIRMWARES['ardupilot'].max_hold_s and all(h == int(h) for h in holds)
     assert sum(holds) == total_hold
     path = export_mission(result, tmp_path / 'long.waypoints', home)
     rows = [line.split('\t') for line in path.read_text().splitlines()[1:]]

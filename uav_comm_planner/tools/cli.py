@@ -25,6 +25,7 @@ from uav_comm_planner.tools.plots import check_figure_path, METHOD_LABELS
 from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
                                               scenario_from_dict, scenario_to_dict,
                                               settings_from_dict)
+from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 
 #: The budgets of the letter's Fig. 2, watts.
@@ -374,7 +375,7 @@ def build_parser() -> argparse.ArgumentParser:
                                   % ','.join(f'{v:.10g}' for v in DEFAULT_HOME))
     plan_parser.add_argument('--mission-end', choices=['land', 'rtl'], default='land',
                              help='land at the goal or return to launch (default land)')
-    plan_parser.add_argument('--firmware', choices=['ardupilot', 'px4'], default='ardupilot',
+    plan_parser.add_argument('--firmware', choices=list(FIRMWARES), default='ardupilot',
                              help='autopilot the mission is for (default ardupilot)')
     vehicle = plan_parser.add_argument_group(
         'vehicle', 'plan for the vehicle that flies it (implied by --mission or any option '

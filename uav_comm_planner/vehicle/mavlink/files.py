@@ -25,10 +25,10 @@ from uav_comm_planner.files import write_with
 from uav_comm_planner.vehicle.flyable import VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mavlink.items import (build_mission_items, check_firmware,
-                                                    DO_CHANGE_SPEED, FIRMWARE_TYPES,
+from uav_comm_planner.vehicle.mavlink.items import (build_mission_items, DO_CHANGE_SPEED,
                                                     FRAME_GLOBAL, FRAME_RELATIVE_ALT,
-                                                    from_message, item_message, MissionItem,
+                                                    from_message, item_message,
+                                                    mission_firmware, MissionItem,
                                                     NAV_WAYPOINT)
 
 MAV = mavutil.mavlink
@@ -59,7 +59,7 @@ def _json_number(value: float) -> float | None:
 def plan_document(items: Sequence[MissionItem], home: Home, *,
                   firmware: str = 'ardupilot') -> dict:
     """The QGroundControl .plan JSON object (file version 1, mission version 2)."""
-    check_firmware(firmware)
+    autopilot = mission_firmware(firmware).autopilot
     speeds = [item.params[1] for item in items if item.command == DO_CHANGE_SPEED]
     default_speed = speeds[0] if speeds else QGC_DEFAULT_HOVER_SPEED_MPS
     return {
@@ -68,7 +68,7 @@ def plan_document(items: Sequence[MissionItem], home: Home, *,
         'groundStation': 'QGroundControl',
         'mission': {
             'version': 2,
-            'firmwareType': FIRMWARE_TYPES[firmware],
+            'firmwareType': autopilot,
             'vehicleType': VEHICLE_TYPE_QUADROTOR,
             'cruiseSpeed': default_speed,
             'hoverSpeed': default_speed,

@@ -31,8 +31,8 @@ from pymavlink import mavutil
 
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.errors import InvalidScenarioError, MissionExportError
-from uav_comm_planner.vehicle.flyable import (check_speed, MAX_HOLD_S, Schedule,
-                                              schedule_flight, VehiclePlan)
+from uav_comm_planner.vehicle.firmware import Firmware, firmware_named
+from uav_comm_planner.vehicle.flyable import check_speed, Schedule, schedule_flight, VehiclePlan
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
@@ -66,7 +66,6 @@ PARAM_RELATIVE_TOLERANCE = 1e-6
 #: for NAV_LAND and reports its param4 as 1.
 UNSTORED_PARAMS = {MAV.MAV_CMD_NAV_LAND: (3,)}
 
-FIRMWARE_TYPES = {'ardupilot': MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 'px4': MAV.MAV_AUTOPILOT_PX4}
 MISSION_ENDS = ('land', 'rtl')
 
 
@@ -84,11 +83,12 @@ class MissionItem:
     autocontinue: bool = True
 
 
-def check_firmware(firmware: str) -> None:
-    """Refuse a firmware the mission has no dialect for (MissionExportError)."""
-    if firmware not in FIRMWARE_TYPES:
-        raise MissionExportError(
-            f'unknown firmware {firmware!r}: choose one of {", ".join(FIRMWARE_TYPES)}')
+def mission_firmware(name: str) -> Firmware:
+    """The firmware a mission is written for; a MissionExportError for an unknown name."""
+    try:
+        return firmware_named(name)
+    except InvalidScenarioError as exc:
+        raise MissionExportError(str(exc)) from None
 
 
 def _schedule(plan: PlanResult | VehiclePlan, firmware: str,
@@ -124,12 +124,10 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
                                  f'{home!r}')
     if end not in MISSION_ENDS:
         raise MissionExportError(f'unknown mission end {end!r}: choose land or rtl')
-    check_firmware(firmware)
+    dialect = mission_firmware(firmware)
     schedule = _schedule(plan, firmware, limits)
     scenario = (plan.ideal if isinstance(plan, VehiclePlan) else plan).scenario
-    # PX4 reads a yaw of 0 as "face north"; NaN keeps its own heading mode. ArduCopter
-    # ignores the waypoint yaw, and Mission Planner shows NaN as an error, so it gets 0.
-    yaw = math.nan if firmware == 'px4' else 0.0
+    yaw = dialect.waypoint_yaw
     altitude = scenario.altitude_m
 
     def waypoint(position: np.ndarray, hold_s: float) -> MissionItem:
@@ -149,7 +147,7 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
     in_force = None
     for index, stop in enumerate(schedule.stops):
         items += [waypoint(stop.position_m, hold)
-                  for hold in _hold_parts(stop.hold_s, MAX_HOLD_S[firmware])]
+                  for hold in _hold_parts(stop.hold_s, dialect.max_hold_s)]
         if index == len(schedule.legs):
             break
         leg = schedule.legs[index]
@@ -275,6 +273,6 @@ def _describe(item: MissionItem) -> str:
 
 
 __all__ = [
-    'MissionItem', 'build_mission_items', 'check_firmware', 'from_message', 'item_int_message',
-    'item_message', 'mismatches',
+    'MissionItem', 'build_mission_items', 'from_message', 'item_int_message', 'item_message',
+    'mismatches', 'mission_firmware',
 ]
