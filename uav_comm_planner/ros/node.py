@@ -66,7 +66,7 @@ from uav_comm_planner.ros.publishing import PlanPublisher, summary_line, TOPIC_P
 from uav_comm_planner.ros.worker import (accepts_should_stop, attempt, LatestOnlyWorker,
                                          Planner, PlanOutcome, PlanRequest, RecedingRequest,
                                          write_mission)
-from uav_comm_planner.vehicle.mavlink.items import build_mission_items
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.telemetry import (Event, LinkEvent,
                                                         MissionProgressReport, Position,
                                                         VehicleBridge)
@@ -82,8 +82,6 @@ SERVICE_EXPORT_MISSION = '~/export_mission'
 #: The UAV is at q0, and the mission clock starts, within this distance of it (metres);
 #: ArduCopter counts a waypoint reached within WPNAV_RADIUS, 2 m by default.
 START_RADIUS_M = 2.5
-#: The mission item at q0 (0 home, 1 takeoff): a plan made in flight is flown from it.
-Q0_ITEM = 2
 #: Name of the telemetry as a position source.
 SOURCE_VEHICLE = 'vehicle'
 
@@ -382,7 +380,7 @@ class PlannerNode(Node):
             return
         in_flight = outcome.request.receding is not None
         self._upload_pending = outcome.request.start_ns
-        self._vehicle.upload(items, current_seq=Q0_ITEM if in_flight else None,
+        self._vehicle.upload(items, current_seq=Q0_SEQ if in_flight else None,
                              tag=outcome.request.start_ns)
 
     # The mission.

@@ -26,7 +26,7 @@ from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.evaluation import evaluate_flight, FlightReport
 from uav_comm_planner.vehicle.flyable import VehiclePlan
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
-from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT, Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.link import connect, upload_and_verify
 
 MAV = mavutil.mavlink
@@ -304,7 +304,7 @@ def fly_plan(vehicle_plan: VehiclePlan, folder: Path, *, home: Home,
         link.close()
     finally:
         vehicle.stop()
-    start_s = record.reached[2] - items[2].params[0]
+    start_s = record.reached[Q0_SEQ] - items[Q0_SEQ].params[0]
     report = evaluate_flight(vehicle_plan.flown, vehicle_plan.schedule.flight.track(),
                              record.times_s, record.positions_m, start_s)
     return SitlFlight(report, record.reached[last_waypoint] - start_s, record)

@@ -67,6 +67,9 @@ PARAM_RELATIVE_TOLERANCE = 1e-6
 UNSTORED_PARAMS = {MAV.MAV_CMD_NAV_LAND: (3,)}
 
 MISSION_ENDS = ('land', 'rtl')
+#: The mission index of q0, after home (0) and the takeoff (1): the plan's clock starts when
+#: the vehicle holds there, and a plan made in flight is flown from it.
+Q0_SEQ = 2
 
 
 @dataclass(frozen=True)
@@ -274,5 +277,5 @@ def _describe(item: MissionItem) -> str:
 
 __all__ = [
     'MissionItem', 'build_mission_items', 'from_message', 'item_int_message', 'item_message',
-    'mismatches', 'mission_firmware',
+    'mismatches', 'mission_firmware', 'Q0_SEQ',
 ]
