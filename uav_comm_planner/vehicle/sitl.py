@@ -25,9 +25,10 @@ from pymavlink import mavutil
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.evaluation import evaluate_flight, FlightReport
 from uav_comm_planner.vehicle.flyable import VehiclePlan
-from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
+from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT, Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.link import connect, upload_and_verify
+from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu, request_telemetry
 
 MAV = mavutil.mavlink
 ENVIRONMENT_VARIABLE = 'UAV_COMM_PLANNER_SITL'
@@ -167,13 +168,6 @@ def set_parameter(link, name: str, value: float, timeout_s: float = 10.0) -> Non
     raise VehicleLinkError(f'{name} was not set to {value}')
 
 
-def request_position_stream(link, rate_hz: float = 10.0) -> None:
-    for message_id in (MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, MAV.MAVLINK_MSG_ID_MISSION_CURRENT):
-        link.mav.command_long_send(link.target_system, link.target_component,
-                                   MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id,
-                                   1e6 / rate_hz, 0, 0, 0, 0, 0)
-
-
 def _command(link, command: int, *params: float, timeout_s: float = 3.0) -> int:
     padded = list(params) + [0.0] * (7 - len(params))
     link.mav.command_long_send(link.target_system, link.target_component, command, 0, *padded)
@@ -222,7 +216,7 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
 
     ``timeout_s`` is autopilot time after the switch.
     """
-    request_position_stream(link)
+    request_telemetry(link)
     set_mode(link, 'AUTO')
     times, latitudes, longitudes, altitudes = [], [], [], []
     reached: dict[int, float] = {}
@@ -245,13 +239,11 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
         if clock_s - started_s > timeout_s:
             raise VehicleLinkError(f'item {last_item} not reached {timeout_s:g} s after AUTO')
         times.append(clock_s)
-        latitudes.append(message.lat / 1e7)
-        longitudes.append(message.lon / 1e7)
-        altitudes.append(message.relative_alt / 1000.0)
-    east, north, _ = geodetic_to_enu(np.array(latitudes), np.array(longitudes),
-                                     np.full(len(latitudes), home.altitude_m), home)
-    return FlightRecord(np.array(times), np.column_stack([east, north]), np.array(altitudes),
-                        reached)
+        latitudes.append(message.lat)
+        longitudes.append(message.lon)
+        altitudes.append(message.relative_alt)
+    east, north, up = global_position_enu(latitudes, longitudes, altitudes, home)
+    return FlightRecord(np.array(times), np.column_stack([east, north]), up, reached)
 
 
 #: ArduCopter refuses a mission right after connecting: the upload is tried this many times.
