@@ -8,6 +8,9 @@
 | tools/    | core, vehicle, scipy, matplotlib, dask, pyarrow; never rclpy            |
 | top level | errors and files import nothing of the package; ``__init__`` re-exports |
 |           | the public API from core                                                |
+
+Inside vehicle/, ``mavlink/`` builds on the other modules; of those, only ``sitl`` (which flies
+missions over the link) imports it.
 """
 
 from __future__ import annotations
@@ -112,6 +115,39 @@ def test_the_public_api_comes_from_core_and_errors():
                  'PlannerError', 'InvalidScenarioError', 'InfeasibleHorizonError',
                  'SolverError', 'MissionExportError'):
         assert hasattr(uav_comm_planner, name), name
+
+
+def module_name(path: Path) -> str:
+    """``uav_comm_planner.vehicle.mavlink.items`` for that file; a package by its folder."""
+    parts = path.relative_to(ROOT.parent).with_suffix('').parts
+    return '.'.join(parts[:-1] if parts[-1] == '__init__' else parts)
+
+
+def package_imports(path: Path, modules: set[str]) -> set[str]:
+    """The modules of ``modules`` that ``path`` imports, lazily or not; ``from A import B``
+    imports ``A.B`` when that is a module, else ``A``."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            names.update(f'{node.module}.{alias.name}' if f'{node.module}.{alias.name}'
+                         in modules else node.module for alias in node.names)
+    return names & modules
+
+
+def test_mavlink_builds_on_the_other_vehicle_modules_never_the_reverse():
+    """limits, timing, flyable, evaluation, geodesy and firmware never import vehicle/mavlink/
+    (which imports them): the mission, its files and the link sit above the vehicle's model."""
+    modules = {module_name(path) for path in ROOT.rglob('*.py')}
+    beside = [path for path in (ROOT / 'vehicle').glob('*.py')
+              if path.stem not in ('__init__', 'sitl')]
+    mavlink = f'{PACKAGE}.vehicle.mavlink'
+    offenders = [f'{path.relative_to(ROOT)} imports {name}' for path in beside
+                 for name in package_imports(path, modules)
+                 if name == mavlink or name.startswith(f'{mavlink}.')]
+    assert offenders == []
+    assert f'{mavlink}.items' in modules and len(beside) >= 6
 
 
 def test_the_rule_reader_sees_a_violation(tmp_path):
