@@ -307,7 +307,7 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
     speed exceeds the vehicle's, and when no attempt can keep the horizon.
     """
-    firmware_named(firmware)
+    firmware_named(firmware)                 # an unknown name is refused before any solve
     check_speed(scenario, limits)
     first_error = None
     for share in (1.0,) + SLOWER_PLANNING:

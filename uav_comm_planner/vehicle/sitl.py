@@ -218,7 +218,7 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
     """
     request_telemetry(link)
     set_mode(link, 'AUTO')
-    times, latitudes, longitudes, altitudes = [], [], [], []
+    times, latitudes_e7, longitudes_e7, altitudes_mm = [], [], [], []
     reached: dict[int, float] = {}
     clock_s = None
     started_s = None
@@ -239,10 +239,10 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
         if clock_s - started_s > timeout_s:
             raise VehicleLinkError(f'item {last_item} not reached {timeout_s:g} s after AUTO')
         times.append(clock_s)
-        latitudes.append(message.lat)
-        longitudes.append(message.lon)
-        altitudes.append(message.relative_alt)
-    east, north, up = global_position_enu(latitudes, longitudes, altitudes, home)
+        latitudes_e7.append(message.lat)
+        longitudes_e7.append(message.lon)
+        altitudes_mm.append(message.relative_alt)
+    east, north, up = global_position_enu(latitudes_e7, longitudes_e7, altitudes_mm, home)
     return FlightRecord(np.array(times), np.column_stack([east, north]), up, reached)
 
 
