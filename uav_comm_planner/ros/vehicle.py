@@ -2,7 +2,7 @@
 pose on ``vehicle_pose``, and every plan uploaded.
 
 A :class:`VehicleAdapter` takes the node (as tf2_ros's TransformListener does): with
-``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.telemetry.VehicleBridge`,
+``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge`,
 whose thread hands positions, mission progress and link events to the executor through an
 :class:`~uav_comm_planner.ros.handoff.ExecutorHandoff`; positions go on to ``on_position``.
 """
@@ -18,8 +18,9 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from uav_comm_planner.ros.handoff import ExecutorHandoff
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.ros.planning import PlanOutcome
-from uav_comm_planner.vehicle.telemetry import (Event, LinkEvent, MissionProgressReport,
-                                                Position, VehicleBridge)
+from uav_comm_planner.vehicle.mavlink.telemetry import (Event, LinkEvent,
+                                                        MissionProgressReport, Position,
+                                                        VehicleBridge)
 
 TOPIC_VEHICLE_POSE = 'vehicle_pose'
 #: The mission item at q0 (0 home, 1 takeoff): a plan made in flight is flown from it.

@@ -26,6 +26,7 @@ from uav_comm_planner.tools.serialize import (package_version, result_to_dict, r
                                               scenario_from_dict, scenario_to_dict,
                                               settings_from_dict)
 from uav_comm_planner.tools.study import command as montecarlo
+from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 
 #: The budgets of the letter's Fig. 2, watts.
@@ -254,7 +255,7 @@ def json_text(data: object) -> str:
 def _command_plan(args: argparse.Namespace) -> int:
     _check_outputs(args.json, args.mission, figure=args.figure)
     if args.mission is not None:
-        from uav_comm_planner.vehicle.mission import MISSION_FORMATS
+        from uav_comm_planner.vehicle.mavlink.files import MISSION_FORMATS
         if args.mission.suffix.lower() not in MISSION_FORMATS:
             raise PlannerError(f'unknown mission format for {str(args.mission)!r}: use a '
                                f'.waypoints or .plan file')
@@ -339,8 +340,8 @@ def _command_bench(args: argparse.Namespace) -> int:
 
 
 def _command_upload(args: argparse.Namespace) -> int:
-    from uav_comm_planner.vehicle.link import LinkSettings
-    from uav_comm_planner.vehicle.upload import upload_file
+    from uav_comm_planner.vehicle.mavlink.link import LinkSettings
+    from uav_comm_planner.vehicle.mavlink.upload import upload_file
 
     count = upload_file(args.mission, args.connect,
                         settings=LinkSettings(timeout_s=args.timeout, retries=args.retries),
@@ -371,7 +372,7 @@ def build_parser() -> argparse.ArgumentParser:
                                   % ','.join(f'{v:.10g}' for v in DEFAULT_HOME))
     plan_parser.add_argument('--mission-end', choices=['land', 'rtl'], default='land',
                              help='land at the goal or return to launch (default land)')
-    plan_parser.add_argument('--firmware', choices=['ardupilot', 'px4'], default='ardupilot',
+    plan_parser.add_argument('--firmware', choices=list(FIRMWARES), default='ardupilot',
                              help='autopilot the mission is for (default ardupilot)')
     vehicle = plan_parser.add_argument_group(
         'vehicle', 'plan for the vehicle that flies it (implied by --mission or any option '
