@@ -35,9 +35,8 @@ from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.files import MISSION_FORMATS
 from uav_comm_planner.vehicle.mavlink.items import MISSION_ENDS
 
-MISSION_FIRMWARES = tuple(FIRMWARES)
 #: Node settings that take one of a few names, and the names.
-CHOICES = {'mission_end': MISSION_ENDS, 'mission_firmware': MISSION_FIRMWARES}
+CHOICES = {'mission_end': MISSION_ENDS, 'mission_firmware': tuple(FIRMWARES)}
 
 ParameterValue = typing.Union[bool, int, float, str, list]
 
@@ -394,6 +393,6 @@ def flat_pairs(points: Sequence[Sequence[float]]) -> list[float]:
     return to_parameter_value(points, 'pairs')
 
 
-__all__ = ['MISSION_ENDS', 'MISSION_FIRMWARES', 'NodeSettings', 'OUTPUT_ONLY', 'ParameterSpec',
-           'PlannerConfig', 'config_from_parameters', 'flat_pairs', 'from_parameter_value',
-           'parameter_specs', 'to_parameter_value']
+__all__ = ['NodeSettings', 'OUTPUT_ONLY', 'ParameterSpec', 'PlannerConfig',
+           'config_from_parameters', 'flat_pairs', 'from_parameter_value', 'parameter_specs',
+           'to_parameter_value']
