@@ -24,9 +24,10 @@ from uav_comm_planner.ros.messages import pose_array
 from uav_comm_planner.ros.node import GROUND_NODES_QOS, PlannerNode, TOPIC_GROUND_NODES
 from uav_comm_planner.ros.vehicle import TOPIC_VEHICLE_POSE
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
-from uav_comm_planner.vehicle.sitl import (open_link, request_position_stream, set_mode,
-                                           set_parameter, start_sitl, take_off,
-                                           why_not_runnable)
+from uav_comm_planner.vehicle.mavlink.items import Q0_SEQ
+from uav_comm_planner.vehicle.mavlink.telemetry import request_telemetry
+from uav_comm_planner.vehicle.sitl import (open_link, set_mode, set_parameter, start_sitl,
+                                           take_off, why_not_runnable)
 
 HOME = Home(-35.363262, 149.165237, 584.0)
 SPEED_MPS = 10.0
@@ -104,7 +105,7 @@ def test_the_node_flies_a_changing_mission_within_budget(ros_context, tmp_path):
         wait(lambda: node.vehicle.uploads_verified >= 1, 'first mission on the vehicle')
         take_off(link, 100.0)
         set_mode(link, 'AUTO')
-        request_position_stream(link, 10.0)
+        request_telemetry(link, 10.0)
         recorder = Recorder(link)
         changed = False
         while True:
@@ -124,7 +125,7 @@ def test_the_node_flies_a_changing_mission_within_budget(ros_context, tmp_path):
         assert node.vehicle.uploads_verified >= 2
         assert node.stats.error_count == 0, node.stats.last_error
         # The replan was flown from its q0 item on: the vehicle never went back to the takeoff.
-        assert node.vehicle.mission_item is not None and node.vehicle.mission_item > 2
+        assert node.vehicle.mission_item is not None and node.vehicle.mission_item > Q0_SEQ
         assert vehicle_poses, 'no vehicle_pose published'
         last = vehicle_poses[-1].pose.position
         assert abs(last.z - 100.0) < 5.0

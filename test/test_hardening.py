@@ -21,10 +21,12 @@ from uav_comm_planner.core.model import leg_lengths, snr_per_watt, spectral_effi
 from uav_comm_planner.core.power import waterfilling_power
 from uav_comm_planner.files import NotARegularFileError, PARTIAL_MARK, write_text_atomic
 from uav_comm_planner.tools import cli
-from uav_comm_planner.vehicle.flyable import MAX_HOLD_S, schedule_flight
+from uav_comm_planner.vehicle.firmware import FIRMWARES
+from uav_comm_planner.vehicle.flyable import schedule_flight
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mission import build_mission_items, export_mission, NAV_WAYPOINT
+from uav_comm_planner.vehicle.mavlink.files import export_mission
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT
 
 SMALL = dict(num_slots=12, horizon_s=30.0)
 
@@ -296,11 +298,11 @@ def test_a_hold_beyond_ardupilots_uint16_is_split_into_repeated_waypoints(tmp_pa
                         horizon_s=200_000.0, max_speed_mps=1.0)
     result = plan(scenario, SolverSettings(compute_baselines=False))
     total_hold = sum(stop.hold_s for stop in schedule_flight(result, VehicleLimits()).stops)
-    assert total_hold > 3 * MAX_HOLD_S['ardupilot']
+    assert total_hold > 3 * FIRMWARES['ardupilot'].max_hold_s
     home = Home(47.0, 8.0, 400.0)
     items = build_mission_items(result, home)
     holds = [item.params[0] for item in items[1:] if item.command == NAV_WAYPOINT]
-    assert max(holds) <= MAX_HOLD_S['ardupilot'] and all(h == int(h) for h in holds)
+    assert max(holds) <= FIRMWARES['ardupilot'].max_hold_s and all(h == int(h) for h in holds)
     assert sum(holds) == total_hold
     path = export_mission(result, tmp_path / 'long.waypoints', home)
     rows = [line.split('\t') for line in path.read_text().splitlines()[1:]]
@@ -311,7 +313,7 @@ def test_a_hold_beyond_ardupilots_uint16_is_split_into_repeated_waypoints(tmp_pa
 
 def test_far_positions_map_to_valid_coordinates_and_non_finite_rows_are_refused(
         tmp_path, monkeypatch):
-    from uav_comm_planner.vehicle import mission
+    from uav_comm_planner.vehicle.mavlink import items as mission_items
     scenario = Scenario(ground_nodes_m=((0.0, 9.0e6),), start_m=(0.0, 9.0e6),
                         goal_m=(0.0, 9.0e6), max_speed_mps=10.0, **SMALL)
     result = plan(scenario, SolverSettings(compute_baselines=False))
@@ -321,7 +323,7 @@ def test_far_positions_map_to_valid_coordinates_and_non_finite_rows_are_refused(
     def broken(east, north, up, home):
         return np.full(len(east), np.nan), np.full(len(east), np.nan), np.zeros(len(east))
 
-    monkeypatch.setattr(mission, 'enu_to_geodetic', broken)
+    monkeypatch.setattr(mission_items, 'enu_to_geodetic', broken)
     with pytest.raises(MissionExportError, match='non-finite value'):
         export_mission(result, tmp_path / 'm.waypoints', Home(47.0, 8.0, 400.0))
     assert list(tmp_path.iterdir()) == []

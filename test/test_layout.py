@@ -9,6 +9,9 @@
 | tools/    | core, vehicle, mission, scipy, matplotlib, dask, pyarrow; never rclpy   |
 | top level | errors and files import nothing of the package; ``__init__`` re-exports |
 |           | the public API from core                                                |
+
+Inside vehicle/, ``mavlink/`` builds on the other modules; of those, only ``sitl`` (which flies
+missions over the link) imports it.
 """
 
 from __future__ import annotations
@@ -61,7 +64,8 @@ def imported_modules(path: Path) -> set[str]:
 
 
 def modules_of(folder: str) -> list[Path]:
-    """Every module of ``folder``, those of its subpackages (``tools/study/``) too."""
+    """Every module of ``folder``, those of its subpackages (``tools/study/``,
+    ``vehicle/mavlink/``) too."""
     return sorted((ROOT / folder).rglob('*.py'))
 
 
@@ -118,7 +122,8 @@ def test_the_public_api_comes_from_core_and_errors():
 
 
 def module_name(path: Path) -> str:
-    """``uav_comm_planner.tools.study`` for ``uav_comm_planner/tools/study/__init__.py``."""
+    """``uav_comm_planner.vehicle.mavlink.items`` for that file; a package by its folder
+    (``uav_comm_planner.tools.study`` for ``uav_comm_planner/tools/study/__init__.py``)."""
     parts = path.relative_to(ROOT.parent).with_suffix('').parts
     return '.'.join(parts[:-1] if parts[-1] == '__init__' else parts)
 
@@ -164,6 +169,20 @@ def test_imports_go_one_way():
     graph = {name: package_imports(path, set(paths)) for name, path in paths.items()}
     assert cycles(graph) == []
     assert cycles({'a': {'b'}, 'b': {'c'}, 'c': {'a'}}) == [['a', 'b', 'c', 'a']]
+
+
+def test_mavlink_builds_on_the_other_vehicle_modules_never_the_reverse():
+    """limits, timing, flyable, evaluation, geodesy and firmware never import vehicle/mavlink/
+    (which imports them): the mission, its files and the link sit above the vehicle's model."""
+    modules = {module_name(path) for path in ROOT.rglob('*.py')}
+    beside = [path for path in (ROOT / 'vehicle').glob('*.py')
+              if path.stem not in ('__init__', 'sitl')]
+    mavlink = f'{PACKAGE}.vehicle.mavlink'
+    offenders = [f'{path.relative_to(ROOT)} imports {name}' for path in beside
+                 for name in package_imports(path, modules)
+                 if name == mavlink or name.startswith(f'{mavlink}.')]
+    assert offenders == []
+    assert f'{mavlink}.items' in modules and len(beside) >= 6
 
 
 def test_the_rule_reader_sees_a_violation(tmp_path):

@@ -17,13 +17,15 @@ import pytest
 from uav_comm_planner import InvalidScenarioError, MissionExportError, paper_scenario, plan
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario
-from uav_comm_planner.vehicle import mission
+from uav_comm_planner.errors import MissionFileError, VehicleLinkError
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline
 from uav_comm_planner.vehicle.flyable import (MERGE_RADIUS_M, MIN_SPEED_MPS, PATH_TOLERANCE_M,
                                               plan_for_vehicle, schedule_flight)
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, geodetic_to_enu, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mission import build_mission_items, export_mission
+from uav_comm_planner.vehicle.mavlink import files
+from uav_comm_planner.vehicle.mavlink.files import export_mission, read_mission_file
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items
 from uav_comm_planner.vehicle.timing import ramp_time
 
 WAYPOINT, TAKEOFF, LAND, RTL, CHANGE_SPEED = 16, 22, 21, 20, 178
@@ -308,7 +310,7 @@ def test_a_failed_write_keeps_the_old_file_byte_for_byte(case_one, home, tmp_pat
     if breaks == 'os.replace':
         monkeypatch.setattr(os, 'replace', replacement)
     else:
-        monkeypatch.setattr(mission, breaks, replacement)
+        monkeypatch.setattr(files, breaks, replacement)
     with pytest.raises(MissionExportError, match='previous file, if any, is unchanged'):
         export_mission(case_one, target, home, end='rtl')
     assert target.read_bytes() == before
@@ -332,6 +334,33 @@ def test_bad_options_are_refused(case_one, home, tmp_path, options, message):
     with pytest.raises(MissionExportError, match=message):
         export_mission(case_one, tmp_path / 'm.waypoints', home, **options)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize('name, text, message', [
+    ('m.txt', 'QGC WPL 110\n', 'a mission is a .waypoints'),
+    ('m.waypoints', 'QGC WPL 999\n', 'not a QGC WPL 110 mission'),
+    ('m.waypoints', 'QGC WPL 110\n', 'holds no mission item'),
+    ('m.plan', '{"mission": {}}', 'not a QGroundControl .plan mission'),
+    ('m.plan', '{"mission": {"plannedHomePosition": [1, 2, 3], "items": [{"type": "Survey"}]}}',
+     'only simple items'),
+    ('missing.plan', None, 'no such mission file'),
+])
+def test_a_mission_file_that_cannot_be_read_is_a_file_error(tmp_path, name, text, message):
+    path = tmp_path / name
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(MissionFileError, match=message) as refused:
+        read_mission_file(path)
+    assert not isinstance(refused.value, VehicleLinkError)
+
+
+def test_a_written_mission_reads_back_as_its_items(case_one, home, tmp_path):
+    """The .plan file keeps every row; the .waypoints file rounds coordinates to 6 decimals."""
+    items = build_mission_items(case_one, home)
+    assert read_mission_file(written(case_one, tmp_path, home, name='m.plan')) == items
+    rows = read_mission_file(written(case_one, tmp_path, home))
+    assert [(row.command, row.frame, row.params) for row in rows] == [
+        (item.command, item.frame, item.params) for item in items]
 
 
 # The geodetic anchor.

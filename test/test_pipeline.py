@@ -12,7 +12,7 @@ from uav_comm_planner.mission.request import MissionRequest, vehicle_limits
 from uav_comm_planner.ros.params import config_from_parameters
 from uav_comm_planner.tools import cli
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mission import build_mission_items
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items
 
 #: Case I at a multirotor's 10 m/s, the node's default scenario.
 MULTIROTOR = {'max_speed_mps': 10.0, 'horizon_s': 400.0, 'num_slots': 100}

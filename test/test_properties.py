@@ -20,9 +20,10 @@ from uav_comm_planner.core.model import leg_lengths, snr_scale
 from uav_comm_planner.files import PARTIAL_MARK
 from uav_comm_planner.tools import cli
 from uav_comm_planner.tools.serialize import result_to_dict
-from uav_comm_planner.vehicle.flyable import MAX_HOLD_S
+from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.geodesy import Home
-from uav_comm_planner.vehicle.mission import build_mission_items, export_mission, NAV_WAYPOINT
+from uav_comm_planner.vehicle.mavlink.files import export_mission
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT
 
 FAST = settings(max_examples=40, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
@@ -131,7 +132,7 @@ def test_mission_export_writes_rows_inside_their_ranges_or_refuses(
         assert abs(item.x) <= 90.0 and abs(item.y) <= 180.0
         if firmware == 'ardupilot' and item.command == NAV_WAYPOINT:
             hold = item.params[0]
-            assert hold <= MAX_HOLD_S['ardupilot'] and hold == int(hold)
+            assert hold <= FIRMWARES['ardupilot'].max_hold_s and hold == int(hold)
 
 
 number_text = st.one_of(

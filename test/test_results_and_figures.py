@@ -16,7 +16,8 @@ from uav_comm_planner.tools import cli, plots
 from uav_comm_planner.tools.serialize import (package_version, scenario_to_dict,
                                               settings_from_dict, settings_to_dict)
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
-from uav_comm_planner.vehicle.mission import DEGREE_DECIMALS, export_mission
+from uav_comm_planner.vehicle.mavlink.files import export_mission
+from uav_comm_planner.vehicle.mavlink.items import DEGREE_DECIMALS
 
 
 def run(capsys, *argv):

@@ -21,6 +21,10 @@ class MissionExportError(PlannerError):
     """A mission file could not be written; the previous file, if any, is left untouched."""
 
 
+class MissionFileError(PlannerError):
+    """A mission file could not be read: missing, malformed, or holding items not uploaded."""
+
+
 class VehicleLinkError(PlannerError):
     """The vehicle's MAVLink link failed or the vehicle refused what was sent; says which."""
 

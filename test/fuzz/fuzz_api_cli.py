@@ -33,7 +33,8 @@ from uav_comm_planner.files import PARTIAL_MARK
 from uav_comm_planner.tools import cli
 from uav_comm_planner.tools.serialize import result_to_dict
 from uav_comm_planner.vehicle.geodesy import Home
-from uav_comm_planner.vehicle.mission import build_mission_items, export_mission
+from uav_comm_planner.vehicle.mavlink.files import export_mission
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items
 
 FIELDS = ('altitude_m', 'max_speed_mps', 'horizon_s', 'num_slots', 'start_m', 'goal_m',
           'bandwidth_hz', 'noise_psd_dbm_per_hz', 'reference_gain', 'power_budget_w')

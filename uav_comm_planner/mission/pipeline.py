@@ -26,7 +26,8 @@ from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
-from uav_comm_planner.vehicle.mission import build_mission_items, MissionItem, write_mission_file
+from uav_comm_planner.vehicle.mavlink.files import write_mission_file
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, MissionItem
 
 #: ``planner(scenario, settings, **options) -> PlanResult``, with the keywords of the core's
 #: plan() (``should_stop``, ``offsets``, ``extra_starts``).

@@ -28,14 +28,15 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from uav_comm_planner.core.scenario import paper_scenario, Point, Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.mission.request import vehicle_limits
+from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.flyable import check_speed
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mission import FIRMWARE_TYPES, MISSION_ENDS, MISSION_FORMATS
+from uav_comm_planner.vehicle.mavlink.files import MISSION_FORMATS
+from uav_comm_planner.vehicle.mavlink.items import MISSION_ENDS
 
-MISSION_FIRMWARES = tuple(FIRMWARE_TYPES)
 #: Node settings that take one of a few names, and the names.
-CHOICES = {'mission_end': MISSION_ENDS, 'mission_firmware': MISSION_FIRMWARES}
+CHOICES = {'mission_end': MISSION_ENDS, 'mission_firmware': tuple(FIRMWARES)}
 
 ParameterValue = typing.Union[bool, int, float, str, list]
 
@@ -404,6 +405,6 @@ def flat_pairs(points: Sequence[Sequence[float]]) -> list[float]:
     return to_parameter_value(points, 'pairs')
 
 
-__all__ = ['MISSION_ENDS', 'MISSION_FIRMWARES', 'NodeSettings', 'OUTPUT_ONLY', 'ParameterSpec',
-           'PlannerConfig', 'config_from_parameters', 'flat_pairs', 'from_parameter_value',
-           'parameter_specs', 'to_parameter_value']
+__all__ = ['NodeSettings', 'OUTPUT_ONLY', 'ParameterSpec', 'PlannerConfig',
+           'config_from_parameters', 'flat_pairs', 'from_parameter_value', 'parameter_specs',
+           'to_parameter_value']

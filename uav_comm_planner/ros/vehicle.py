@@ -2,7 +2,7 @@
 pose on ``vehicle_pose``, and every plan uploaded.
 
 A :class:`VehicleAdapter` takes the node (as tf2_ros's TransformListener does): with
-``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.telemetry.VehicleBridge`,
+``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge`,
 whose thread hands positions, mission progress and link events to the executor through an
 :class:`~uav_comm_planner.ros.handoff.ExecutorHandoff`; positions go on to ``on_position``.
 """
@@ -18,12 +18,12 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from uav_comm_planner.ros.handoff import ExecutorHandoff
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.ros.planning import PlanOutcome
-from uav_comm_planner.vehicle.telemetry import (Event, LinkEvent, MissionProgressReport,
-                                                Position, VehicleBridge)
+from uav_comm_planner.vehicle.mavlink.items import Q0_SEQ
+from uav_comm_planner.vehicle.mavlink.telemetry import (Event, LinkEvent,
+                                                        MissionProgressReport, Position,
+                                                        VehicleBridge)
 
 TOPIC_VEHICLE_POSE = 'vehicle_pose'
-#: The mission item at q0 (0 home, 1 takeoff): a plan made in flight is flown from it.
-Q0_ITEM = 2
 #: Link events kept for the executor at most (the oldest go first).
 EVENTS_KEPT = 10_000
 #: Reliable, so that subscribers of either reliability hear the vehicle's pose.
@@ -86,7 +86,7 @@ class VehicleAdapter:
             return
         in_flight = plan.request.in_flight is not None
         self._pending_tag = outcome.request.start_ns
-        self._bridge.upload(plan.items, current_seq=Q0_ITEM if in_flight else None,
+        self._bridge.upload(plan.items, current_seq=Q0_SEQ if in_flight else None,
                             tag=outcome.request.start_ns)
 
     def stop(self) -> None:
@@ -129,4 +129,4 @@ class VehicleAdapter:
         self._pose.publish(message)
 
 
-__all__ = ['Q0_ITEM', 'TOPIC_VEHICLE_POSE', 'VEHICLE_POSE_QOS', 'VehicleAdapter']
+__all__ = ['TOPIC_VEHICLE_POSE', 'VEHICLE_POSE_QOS', 'VehicleAdapter']

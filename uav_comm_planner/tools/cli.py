@@ -26,7 +26,9 @@ from uav_comm_planner.tools.serialize import (package_version, result_to_dict, r
                                               scenario_from_dict, scenario_to_dict,
                                               settings_from_dict)
 from uav_comm_planner.tools.study import command as montecarlo
+from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
+from uav_comm_planner.vehicle.mavlink.items import MISSION_ENDS
 
 #: The budgets of the letter's Fig. 2, watts.
 SWEEP_BUDGETS_W = (0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
@@ -254,10 +256,8 @@ def json_text(data: object) -> str:
 def _command_plan(args: argparse.Namespace) -> int:
     _check_outputs(args.json, args.mission, figure=args.figure)
     if args.mission is not None:
-        from uav_comm_planner.vehicle.mission import MISSION_FORMATS
-        if args.mission.suffix.lower() not in MISSION_FORMATS:
-            raise PlannerError(f'unknown mission format for {str(args.mission)!r}: use a '
-                               f'.waypoints or .plan file')
+        from uav_comm_planner.vehicle.mavlink.files import check_mission_path
+        check_mission_path(args.mission)
     from uav_comm_planner.mission.pipeline import plan_mission
     from uav_comm_planner.mission.request import MissionRequest
     vehicle_aware = _vehicle_asked(args)
@@ -339,8 +339,8 @@ def _command_bench(args: argparse.Namespace) -> int:
 
 
 def _command_upload(args: argparse.Namespace) -> int:
-    from uav_comm_planner.vehicle.link import LinkSettings
-    from uav_comm_planner.vehicle.upload import upload_file
+    from uav_comm_planner.vehicle.mavlink.link import LinkSettings
+    from uav_comm_planner.vehicle.mavlink.upload import upload_file
 
     count = upload_file(args.mission, args.connect,
                         settings=LinkSettings(timeout_s=args.timeout, retries=args.retries),
@@ -369,9 +369,9 @@ def build_parser() -> argparse.ArgumentParser:
                                   'metres above sea level (default %s, the PX4 and ArduPilot '
                                   "simulators' launch point in Zurich; give your own field's)"
                                   % ','.join(f'{v:.10g}' for v in DEFAULT_HOME))
-    plan_parser.add_argument('--mission-end', choices=['land', 'rtl'], default='land',
+    plan_parser.add_argument('--mission-end', choices=MISSION_ENDS, default='land',
                              help='land at the goal or return to launch (default land)')
-    plan_parser.add_argument('--firmware', choices=['ardupilot', 'px4'], default='ardupilot',
+    plan_parser.add_argument('--firmware', choices=list(FIRMWARES), default='ardupilot',
                              help='autopilot the mission is for (default ardupilot)')
     vehicle = plan_parser.add_argument_group(
         'vehicle', 'plan for the vehicle that flies it (implied by --mission or any option '

@@ -1,4 +1,5 @@
-"""The vehicle side: the WGS84 anchor of the planning frame and MAVLink mission files.
+"""The vehicle side: the vehicle's limits and timing, plans it flies, the WGS84 anchor of the
+planning frame, and MAVLink (missions, their files, the link) in :mod:`.mavlink`.
 
 Imports the core, pymavlink and pymap3d; never ROS.
 """

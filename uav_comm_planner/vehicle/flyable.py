@@ -36,8 +36,9 @@ import numpy as np
 from uav_comm_planner.core.model import average_rates, flown_path
 from uav_comm_planner.core.optimizer import optimal_power, plan, PlanResult, Step
 from uav_comm_planner.core.scenario import MIN_STEP_M, Scenario, SolverSettings
-from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+from uav_comm_planner.errors import InfeasibleHorizonError
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline
+from uav_comm_planner.vehicle.firmware import firmware_named, FIRMWARES
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.timing import (Dwell, Flight, Leg, LEG_LATENCY_S, Profile,
                                              ramp_distance, ramp_time, speed_for_time)
@@ -50,10 +51,6 @@ PATH_TOLERANCE_M = 1.0
 MIN_SPEED_MPS = 0.5
 #: A hover stop holds at least this long: with no hold the autopilot would fly through it.
 MIN_STOP_HOLD_S = 1.0
-#: Hold resolution per firmware: ArduPilot keeps whole seconds (a uint16), PX4 a float.
-HOLD_RESOLUTION_S = {'ardupilot': 1.0, 'px4': 0.01}
-#: The largest hold one ArduPilot waypoint stores; longer holds repeat the waypoint.
-MAX_HOLD_S = {'ardupilot': 65535.0, 'px4': 1e9}
 #: Sharper turns are stops: ArduCopter cuts a fly-through corner by up to WPNAV_RADIUS (2 m),
 #: and by less below about 20 degrees (at 10 m/s and its default acceleration and jerk).
 MAX_TURN_DEG = 20.0
@@ -210,7 +207,7 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
                       2.0 * ramp_distance(cruise, limits),
                       max(scenario.slot_s, ramp_time(cruise, limits) + LEG_LATENCY_S)
                       if stop_at_hovers else math.inf)
-    resolution = HOLD_RESOLUTION_S[firmware]
+    resolution = FIRMWARES[firmware].hold_resolution_s
 
     positions = [_stop_position(points, first, last) for first, last in runs]
     shapes = []                      # per leg: vertices, speed, profile
@@ -333,9 +330,7 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
     speed exceeds the vehicle's, or the wind the vehicle's airspeed, and when not even the
     straight line fits the horizon (saying the horizon it needs).
     """
-    if firmware not in HOLD_RESOLUTION_S:
-        raise InvalidScenarioError(f'unknown firmware {firmware!r}: choose one of '
-                                   f'{", ".join(HOLD_RESOLUTION_S)}')
+    firmware_named(firmware)                 # an unknown name is refused before any solve
     check_speed(scenario, limits)
     scenario = in_wind(scenario, limits)
     first_error = None

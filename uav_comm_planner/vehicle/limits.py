@@ -16,17 +16,7 @@ import os
 from pathlib import Path
 
 from uav_comm_planner.errors import InvalidScenarioError
-
-#: Per firmware: parameter name -> (VehicleLimits field, factor to SI units).
-FIRMWARE_PARAMETERS = {
-    'ardupilot': {'WPNAV_SPEED': ('max_speed_mps', 0.01),
-                  'WPNAV_ACCEL': ('max_accel_mpss', 0.01),
-                  'WPNAV_JERK': ('max_jerk_mpsss', 1.0),
-                  'ATC_INPUT_TC': ('jerk_time_s', 2.0)},
-    'px4': {'MPC_XY_CRUISE': ('max_speed_mps', 1.0),
-            'MPC_ACC_HOR': ('max_accel_mpss', 1.0),
-            'MPC_JERK_AUTO': ('max_jerk_mpsss', 1.0)},
-}
+from uav_comm_planner.vehicle.firmware import firmware_named
 
 
 @dataclass(frozen=True)
@@ -102,10 +92,7 @@ def read_parameter_file(path: str | os.PathLike, *, firmware: str = 'ardupilot',
     :class:`~uav_comm_planner.errors.InvalidScenarioError` for an unreadable file, a malformed
     value of a parameter it uses, or a file that sets none of them.
     """
-    if firmware not in FIRMWARE_PARAMETERS:
-        raise InvalidScenarioError(f'unknown firmware {firmware!r}: choose one of '
-                                   f'{", ".join(FIRMWARE_PARAMETERS)}')
-    wanted = FIRMWARE_PARAMETERS[firmware]
+    wanted = firmware_named(firmware).parameters
     try:
         text = Path(path).read_text(encoding='utf-8', errors='strict')
     except (OSError, UnicodeDecodeError) as exc:

@@ -25,9 +25,10 @@ from pymavlink import mavutil
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.evaluation import evaluate_flight, FlightReport
 from uav_comm_planner.vehicle.flyable import VehiclePlan
-from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
-from uav_comm_planner.vehicle.link import connect, upload_and_verify
-from uav_comm_planner.vehicle.mission import build_mission_items, NAV_WAYPOINT
+from uav_comm_planner.vehicle.geodesy import Home
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT, Q0_SEQ
+from uav_comm_planner.vehicle.mavlink.link import connect, upload_and_verify
+from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu, request_telemetry
 
 MAV = mavutil.mavlink
 ENVIRONMENT_VARIABLE = 'UAV_COMM_PLANNER_SITL'
@@ -167,13 +168,6 @@ def set_parameter(link, name: str, value: float, timeout_s: float = 10.0) -> Non
     raise VehicleLinkError(f'{name} was not set to {value}')
 
 
-def request_position_stream(link, rate_hz: float = 10.0) -> None:
-    for message_id in (MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, MAV.MAVLINK_MSG_ID_MISSION_CURRENT):
-        link.mav.command_long_send(link.target_system, link.target_component,
-                                   MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id,
-                                   1e6 / rate_hz, 0, 0, 0, 0, 0)
-
-
 def _command(link, command: int, *params: float, timeout_s: float = 3.0) -> int:
     padded = list(params) + [0.0] * (7 - len(params))
     link.mav.command_long_send(link.target_system, link.target_component, command, 0, *padded)
@@ -222,9 +216,9 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
 
     ``timeout_s`` is autopilot time after the switch.
     """
-    request_position_stream(link)
+    request_telemetry(link)
     set_mode(link, 'AUTO')
-    times, latitudes, longitudes, altitudes = [], [], [], []
+    times, latitudes_e7, longitudes_e7, altitudes_mm = [], [], [], []
     reached: dict[int, float] = {}
     clock_s = None
     started_s = None
@@ -245,13 +239,11 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
         if clock_s - started_s > timeout_s:
             raise VehicleLinkError(f'item {last_item} not reached {timeout_s:g} s after AUTO')
         times.append(clock_s)
-        latitudes.append(message.lat / 1e7)
-        longitudes.append(message.lon / 1e7)
-        altitudes.append(message.relative_alt / 1000.0)
-    east, north, _ = geodetic_to_enu(np.array(latitudes), np.array(longitudes),
-                                     np.full(len(latitudes), home.altitude_m), home)
-    return FlightRecord(np.array(times), np.column_stack([east, north]), np.array(altitudes),
-                        reached)
+        latitudes_e7.append(message.lat)
+        longitudes_e7.append(message.lon)
+        altitudes_mm.append(message.relative_alt)
+    east, north, up = global_position_enu(latitudes_e7, longitudes_e7, altitudes_mm, home)
+    return FlightRecord(np.array(times), np.column_stack([east, north]), up, reached)
 
 
 #: ArduCopter refuses a mission right after connecting: the upload is tried this many times.
@@ -304,7 +296,7 @@ def fly_plan(vehicle_plan: VehiclePlan, folder: Path, *, home: Home,
         link.close()
     finally:
         vehicle.stop()
-    start_s = record.reached[2] - items[2].params[0]
+    start_s = record.reached[Q0_SEQ] - items[Q0_SEQ].params[0]
     report = evaluate_flight(vehicle_plan.flown, vehicle_plan.schedule.flight.track(),
                              record.times_s, record.positions_m, start_s)
     return SitlFlight(report, record.reached[last_waypoint] - start_s, record)

@@ -8,37 +8,27 @@ gives while it is still busy (ArduCopter answers MAV_MISSION_NO_SPACE to a MISSI
 right after connecting) restarts the upload after a pause. Every other MAV_MISSION_RESULT is a
 :class:`~uav_comm_planner.errors.VehicleLinkError` whose message names it.
 
-After an upload the mission is read back and compared item by item with what was sent, in the
-fields the autopilot stores: row 0 (home, which the autopilot replaces with its own) by command
-only; DO commands without their frame (ArduPilot reports them in frame 0); coordinates to
-1e-7 degree (MISSION_ITEM_INT's resolution), the rest to float32's.
+After an upload the mission is read back and compared item by item with what was sent
+(:func:`~uav_comm_planner.vehicle.mavlink.items.mismatches`, in the fields the autopilot
+stores). Rows become messages and messages rows in :mod:`.items`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-import math
 import time
 from typing import Sequence
 
 from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError
-from uav_comm_planner.vehicle.mission import MissionItem
+from uav_comm_planner.vehicle.mavlink.items import (from_message, item_int_message,
+                                                    mismatches, MISSION_TYPE, MissionItem)
 
 MAV = mavutil.mavlink
-MISSION_TYPE = MAV.MAV_MISSION_TYPE_MISSION
 #: Refusals an autopilot gives while busy (parameters or a previous transfer still loading).
 TRANSIENT_RESULTS = (MAV.MAV_MISSION_NO_SPACE, MAV.MAV_MISSION_DENIED,
                      MAV.MAV_MISSION_OPERATION_CANCELLED)
-#: Commands whose frame the autopilot does not keep.
-FRAMELESS_COMMANDS_BELOW = MAV.MAV_CMD_NAV_LAST
-DEGREES_E7 = 1e7
-#: Parameters stored in float32; a parameter that differs by more than this is a mismatch.
-PARAM_RELATIVE_TOLERANCE = 1e-6
-#: Parameters (0-based) an autopilot does not store for a command: ArduCopter keeps no yaw
-#: for NAV_LAND and reports its param4 as 1.
-UNSTORED_PARAMS = {MAV.MAV_CMD_NAV_LAND: (3,)}
 
 
 @dataclass(frozen=True)
@@ -92,14 +82,6 @@ def _receive(link, types: Sequence[str], timeout_s: float):
             continue
         return message
     return None
-
-
-def _item_message(link, item: MissionItem, seq: int):
-    return link.mav.mission_item_int_encode(
-        link.target_system, link.target_component, seq, item.frame, item.command,
-        int(item.current), int(item.autocontinue), *item.params,
-        int(round(item.x * DEGREES_E7)), int(round(item.y * DEGREES_E7)), float(item.z),
-        MISSION_TYPE)
 
 
 def _send(link, message) -> None:
@@ -157,7 +139,8 @@ def _upload_once(link, items: Sequence[MissionItem],
         if not 0 <= requested < len(items):
             raise VehicleLinkError(f'the vehicle asked for item {requested} of a '
                                    f'{len(items)}-item mission')
-        last_sent = _item_message(link, items[requested], requested)
+        last_sent = item_int_message(items[requested], requested, link.mav,
+                                     link.target_system, link.target_component)
         _send(link, last_sent)
 
 
@@ -172,11 +155,7 @@ def download_mission(link, settings: LinkSettings = LinkSettings()) -> list[Miss
                                                       link.target_component, seq, MISSION_TYPE)
         message = _ask(link, request, ('MISSION_ITEM_INT',), settings, f'item {seq}',
                        seq=seq)
-        items.append(MissionItem(
-            command=message.command, frame=message.frame,
-            params=(message.param1, message.param2, message.param3, message.param4),
-            x=message.x / DEGREES_E7, y=message.y / DEGREES_E7, z=message.z,
-            current=bool(message.current), autocontinue=bool(message.autocontinue)))
+        items.append(from_message(message))
     _send(link, link.mav.mission_ack_encode(link.target_system, link.target_component,
                                             MAV.MAV_MISSION_ACCEPTED, MISSION_TYPE))
     return items
@@ -198,48 +177,6 @@ def _ask(link, request, types: Sequence[str], settings: LinkSettings, what: str,
                 return message
     raise VehicleLinkError(f'no answer for {what} after {settings.retries} retries of '
                            f'{settings.timeout_s:g} s')
-
-
-def mismatches(sent: Sequence[MissionItem], stored: Sequence[MissionItem]) -> list[str]:
-    """What differs between a mission and its read-back, one line per item; empty if same."""
-    if len(sent) != len(stored):
-        return [f'the vehicle holds {len(stored)} items, the mission has {len(sent)}']
-    lines = []
-    for seq, (a, b) in enumerate(zip(sent, stored)):
-        if a.command != b.command:
-            lines.append(f'item {seq}: command {b.command}, expected {a.command}')
-        elif seq > 0 and not _same_item(a, b):
-            lines.append(f'item {seq}: holds {_describe(b)}, expected {_describe(a)}')
-    return lines
-
-
-def _same_item(a: MissionItem, b: MissionItem) -> bool:
-    if a.command >= FRAMELESS_COMMANDS_BELOW or a.frame == MAV.MAV_FRAME_MISSION:
-        positional = False
-    else:
-        positional = True
-        if a.frame != b.frame:
-            return False
-    unstored = UNSTORED_PARAMS.get(a.command, ())
-    close = all(_same_param(p, q) for index, (p, q) in enumerate(zip(a.params, b.params))
-                if index not in unstored)
-    if not positional:
-        return close
-    return (close and round(a.x * DEGREES_E7) == round(b.x * DEGREES_E7)
-            and round(a.y * DEGREES_E7) == round(b.y * DEGREES_E7)
-            and math.isclose(a.z, b.z, rel_tol=PARAM_RELATIVE_TOLERANCE, abs_tol=1e-3))
-
-
-def _same_param(sent: float, stored: float) -> bool:
-    if math.isnan(sent):
-        return True  # NaN asks the autopilot for its own default; it stores what it chose
-    return math.isclose(sent, stored, rel_tol=PARAM_RELATIVE_TOLERANCE, abs_tol=1e-6)
-
-
-def _describe(item: MissionItem) -> str:
-    params = ', '.join(f'{p:g}' for p in item.params)
-    return f'command {item.command} frame {item.frame} ({params}) at {item.x:.7f}, ' \
-           f'{item.y:.7f}, {item.z:g}'
 
 
 def upload_and_verify(link, items: Sequence[MissionItem],

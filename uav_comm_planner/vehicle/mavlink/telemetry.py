@@ -8,7 +8,7 @@ each position into the planning frame through ``home`` and hands the caller
 ``on_event``, which must be quick and thread-safe (a queue push). Uploads are queued with
 :meth:`VehicleBridge.upload`; the newest waiting mission replaces an older one that has not
 started. An upload is verified by reading the mission back
-(:func:`~uav_comm_planner.vehicle.link.upload_and_verify`) and, when asked, followed by
+(:func:`~uav_comm_planner.vehicle.mavlink.link.upload_and_verify`) and, when asked, followed by
 MISSION_SET_CURRENT so that a vehicle in flight goes on from that item instead of restarting.
 
 Times are the autopilot's (``time_boot_ms`` / 1000, seconds), never the wall clock.
@@ -21,12 +21,14 @@ import threading
 import time
 from typing import Callable, Sequence
 
+import numpy as np
+from numpy.typing import ArrayLike
 from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
-from uav_comm_planner.vehicle.link import connect, LinkSettings, upload_and_verify
-from uav_comm_planner.vehicle.mission import MissionItem
+from uav_comm_planner.vehicle.mavlink.items import DEGREES_E7, MissionItem
+from uav_comm_planner.vehicle.mavlink.link import connect, LinkSettings, upload_and_verify
 
 MAV = mavutil.mavlink
 #: Telemetry rate asked of the autopilot (per second of autopilot time).
@@ -76,12 +78,26 @@ class _Upload:
     tag: object
 
 
-def enu_of(message, home: Home) -> tuple[float, float, float]:
-    """A GLOBAL_POSITION_INT's position as east, north metres from ``home`` and metres above
-    home (relative altitude)."""
-    east, north, _ = geodetic_to_enu(message.lat / 1e7, message.lon / 1e7, home.altitude_m,
+def request_telemetry(link, rate_hz: float = TELEMETRY_RATE_HZ) -> None:
+    """Ask the autopilot for GLOBAL_POSITION_INT and MISSION_CURRENT at ``rate_hz`` (per second
+    of autopilot time)."""
+    for message_id in (MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                       MAV.MAVLINK_MSG_ID_MISSION_CURRENT):
+        link.mav.command_long_send(link.target_system, link.target_component,
+                                   MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id,
+                                   1e6 / rate_hz, 0, 0, 0, 0, 0)
+
+
+def global_position_enu(latitude_e7: ArrayLike, longitude_e7: ArrayLike,
+                        relative_alt_mm: ArrayLike,
+                        home: Home) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """GLOBAL_POSITION_INT positions (``lat``, ``lon`` in 1e-7 degree, ``relative_alt`` in mm;
+    one message's or arrays of many) as east, north metres from ``home`` and metres above
+    home."""
+    east, north, _ = geodetic_to_enu(np.asarray(latitude_e7) / DEGREES_E7,
+                                     np.asarray(longitude_e7) / DEGREES_E7, home.altitude_m,
                                      home)
-    return float(east), float(north), message.relative_alt / 1000.0
+    return east, north, np.asarray(relative_alt_mm) / 1000.0
 
 
 class VehicleBridge:
@@ -139,22 +155,15 @@ class VehicleBridge:
             finally:
                 link.close()
 
-    def _ask_streams(self, link) -> None:
-        for message_id in (MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
-                           MAV.MAVLINK_MSG_ID_MISSION_CURRENT):
-            link.mav.command_long_send(link.target_system, link.target_component,
-                                       MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id,
-                                       1e6 / self._rate_hz, 0, 0, 0, 0, 0)
-
     def _serve(self, link) -> None:
-        self._ask_streams(link)
+        request_telemetry(link, self._rate_hz)
         latest_time_s = 0.0
         while not self._stop.is_set():
             with self._lock:
                 job, self._waiting = self._waiting, None
             if job is not None:
                 self._upload(link, job)
-                self._ask_streams(link)
+                request_telemetry(link, self._rate_hz)
                 continue
             message = link.recv_match(type=['GLOBAL_POSITION_INT', 'MISSION_CURRENT'],
                                       blocking=True, timeout=0.05)
@@ -162,8 +171,9 @@ class VehicleBridge:
                 continue
             if message.get_type() == 'GLOBAL_POSITION_INT':
                 latest_time_s = message.time_boot_ms / 1000.0
-                east, north, up = enu_of(message, self.home)
-                self._on_event(Position(latest_time_s, east, north, up))
+                east, north, up = global_position_enu(message.lat, message.lon,
+                                                      message.relative_alt, self.home)
+                self._on_event(Position(latest_time_s, float(east), float(north), float(up)))
             else:
                 self._on_event(MissionProgressReport(latest_time_s, int(message.seq)))
 
@@ -196,5 +206,5 @@ def set_current(link, seq: int) -> None:
                            f'{SET_CURRENT_TRIES} tries of {SET_CURRENT_TIMEOUT_S:g} s')
 
 
-__all__ = ['LinkEvent', 'MissionProgressReport', 'Position', 'VehicleBridge', 'enu_of',
-           'set_current']
+__all__ = ['LinkEvent', 'MissionProgressReport', 'Position', 'VehicleBridge',
+           'global_position_enu', 'request_telemetry', 'set_current']

@@ -1,4 +1,4 @@
-"""MAVLink mission export: the planned flight as items an autopilot flies on the planned timing.
+"""A plan's MAVLink mission: the items an autopilot flies on the planned timing, as messages.
 
 The timing comes from :mod:`uav_comm_planner.vehicle.flyable`: stops where the plan hovers,
 legs of fly-through waypoints between them, one cruise speed per leg, holds shortened by what
@@ -14,26 +14,26 @@ the vehicle's starts and stops cost. The mission is
    (seconds; whole seconds for ArduPilot, which stores a uint16: a longer hold repeats the
    waypoint);
 4. NAV_LAND at qF, or NAV_RETURN_TO_LAUNCH.
+
+A row becomes the MISSION_ITEM_INT the link sends (or the MISSION_ITEM a .waypoints file
+holds) and a message read back becomes a row here, in one place; :func:`mismatches` tells a
+mission from what the vehicle stores of it.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-import json
 import math
-import os
-from pathlib import Path
-from typing import Callable, Sequence
+from typing import Sequence
 
 import numpy as np
-from pymavlink import mavutil, mavwp
+from pymavlink import mavutil
 
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.errors import InvalidScenarioError, MissionExportError
-from uav_comm_planner.files import write_with
-from uav_comm_planner.vehicle.flyable import (check_speed, MAX_HOLD_S, Schedule,
-                                              schedule_flight, VehiclePlan)
-from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, Home
+from uav_comm_planner.vehicle.firmware import Firmware, firmware_named
+from uav_comm_planner.vehicle.flyable import check_speed, Schedule, schedule_flight, VehiclePlan
+from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
 MAV = mavutil.mavlink
@@ -55,13 +55,21 @@ THROTTLE_UNCHANGED = -1.0
 DEGREE_DECIMALS = 8
 #: A hold split into more waypoints than this (about 49 days for ArduPilot) is refused.
 MAX_HOLD_PARTS = 64
+#: MISSION_ITEM_INT carries latitude and longitude in 1e-7 degree.
+DEGREES_E7 = 1e7
+MISSION_TYPE = MAV.MAV_MISSION_TYPE_MISSION
+#: Commands whose frame the autopilot does not keep.
+FRAMELESS_COMMANDS_BELOW = MAV.MAV_CMD_NAV_LAST
+#: Parameters stored in float32; a parameter that differs by more than this is a mismatch.
+PARAM_RELATIVE_TOLERANCE = 1e-6
+#: Parameters (0-based) an autopilot does not store for a command: ArduCopter keeps no yaw
+#: for NAV_LAND and reports its param4 as 1.
+UNSTORED_PARAMS = {MAV.MAV_CMD_NAV_LAND: (3,)}
 
-FIRMWARE_TYPES = {'ardupilot': MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 'px4': MAV.MAV_AUTOPILOT_PX4}
 MISSION_ENDS = ('land', 'rtl')
-VEHICLE_TYPE_QUADROTOR = MAV.MAV_TYPE_QUADROTOR
-QGC_ALTITUDE_MODE_RELATIVE = 1
-#: QGroundControl's own default, for a mission that never moves (no speed to report).
-QGC_DEFAULT_HOVER_SPEED_MPS = 5.0
+#: The mission index of q0, after home (0) and the takeoff (1): the plan's clock starts when
+#: the vehicle holds there, and a plan made in flight is flown from it.
+Q0_SEQ = 2
 
 
 @dataclass(frozen=True)
@@ -78,10 +86,19 @@ class MissionItem:
     autocontinue: bool = True
 
 
-def _check_firmware(firmware: str) -> None:
-    if firmware not in FIRMWARE_TYPES:
-        raise MissionExportError(
-            f'unknown firmware {firmware!r}: choose one of {", ".join(FIRMWARE_TYPES)}')
+def mission_firmware(name: str) -> Firmware:
+    """The firmware a mission is written for; a MissionExportError for an unknown name."""
+    try:
+        return firmware_named(name)
+    except InvalidScenarioError as exc:
+        raise MissionExportError(str(exc)) from None
+
+
+def check_home(home: object) -> None:
+    """Refuse (:class:`MissionExportError`) a home that is not a :class:`Home`."""
+    if not isinstance(home, Home):
+        raise MissionExportError(f'home must be a Home(latitude, longitude, altitude), got '
+                                 f'{home!r}')
 
 
 def _schedule(plan: PlanResult | VehiclePlan, firmware: str,
@@ -115,12 +132,10 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
     check_home(home)
     if end not in MISSION_ENDS:
         raise MissionExportError(f'unknown mission end {end!r}: choose land or rtl')
-    _check_firmware(firmware)
+    dialect = mission_firmware(firmware)
     schedule = _schedule(plan, firmware, limits)
     scenario = (plan.ideal if isinstance(plan, VehiclePlan) else plan).scenario
-    # PX4 reads a yaw of 0 as "face north"; NaN keeps its own heading mode. ArduCopter
-    # ignores the waypoint yaw, and Mission Planner shows NaN as an error, so it gets 0.
-    yaw = math.nan if firmware == 'px4' else 0.0
+    yaw = dialect.waypoint_yaw
     altitude = scenario.altitude_m
 
     def waypoint(position: np.ndarray, hold_s: float) -> MissionItem:
@@ -140,7 +155,7 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
     in_force = None
     for index, stop in enumerate(schedule.stops):
         items += [waypoint(stop.position_m, hold)
-                  for hold in _hold_parts(stop.hold_s, MAX_HOLD_S[firmware])]
+                  for hold in _hold_parts(stop.hold_s, dialect.max_hold_s)]
         if index == len(schedule.legs):
             break
         leg = schedule.legs[index]
@@ -183,9 +198,22 @@ def _hold_parts(hold_s: float, max_hold_s: float) -> list[float]:
     return [max_hold_s] * int(whole) + ([rest] if rest > 0 else [])
 
 
-# Writers.
+# MAVLink messages: the rows a link sends and reads back, and the rows of a .waypoints file.
 
-def _mavlink_message(item: MissionItem, seq: int) -> object:
+def item_int_message(item: MissionItem, seq: int, mav: MAV.MAVLink, target_system: int,
+                     target_component: int) -> MAV.MAVLink_message:
+    """``item`` as the MISSION_ITEM_INT of row ``seq`` (latitude and longitude in 1e-7 degree),
+    encoded by ``mav``: the link's own encoder, whose dialect follows the protocol version the
+    vehicle speaks."""
+    return mav.mission_item_int_encode(
+        target_system, target_component, seq, item.frame, item.command, int(item.current),
+        int(item.autocontinue), *item.params, int(round(item.x * DEGREES_E7)),
+        int(round(item.y * DEGREES_E7)), float(item.z), MISSION_TYPE)
+
+
+def item_message(item: MissionItem, seq: int) -> MAV.MAVLink_message:
+    """``item`` as the MISSION_ITEM of row ``seq`` (degrees): the rows pymavlink's mavwp writes
+    to a .waypoints file."""
     return MAV.MAVLink_mission_item_message(
         target_system=0, target_component=0, seq=seq, frame=item.frame, command=item.command,
         current=int(item.current), autocontinue=int(item.autocontinue),
@@ -193,131 +221,66 @@ def _mavlink_message(item: MissionItem, seq: int) -> object:
         param4=item.params[3], x=item.x, y=item.y, z=item.z)
 
 
-def write_waypoints(items: Sequence[MissionItem], path: Path) -> None:
-    """Write QGC WPL 110 through pymavlink's mavwp, then read it back to check it."""
-    loader = mavwp.MAVWPLoader()
-    for seq, item in enumerate(items):
-        loader.add(_mavlink_message(item, seq))
-    loader.save(str(path))
-    check = mavwp.MAVWPLoader()
-    if check.load(str(path)) != len(items):
-        raise MissionExportError(f'{path}: mavwp read back a different number of items')
+def from_message(message: MAV.MAVLink_message) -> MissionItem:
+    """The row a MISSION_ITEM_INT (a vehicle's read-back) or a MISSION_ITEM (a row mavwp read
+    from a .waypoints file) holds."""
+    scale = DEGREES_E7 if message.get_type() == 'MISSION_ITEM_INT' else 1.0
+    return MissionItem(
+        command=message.command, frame=message.frame,
+        params=(message.param1, message.param2, message.param3, message.param4),
+        x=message.x / scale, y=message.y / scale, z=message.z,
+        current=bool(message.current), autocontinue=bool(message.autocontinue))
 
 
-def _json_number(value: float) -> float | None:
-    return None if math.isnan(value) else value
+def mismatches(sent: Sequence[MissionItem], stored: Sequence[MissionItem]) -> list[str]:
+    """What differs between a mission and its read-back, one line per item; empty if same.
 
-
-def plan_document(items: Sequence[MissionItem], home: Home, *,
-                  firmware: str = 'ardupilot') -> dict:
-    """The QGroundControl .plan JSON object (file version 1, mission version 2)."""
-    _check_firmware(firmware)
-    speeds = [item.params[1] for item in items if item.command == DO_CHANGE_SPEED]
-    default_speed = speeds[0] if speeds else QGC_DEFAULT_HOVER_SPEED_MPS
-    return {
-        'fileType': 'Plan',
-        'version': 1,
-        'groundStation': 'QGroundControl',
-        'mission': {
-            'version': 2,
-            'firmwareType': FIRMWARE_TYPES[firmware],
-            'vehicleType': VEHICLE_TYPE_QUADROTOR,
-            'cruiseSpeed': default_speed,
-            'hoverSpeed': default_speed,
-            'globalPlanAltitudeMode': QGC_ALTITUDE_MODE_RELATIVE,
-            'plannedHomePosition': [home.latitude_deg, home.longitude_deg, home.altitude_m],
-            'items': [_plan_item(item, seq) for seq, item in enumerate(items[1:], start=1)],
-        },
-        'geoFence': {'circles': [], 'polygons': [], 'version': 2},
-        'rallyPoints': {'points': [], 'version': 2},
-    }
-
-
-def _plan_item(item: MissionItem, seq: int) -> dict:
-    entry = {
-        'type': 'SimpleItem',
-        'autoContinue': item.autocontinue,
-        'command': item.command,
-        'doJumpId': seq,
-        'frame': item.frame,
-        'params': [_json_number(v) for v in (*item.params, item.x, item.y, item.z)],
-    }
-    if item.frame == FRAME_RELATIVE_ALT:
-        entry.update(AMSLAltAboveTerrain=None, Altitude=item.z,
-                     AltitudeMode=QGC_ALTITUDE_MODE_RELATIVE)
-    return entry
-
-
-def write_plan(items: Sequence[MissionItem], path: Path, home: Home, *,
-               firmware: str = 'ardupilot') -> None:
-    """Write a QGroundControl .plan file."""
-    text = json.dumps(plan_document(items, home, firmware=firmware), indent=4, allow_nan=False)
-    path.write_text(text + '\n', encoding='utf-8')
-
-
-MISSION_FORMATS = ('.waypoints', '.plan')
-
-
-def export_mission(plan: PlanResult | VehiclePlan, path: str | os.PathLike, home: Home, *,
-                   end: str = 'land', firmware: str = 'ardupilot',
-                   limits: VehicleLimits | None = None) -> Path:
-    """Write the plan as a mission file, format from the extension; return the path written.
-
-    ``.waypoints``: QGC WPL 110 (QGroundControl, Mission Planner, MAVProxy); ``.plan``:
-    QGroundControl JSON. The file is replaced atomically; on any failure a
-    :class:`MissionExportError` says why and a previous file at ``path`` is left as it was.
+    Compared in the fields the autopilot stores: row 0 (home, which the autopilot replaces
+    with its own) by command only; DO commands without their frame (ArduPilot reports them in
+    frame 0); coordinates to 1e-7 degree (MISSION_ITEM_INT's resolution), the rest to
+    float32's.
     """
-    check_mission_path(path)
-    check_home(home)
-    items = build_mission_items(plan, home, end=end, firmware=firmware, limits=limits)
-    return write_mission_file(items, path, home, firmware=firmware)
+    if len(sent) != len(stored):
+        return [f'the vehicle holds {len(stored)} items, the mission has {len(sent)}']
+    lines = []
+    for seq, (a, b) in enumerate(zip(sent, stored)):
+        if a.command != b.command:
+            lines.append(f'item {seq}: command {b.command}, expected {a.command}')
+        elif seq > 0 and not _same_item(a, b):
+            lines.append(f'item {seq}: holds {_describe(b)}, expected {_describe(a)}')
+    return lines
 
 
-def check_mission_path(path: str | os.PathLike) -> None:
-    """Refuse (:class:`MissionExportError`) a mission file name of an unknown format."""
-    target = Path(path)
-    if target.suffix.lower() not in MISSION_FORMATS:
-        raise MissionExportError(
-            f'unknown mission format {target.suffix or "(no extension)"!r} for {str(target)!r}: '
-            f'use a .waypoints or .plan file')
-
-
-def check_home(home: object) -> None:
-    """Refuse (:class:`MissionExportError`) a home that is not a :class:`Home`."""
-    if not isinstance(home, Home):
-        raise MissionExportError(f'home must be a Home(latitude, longitude, altitude), got '
-                                 f'{home!r}')
-
-
-def write_mission_file(items: Sequence[MissionItem], path: str | os.PathLike, home: Home, *,
-                       firmware: str = 'ardupilot') -> Path:
-    """Write mission ``items`` (:func:`build_mission_items`) as the file ``path``, its format
-    from the extension, atomically (as :func:`export_mission`); return the path written."""
-    check_mission_path(path)
-    check_home(home)
-    target = Path(path)
-    if target.suffix.lower() == '.plan':
-        def writer(temporary: Path) -> None:
-            write_plan(items, temporary, home, firmware=firmware)
+def _same_item(a: MissionItem, b: MissionItem) -> bool:
+    if a.command >= FRAMELESS_COMMANDS_BELOW or a.frame == MAV.MAV_FRAME_MISSION:
+        positional = False
     else:
-        def writer(temporary: Path) -> None:
-            write_waypoints(items, temporary)
-    _write_atomically(target, writer)
-    return target
+        positional = True
+        if a.frame != b.frame:
+            return False
+    unstored = UNSTORED_PARAMS.get(a.command, ())
+    close = all(_same_param(p, q) for index, (p, q) in enumerate(zip(a.params, b.params))
+                if index not in unstored)
+    if not positional:
+        return close
+    return (close and round(a.x * DEGREES_E7) == round(b.x * DEGREES_E7)
+            and round(a.y * DEGREES_E7) == round(b.y * DEGREES_E7)
+            and math.isclose(a.z, b.z, rel_tol=PARAM_RELATIVE_TOLERANCE, abs_tol=1e-3))
 
 
-def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
-    try:
-        write_with(target, writer)
-    except MissionExportError:
-        raise
-    except (OSError, ValueError, TypeError, mavwp.MAVWPError) as exc:
-        raise MissionExportError(f'cannot write {str(target)!r}: {exc}; the previous file, if '
-                                 f'any, is unchanged') from exc
+def _same_param(sent: float, stored: float) -> bool:
+    if math.isnan(sent):
+        return True  # NaN asks the autopilot for its own default; it stores what it chose
+    return math.isclose(sent, stored, rel_tol=PARAM_RELATIVE_TOLERANCE, abs_tol=1e-6)
+
+
+def _describe(item: MissionItem) -> str:
+    params = ', '.join(f'{p:g}' for p in item.params)
+    return f'command {item.command} frame {item.frame} ({params}) at {item.x:.7f}, ' \
+           f'{item.y:.7f}, {item.z:g}'
 
 
 __all__ = [
-    'DEFAULT_HOME', 'Home', 'MissionItem', 'build_mission_items', 'check_home',
-    'check_mission_path', 'export_mission', 'plan_document', 'write_mission_file', 'write_plan',
-    'write_waypoints',
+    'MissionItem', 'build_mission_items', 'check_home', 'from_message', 'item_int_message',
+    'item_message', 'mismatches', 'mission_firmware', 'Q0_SEQ',
 ]

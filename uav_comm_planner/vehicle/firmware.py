@@ -1,0 +1,70 @@
+"""The autopilots a plan is made for, and everything that differs between them: one table.
+
+Every firmware name the package takes (``plan --firmware``, the node's ``mission_firmware``,
+:func:`~uav_comm_planner.vehicle.flyable.plan_for_vehicle`, a parameter file, a mission) is a
+key of :data:`FIRMWARES`. It is a leaf of the vehicle side, so that the limits, the timing
+(:mod:`.flyable`) and the mission (:mod:`.mavlink.items`, which imports the timing) all read
+the same table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Mapping
+
+from pymavlink import mavutil
+
+from uav_comm_planner.errors import InvalidScenarioError
+
+MAV = mavutil.mavlink
+
+
+@dataclass(frozen=True)
+class Firmware:
+    """What a plan, its mission and a parameter file depend on in one autopilot.
+
+    autopilot: its MAV_AUTOPILOT (a .plan file's ``firmwareType``);
+    hold_resolution_s: the step a waypoint's hold is commanded in (ArduPilot keeps whole
+    seconds, a uint16; PX4 a float);
+    max_hold_s: the longest hold one waypoint stores; a longer hold repeats the waypoint;
+    waypoint_yaw: param4 of the takeoff, waypoints and landing. PX4 reads a yaw of 0 as "face
+    north", NaN keeps its own heading mode; ArduCopter ignores the waypoint yaw, and Mission
+    Planner shows NaN as an error, so it gets 0;
+    parameters: the parameters that state the vehicle's limits, name -> (VehicleLimits field,
+    factor to SI units).
+    """
+
+    autopilot: int
+    hold_resolution_s: float
+    max_hold_s: float
+    waypoint_yaw: float
+    parameters: Mapping[str, tuple[str, float]]
+
+
+FIRMWARES = {
+    'ardupilot': Firmware(
+        autopilot=MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, hold_resolution_s=1.0, max_hold_s=65535.0,
+        waypoint_yaw=0.0,
+        parameters={'WPNAV_SPEED': ('max_speed_mps', 0.01),
+                    'WPNAV_ACCEL': ('max_accel_mpss', 0.01),
+                    'WPNAV_JERK': ('max_jerk_mpsss', 1.0),
+                    'ATC_INPUT_TC': ('jerk_time_s', 2.0)}),
+    'px4': Firmware(
+        autopilot=MAV.MAV_AUTOPILOT_PX4, hold_resolution_s=0.01, max_hold_s=1e9,
+        waypoint_yaw=math.nan,
+        parameters={'MPC_XY_CRUISE': ('max_speed_mps', 1.0),
+                    'MPC_ACC_HOR': ('max_accel_mpss', 1.0),
+                    'MPC_JERK_AUTO': ('max_jerk_mpsss', 1.0)}),
+}
+
+
+def firmware_named(name: str) -> Firmware:
+    """The firmware called ``name``; an InvalidScenarioError that lists the names otherwise."""
+    if name not in FIRMWARES:
+        raise InvalidScenarioError(f'unknown firmware {name!r}: choose one of '
+                                   f'{", ".join(FIRMWARES)}')
+    return FIRMWARES[name]
+
+
+__all__ = ['FIRMWARES', 'Firmware', 'firmware_named']
