@@ -37,16 +37,17 @@ def legs_of(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     return np.diff(flown_path(q, scenario), axis=0)
 
 
-def within_speed_limit(q: np.ndarray | None, scenario: Scenario) -> bool:
+def within_speed_limit(q: np.ndarray | None, scenario: Scenario, *,
+                       slack: float = LEG_SLACK) -> bool:
     """Whether q (M, 2) metres is a finite path of ``scenario``'s M slots whose every leg, with
-    q0 and qF, keeps every limit (:func:`limit_discs`) to within :data:`LEG_SLACK`."""
+    q0 and qF, keeps every limit (:func:`limit_discs`) to within the share ``slack``."""
     if q is None:
         return False
     q = np.asarray(q, dtype=float)
     if q.shape != (scenario.num_slots, 2) or not np.all(np.isfinite(q)):
         return False
     legs = legs_of(q, scenario)
-    return all(float(np.linalg.norm(legs - centre, axis=1).max()) <= radius * (1 + LEG_SLACK)
+    return all(float(np.linalg.norm(legs - centre, axis=1).max()) <= radius * (1 + slack)
                for centre, radius in limit_discs(scenario))
 
 

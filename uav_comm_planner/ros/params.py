@@ -387,14 +387,17 @@ def config_from_parameters(values: Mapping[str, Any],
     settings = SolverSettings(**chosen[SolverSettings])
     # The limit first: the scenario's own checks cost more the more nodes there are.
     settings.check_node_count(len(chosen[Scenario]['ground_nodes_m']))
-    scenario = Scenario(**chosen[Scenario])
-    settings.check(scenario)
     node = NodeSettings(**chosen[NodeSettings])
     # Every value checked, those a file gives way to included.
     VehicleLimits(**chosen[VehicleLimits])
     given = {spec.field: chosen[VehicleLimits][spec.field] for spec in parameter_specs()
              if spec.owner is VehicleLimits and spec.name in explicit}
     vehicle = vehicle_limits(given, node.vehicle_params_file, firmware=node.mission_firmware)
+    if node.vehicle_aware and chosen[Scenario]['wind_speed_mps'] > 0:
+        # A plan for the vehicle in wind keeps the vehicle's airspeed.
+        chosen[Scenario]['max_airspeed_mps'] = vehicle.airspeed_mps
+    scenario = Scenario(**chosen[Scenario])
+    settings.check(scenario)
     if node.vehicle_aware:
         check_speed(scenario, vehicle)
     return PlannerConfig(scenario, settings, node, vehicle)

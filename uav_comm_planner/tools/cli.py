@@ -12,6 +12,7 @@ import argparse
 import dataclasses
 import json
 import logging
+import math
 from pathlib import Path
 import sys
 from typing import Sequence
@@ -71,7 +72,12 @@ _VEHICLE_FLAGS = {
     'airframe_speed_mps': ('--airframe-speed',
                            'the top speed the airframe reaches, m/s, if below the waypoint '
                            'speed'),
+    'gust_margin_mps': ('--gust-margin',
+                        'airspeed kept in reserve for gusts when planning for a wind, m/s '
+                        '(default 1)'),
 }
+#: The vehicle's flags store under this prefix, apart from the planning speed --speed.
+_VEHICLE_DEST = 'vehicle_'
 
 
 def _floats(text: str, count: int | None = None) -> list[float]:
@@ -93,6 +99,14 @@ def _nodes(text: str) -> list[tuple[float, float]]:
     return [_pair(item) for item in text.split(';') if item.strip()]
 
 
+def _wind(text: str) -> tuple[float, float]:
+    speed, from_deg = _floats(text, 2)
+    if not (math.isfinite(speed) and speed >= 0 and math.isfinite(from_deg)):
+        raise argparse.ArgumentTypeError(
+            f'expected a wind speed >= 0 m/s and a direction in degrees, got {text!r}')
+    return speed, from_deg
+
+
 def _home(text: str) -> Home:
     try:
         return Home.parse(text)
@@ -111,6 +125,10 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
                         help='ground node positions, metres')
     parser.add_argument('--start', type=_pair, metavar='X,Y', help='launch point q0, metres')
     parser.add_argument('--goal', type=_pair, metavar='X,Y', help='landing point qF, metres')
+    parser.add_argument('--wind', type=_wind, metavar='SPEED,FROM_DEG',
+                        help='the wind to plan for: m/s, and the direction it blows from in '
+                             'degrees clockwise from north (as weather reports and '
+                             'SIM_WIND_DIR give it), e.g. 6,90 for 6 m/s from the east')
     for field, (flag, text) in _SCALAR_FLAGS.items():
         kind = int if field == 'num_slots' else float
         parser.add_argument(flag, dest=field, type=kind, help=text)
@@ -156,7 +174,9 @@ def read_scenario_file(path: Path) -> dict:
     return data
 
 
-def _scenario(args: argparse.Namespace) -> Scenario:
+def _scenario(args: argparse.Namespace, vehicle=None) -> Scenario:
+    """The scenario the flags describe; planned for ``vehicle`` (VehicleLimits) in wind, its
+    airspeed is the vehicle's (the airframe's less the gust margin)."""
     if args.scenario is not None:
         base = scenario_from_dict(read_scenario_file(args.scenario))
     else:
@@ -166,6 +186,10 @@ def _scenario(args: argparse.Namespace) -> Scenario:
     for field, name in (('ground_nodes_m', 'nodes'), ('start_m', 'start'), ('goal_m', 'goal')):
         if getattr(args, name) is not None:
             changes[field] = getattr(args, name)
+    if args.wind is not None:
+        changes['wind_speed_mps'], changes['wind_from_deg'] = args.wind
+        if vehicle is not None and args.wind[0] > 0:
+            changes['max_airspeed_mps'] = vehicle.airspeed_mps
     return base.replace(**changes) if changes else base
 
 
@@ -196,7 +220,9 @@ def format_plan(result: PlanResult) -> str:
     rows.append(('upper bound (every channel at its best)', result.upper_bound))
     lines = [f'N = {scenario.num_nodes} nodes, M = {scenario.num_slots} slots of '
              f'{scenario.slot_s:g} s, P_T = {scenario.power_budget_w:g} W, '
-             f'H = {scenario.altitude_m:g} m, V = {scenario.max_speed_mps:g} m/s',
+             f'H = {scenario.altitude_m:g} m, V = {scenario.max_speed_mps:g} m/s'
+             + (f', wind {scenario.wind_speed_mps:g} m/s from {scenario.wind_from_deg:g} deg '
+                f'(airspeed {scenario.airspeed_mps:g} m/s)' if scenario.wind_speed_mps else ''),
              f'{"method":<42}{"min avg throughput (bit/s)":>28}']
     lines += [f'{label:<42}{value:>28.4f}' for label, value in rows]
     lines.append(f'{result.outer_iterations} power steps, {result.trajectory_steps} trajectory '
@@ -210,14 +236,14 @@ def _vehicle_limits(args: argparse.Namespace):
     (:func:`~uav_comm_planner.mission.request.vehicle_limits`): flags over the parameter file
     over ArduCopter's defaults."""
     from uav_comm_planner.mission.request import vehicle_limits
-    explicit = {field: getattr(args, field) for field in _VEHICLE_FLAGS
-                if getattr(args, field) is not None}
+    explicit = {field: getattr(args, _VEHICLE_DEST + field) for field in _VEHICLE_FLAGS
+                if getattr(args, _VEHICLE_DEST + field) is not None}
     return vehicle_limits(explicit, args.vehicle_params, firmware=args.firmware)
 
 
 def _vehicle_asked(args: argparse.Namespace) -> bool:
     return (args.vehicle or args.mission is not None or args.vehicle_params is not None
-            or any(getattr(args, field) is not None for field in _VEHICLE_FLAGS))
+            or any(getattr(args, _VEHICLE_DEST + field) is not None for field in _VEHICLE_FLAGS))
 
 
 def format_flown(vehicle_plan) -> str:
@@ -261,8 +287,9 @@ def _command_plan(args: argparse.Namespace) -> int:
     from uav_comm_planner.mission.pipeline import plan_mission
     from uav_comm_planner.mission.request import MissionRequest
     vehicle_aware = _vehicle_asked(args)
+    limits = _vehicle_limits(args)
     request = MissionRequest(
-        _scenario(args), _settings(args), _vehicle_limits(args),
+        _scenario(args, limits if vehicle_aware else None), _settings(args), limits,
         vehicle_aware=vehicle_aware, firmware=args.firmware, end=args.mission_end,
         home=args.home, items=args.mission is not None)
     planned = plan_mission(request)
@@ -384,7 +411,7 @@ def build_parser() -> argparse.ArgumentParser:
                               'VALUE lines): WPNAV_SPEED, WPNAV_ACCEL, WPNAV_JERK, ATC_INPUT_TC '
                               '(ardupilot) or MPC_XY_CRUISE, MPC_ACC_HOR, MPC_JERK_AUTO (px4)')
     for field, (flag, text) in _VEHICLE_FLAGS.items():
-        vehicle.add_argument(flag, dest=field, type=float, help=text)
+        vehicle.add_argument(flag, dest=_VEHICLE_DEST + field, type=float, help=text)
     plan_parser.set_defaults(handler=_command_plan)
 
     sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')

@@ -56,7 +56,7 @@ MIN_STOP_HOLD_S = 1.0
 MAX_TURN_DEG = 20.0
 #: When the vehicle cannot fly a plan on time, plan again this much slower (share of the
 #: planning speed), leaving time for its starts and stops; at most this many times.
-SLOWER_PLANNING = (0.9, 0.8, 0.7)
+SLOWER_PLANNING = (0.9, 0.8, 0.7, 0.6, 0.5, 0.4)
 #: qF may be reached at most this share of a slot after the plan's end.
 GOAL_TOLERANCE_SLOTS = 0.25
 
@@ -322,8 +322,8 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
     flown at a ground speed it holds on its slowest heading. When the vehicle cannot fly the
     plan by the end of the horizon (too little hovering to absorb its starts and stops), it
     flies through the hovers instead of stopping; if that is still too slow, plans again at
-    90, 80 and 70 % of ``max_speed_mps`` (the ideal plan returned then carries the slower
-    scenario); the last fallback is the straight line q0 -> qF flown rest to rest, so a
+    :data:`SLOWER_PLANNING` shares of ``max_speed_mps`` (the ideal plan returned then carries
+    the slower scenario); the last fallback is the straight line q0 -> qF flown rest to rest, so a
     request whose straight line fits the horizon is never refused. ``planner`` is the
     optimiser (the core's :func:`~uav_comm_planner.core.optimizer.plan`). Raises
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
