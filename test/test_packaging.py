@@ -7,13 +7,15 @@
 - ``colcon build`` (and ``--symlink-install``) of a copy of the package in a temporary
   workspace installs what ``ros2 run`` and ``ros2 launch`` find through the ament index, once
   the workspace's ``setup.sh`` is sourced.
-- The launch file is parsed (and built when ``launch`` is importable); the RViz file is YAML
-  that names the node's own topics.
+- The launch file runs against stand-ins of launch's classes that take only the keywords of
+  Jazzy's (launch itself is not on PyPI), and builds for real where launch is installed; the
+  RViz file is YAML that names the node's own topics, relative, so a namespace works.
 """
 
 from __future__ import annotations
 
 import ast
+import importlib.util
 import json
 import os
 from pathlib import Path
@@ -21,6 +23,7 @@ import re
 import shutil
 import subprocess
 import sys
+import types
 import xml.etree.ElementTree as ElementTree
 
 import pytest
@@ -269,56 +272,142 @@ def test_the_installed_command_runs_in_the_sourced_workspace(workspace, lookups)
 
 # --- launch file -----------------------------------------------------------------------------
 
-def _launch_tree() -> ast.Module:
-    return ast.parse(LAUNCH_FILE.read_text(encoding='utf-8'), str(LAUNCH_FILE))
+#: Keywords of Jazzy's launch_ros.actions.Node and of the ExecuteProcess it extends.
+NODE_KEYWORDS = {'executable', 'package', 'name', 'namespace', 'exec_name', 'parameters',
+                 'remappings', 'ros_arguments', 'arguments', 'cmd', 'cwd', 'env',
+                 'additional_env', 'shell', 'sigterm_timeout', 'sigkill_timeout',
+                 'emulate_tty', 'output', 'output_format', 'log_cmd', 'cached_output',
+                 'prefix', 'respawn', 'respawn_delay', 'respawn_max_retries', 'on_exit',
+                 'condition'}
 
 
-def _calls(tree: ast.AST, name: str) -> list[ast.Call]:
-    return [node for node in ast.walk(tree) if isinstance(node, ast.Call)
-            and getattr(node.func, 'id', getattr(node.func, 'attr', None)) == name]
+class _Stand:
+    """A stand-in of one launch class: keeps what it was made with."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        self.args, self.kwargs = args, kwargs
 
 
-def test_launch_file_declares_its_arguments_and_starts_the_planner():
-    tree = _launch_tree()
-    functions = {node.name for node in tree.body if isinstance(node, ast.FunctionDef)}
-    assert 'generate_launch_description' in functions
-    declared = [ast.literal_eval(call.args[0]) for call in _calls(tree, 'DeclareLaunchArgument')]
-    assert declared == ['params_file', 'namespace', 'mavlink_url']
-    constants = {node.targets[0].id: ast.literal_eval(node.value) for node in tree.body
-                 if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant)}
-    assert constants['PACKAGE'] == PACKAGE
+class _Argument(_Stand):
+    def __init__(self, name, *, default_value=None, description=None, choices=None):
+        super().__init__(name, default_value=default_value, description=description,
+                         choices=choices)
+        self.name = name
+
+
+class _Node(_Stand):
+    def __init__(self, **kwargs) -> None:
+        unknown = set(kwargs) - NODE_KEYWORDS
+        assert not unknown, f'launch_ros.actions.Node takes no {sorted(unknown)}'
+        super().__init__(**kwargs)
+
+
+class _Configuration(_Stand):
+    def perform(self, context: dict) -> str:
+        return context[self.args[0]]
+
+
+class _Share(_Stand):
+    def perform(self, context: dict) -> str:
+        return f'/opt/ros/jazzy/share/{self.args[0]}'
+
+
+@pytest.fixture
+def launch_file(monkeypatch):
+    """The launch file imported against stand-ins of launch and launch_ros."""
+    stand_ins = {
+        'launch': {'LaunchDescription': _Stand},
+        'launch.actions': {'DeclareLaunchArgument': _Argument, 'OpaqueFunction': _Stand},
+        'launch.substitutions': {'LaunchConfiguration': _Configuration,
+                                 'PathJoinSubstitution': _Stand},
+        'launch_ros': {}, 'launch_ros.actions': {'Node': _Node},
+        'launch_ros.substitutions': {'FindPackageShare': _Share},
+    }
+    for name, members in stand_ins.items():
+        monkeypatch.setitem(sys.modules, name, types.SimpleNamespace(**members))
+    spec = importlib.util.spec_from_file_location('planner_launch_stand_in', LAUNCH_FILE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+ARGUMENTS = ['params_file', 'namespace', 'mavlink_url', 'use_sim_time', 'log_level',
+             'use_rviz', 'color']
+
+
+def _launch(module, **given) -> list[_Node]:
+    """The nodes the launch file starts with the arguments ``given`` (others: defaults)."""
+    (description,) = module.generate_launch_description().args
+    declared = {a.name: a for a in description if isinstance(a, _Argument)}
+    assert list(declared) == ARGUMENTS
+    context = {name: a.kwargs['default_value'] for name, a in declared.items()}
+    context['params_file'] = str(ROOT / 'config' / 'planner.yaml')
+    context.update(given)
+    for name, value in given.items():
+        choices = declared[name].kwargs['choices']
+        assert choices is None or value in choices, (name, value)
+    (opaque,) = [a for a in description if type(a) is _Stand]
+    return opaque.kwargs['function'](context)
+
+
+def test_launch_declares_its_arguments_with_their_choices(launch_file):
+    (description,) = launch_file.generate_launch_description().args
+    declared = {a.name: a.kwargs for a in description if isinstance(a, _Argument)}
+    assert list(declared) == ARGUMENTS
+    assert declared['use_sim_time']['choices'] == declared['use_rviz']['choices'] == \
+        ('true', 'false')
+    assert declared['log_level']['choices'] == ('debug', 'info', 'warn', 'error', 'fatal')
+    assert [declared[name]['default_value'] for name in ARGUMENTS[1:]] == [
+        '', '', 'false', 'info', 'false', 'auto']
+    assert all(kwargs['description'] for kwargs in declared.values())
     setup_text = (ROOT / 'setup.py').read_text(encoding='utf-8')
-    assert f"'{constants['EXECUTABLE']} = {{PACKAGE}}.ros.launcher:main'" in setup_text
+    assert f"'{launch_file.EXECUTABLE} = {{PACKAGE}}.ros.launcher:main'" in setup_text
     from uav_comm_planner.ros.node import NODE_NAME
-    assert constants['NODE_NAME'] == NODE_NAME
+    assert launch_file.NODE_NAME == NODE_NAME and launch_file.PACKAGE == PACKAGE
 
 
-def test_launch_passes_mavlink_url_only_when_given():
-    (planner,) = [node for node in _launch_tree().body
-                  if isinstance(node, ast.FunctionDef) and node.name == '_planner']
-    guarded = [node for node in ast.walk(planner) if isinstance(node, ast.If)
-               and isinstance(node.test, ast.Name) and node.test.id == 'mavlink_url']
-    assert len(guarded) == 1
-    (append,) = guarded[0].body
-    assert ast.unparse(append) == "parameters.append({'mavlink_url': mavlink_url})"
-    uses = [node for node in ast.walk(planner)
-            if isinstance(node, ast.Constant) and node.value == 'mavlink_url']
-    assert len(uses) == 2   # the launch configuration read, and the guarded parameter
+def test_launch_starts_the_planner_with_its_options(launch_file, monkeypatch):
+    monkeypatch.setattr(sys.stdout, 'isatty', lambda: False)
+    (planner,) = _launch(launch_file)
+    options = planner.kwargs
+    assert (options['package'], options['executable'], options['name']) == (
+        PACKAGE, 'planner', 'uav_comm_planner')
+    assert options['namespace'] == '' and options['output'] == 'screen'
+    shipped = yaml.safe_load((ROOT / 'config' / 'planner.yaml').read_text())
+    assert options['parameters'] == [shipped['uav_comm_planner']['ros__parameters'],
+                                     {'use_sim_time': False}]
+    assert options['ros_arguments'] == ['--log-level', 'info']
+    # A redirected launch: the node's pseudo-terminal output carries no colour codes.
+    assert options['emulate_tty'] is True
+    assert options['additional_env'] == {'RCUTILS_COLORIZED_OUTPUT': '0'}
 
 
-def _launch_function(name: str):
-    """One plain function of the launch file, compiled on its own (no launch import needed)."""
-    tree = _launch_tree()
-    (function,) = [node for node in tree.body
-                   if isinstance(node, ast.FunctionDef) and node.name == name]
-    module = ast.Module(body=[function], type_ignores=[])
-    scope = {'yaml': yaml, 'NODE_NAME': 'uav_comm_planner'}
-    exec(compile(module, str(LAUNCH_FILE), 'exec'), scope)
-    return scope[name]
+def test_launch_arguments_reach_the_node(launch_file, monkeypatch):
+    monkeypatch.setattr(sys.stdout, 'isatty', lambda: True)
+    (planner,) = _launch(launch_file, namespace='uav1', use_sim_time='true', log_level='debug',
+                         mavlink_url='udpin:0.0.0.0:14550')
+    options = planner.kwargs
+    assert options['namespace'] == 'uav1'
+    assert options['parameters'][1:] == [{'use_sim_time': True},
+                                         {'mavlink_url': 'udpin:0.0.0.0:14550'}]
+    assert options['ros_arguments'] == ['--log-level', 'debug']
+    assert options['additional_env'] == {'RCUTILS_COLORIZED_OUTPUT': '1'}
+    (plain,) = _launch(launch_file, color='false')
+    assert plain.kwargs['additional_env'] == {'RCUTILS_COLORIZED_OUTPUT': '0'}
 
 
-def test_launch_parameters_reach_the_node_in_any_namespace(tmp_path):
-    node_parameters = _launch_function('node_parameters')
+def test_use_rviz_starts_rviz_with_the_package_s_view_in_the_namespace(launch_file):
+    planner, rviz = _launch(launch_file, namespace='uav1', use_rviz='true', use_sim_time='true')
+    options = rviz.kwargs
+    assert (options['package'], options['executable']) == ('rviz2', 'rviz2')
+    assert options['namespace'] == planner.kwargs['namespace'] == 'uav1'
+    assert options['arguments'] == ['-d', f'/opt/ros/jazzy/share/{PACKAGE}/rviz/planner.rviz']
+    assert options['parameters'] == [{'use_sim_time': True}]
+    assert (ROOT / 'rviz' / 'planner.rviz').is_file()
+
+
+def test_launch_parameters_reach_the_node_in_any_namespace(launch_file, tmp_path):
+    node_parameters = launch_file.node_parameters
     shipped = node_parameters(str(ROOT / 'config' / 'planner.yaml'), '')
     assert shipped == node_parameters(str(ROOT / 'config' / 'planner.yaml'), 'uav1')
     expected = yaml.safe_load((ROOT / 'config' / 'planner.yaml').read_text())
@@ -339,17 +428,16 @@ def test_launch_description_builds_when_launch_is_installed():
     # launch.actions, not launch: from the checkout, the launch/ folder alone imports as an
     # empty namespace package called launch.
     pytest.importorskip('launch.actions', reason='the launch package comes with a ROS 2 '
-                                                 'installation (not on PyPI); the file was '
-                                                 'parsed above')
+                                                 'installation (not on PyPI); the file ran '
+                                                 'against stand-ins above')
     pytest.importorskip('launch_ros.actions', reason='launch_ros comes with a ROS 2 '
                                                      'installation')
-    import importlib.util
     spec = importlib.util.spec_from_file_location('planner_launch', LAUNCH_FILE)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     description = module.generate_launch_description()
     names = [argument.name for argument in description.get_launch_arguments()]
-    assert names == ['params_file', 'namespace', 'mavlink_url']
+    assert names == ARGUMENTS
 
 
 # --- RViz configuration ----------------------------------------------------------------------
@@ -361,22 +449,28 @@ def _displays() -> list[dict]:
     return manager['Displays']
 
 
-def test_rviz_shows_the_path_the_markers_and_the_ground_nodes():
+def test_rviz_shows_the_plan_the_ground_nodes_and_the_vehicle_on_relative_topics():
     from uav_comm_planner.ros.node import TOPIC_GROUND_NODES
-    from uav_comm_planner.ros.publishing import TOPIC_MARKERS, TOPIC_PATH
     from uav_comm_planner.ros.params import NodeSettings
+    from uav_comm_planner.ros.publishing import TOPIC_MARKERS, TOPIC_PATH
+    from uav_comm_planner.ros.vehicle import TOPIC_VEHICLE_POSE, VEHICLE_POSE_QOS
 
     assert NodeSettings().frame_id == 'map'
     topics = {display['Class']: display['Topic'] for display in _displays()
               if 'Topic' in display}
-    assert topics['rviz_default_plugins/Path']['Value'] == '/' + TOPIC_PATH
-    assert topics['rviz_default_plugins/MarkerArray']['Value'] == '/' + TOPIC_MARKERS
-    assert topics['rviz_default_plugins/PoseArray']['Value'] == '/' + TOPIC_GROUND_NODES
+    # Relative, so that RViz in the planner's namespace resolves them to the planner's.
+    assert {display: topic['Value'] for display, topic in topics.items()} == {
+        'rviz_default_plugins/Path': TOPIC_PATH,
+        'rviz_default_plugins/MarkerArray': TOPIC_MARKERS,
+        'rviz_default_plugins/PoseArray': TOPIC_GROUND_NODES,
+        'rviz_default_plugins/Pose': TOPIC_VEHICLE_POSE}
     # The planner's outputs are transient local: RViz must ask for the same to get a plan
     # published before it started.
     for output in ('rviz_default_plugins/Path', 'rviz_default_plugins/MarkerArray'):
         assert topics[output]['Durability Policy'] == 'Transient Local'
         assert topics[output]['Reliability Policy'] == 'Reliable'
+    assert VEHICLE_POSE_QOS.reliability.name == 'RELIABLE'
+    assert topics['rviz_default_plugins/Pose']['Reliability Policy'] == 'Reliable'
 
 
 def test_rviz_marker_namespaces_are_the_ones_the_node_publishes():
