@@ -143,3 +143,19 @@ def test_the_link_has_its_status_and_vehicle_pose_only_while_it_runs(harness):
     assert set_parameter(h, 'mavlink_url', '').successful
     h.spin_until(lambda: '/' + TOPIC_VEHICLE_POSE not in advertised(h), 'vehicle_pose gone')
     h.spin_until(lambda: probe.status(VEHICLE_LINK).message.startswith('off: '), 'link off')
+
+
+def test_a_link_error_ends_with_the_link_up_and_a_failed_upload_with_a_verified_one(harness):
+    from uav_comm_planner.vehicle.telemetry import LinkEvent
+
+    vehicle = harness(**FINE).node.vehicle
+    events = vehicle._on_link_event
+    events(LinkEvent('error', 'vehicle link lost: reset by peer'))
+    assert vehicle.last_error == 'vehicle link lost: reset by peer'
+    events(LinkEvent('connected', 'vehicle link up on tcp:127.0.0.1:5760'))
+    assert vehicle.last_error == ''
+    events(LinkEvent('error', 'mission upload failed: no answer', 7))
+    events(LinkEvent('connected', 'vehicle link up on tcp:127.0.0.1:5760'))
+    assert vehicle.last_error == 'mission upload failed: no answer'
+    events(LinkEvent('uploaded', 'mission of 9 items uploaded and read back', 8))
+    assert vehicle.last_error == '' and vehicle.uploads_verified == 1

@@ -43,7 +43,8 @@ class VehicleAdapter:
     ``time_s`` is the vehicle's time of its latest position (None before any);
     ``mission_item`` the item it flies to; ``uploads_verified`` counts uploads read back;
     ``upload_pending`` is True while the latest plan's upload is not yet verified or failed;
-    ``last_error`` is the link's latest error ('' when none, or once an upload is verified).
+    ``last_error`` is the link's latest error ('' when none; a link error ends when the link is
+    up again, a failed upload when an upload is verified).
     ``frame_id`` gives the frame of the poses published on ``vehicle_pose``, a topic that
     exists only while a link runs.
     """
@@ -64,6 +65,7 @@ class VehicleAdapter:
         self.mission_item: int | None = None
         self.uploads_verified = 0
         self.last_error = ''
+        self._upload_failed = False
 
     @property
     def linked(self) -> bool:
@@ -82,6 +84,7 @@ class VehicleAdapter:
         self.stop()
         self.time_s = self._position_ns = None
         self.last_error = ''
+        self._upload_failed = False
         if output.mavlink_url:
             self._pose = self._node.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE,
                                                      VEHICLE_POSE_QOS)
@@ -128,11 +131,16 @@ class VehicleAdapter:
             if event.tag is not None and event.tag == self._pending_tag:
                 self._pending_tag = None
             self.last_error = event.message
+            self._upload_failed = event.tag is not None
             self._report(event.message, True)
             return
+        # A verified upload ends any error; the link up again ends a link error, not a failed
+        # upload (the plan in force is still not on the vehicle).
+        if event.kind == 'uploaded' or (event.kind == 'connected' and not self._upload_failed):
+            self.last_error = ''
+            self._upload_failed = False
         if event.kind == 'uploaded':
             self.uploads_verified += 1
-            self.last_error = ''
             if event.tag == self._pending_tag:
                 self._pending_tag = None
         self._report(event.message, False)
