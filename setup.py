@@ -40,7 +40,13 @@ setup(
         'plots': ['matplotlib>=3.8,<4'],
         # PyYAML (RViz configuration and launch parameters in the tests) also comes with
         # the ROS wheels; named here so that the tests do not rely on that.
-        'test': ['pytest>=8,<10', 'pyyaml>=6,<7', 'hypothesis>=6.100,<7'],
+        # colcon (with its ROS and setup.py extensions) and rosdep: the tests build the
+        # package with colcon and resolve package.xml's keys with rosdep, as a ROS user does.
+        # colcon-core 0.21 caps setuptools below 80, whose develop lost --editable (the
+        # route of --symlink-install).
+        'test': ['pytest>=8,<10', 'pyyaml>=6,<7', 'hypothesis>=6.100,<7',
+                 'colcon-core>=0.21,<1', 'colcon-ros>=0.5,<1',
+                 'colcon-python-setup-py>=0.2.9,<1', 'rosdep>=0.25,<1'],
         # Monte Carlo studies (uav-comm-planner montecarlo): Dask for the workers, pyarrow for
         # the Parquet table, matplotlib for the figures. dask and distributed are released
         # together under the same calendar version.

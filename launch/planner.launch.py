@@ -1,7 +1,8 @@
-"""Start the uav_comm_planner node with a parameters file, in a namespace.
+"""Start the uav_comm_planner node with a parameters file, in a namespace, and RViz if asked.
 
     ros2 launch uav_comm_planner planner.launch.py
     ros2 launch uav_comm_planner planner.launch.py params_file:=my.yaml namespace:=uav1
+    ros2 launch uav_comm_planner planner.launch.py namespace:=uav1 use_rviz:=true
     ros2 launch uav_comm_planner planner.launch.py mavlink_url:=udpin:0.0.0.0:14550
 
 Arguments:
@@ -10,11 +11,21 @@ Arguments:
         ``/uav_comm_planner``, ``/**/uav_comm_planner``, ``/<namespace>/uav_comm_planner``
         or ``/**``; the matching sections are applied in file order, so the same file works
         with and without a namespace.
-    namespace: ROS namespace of the node and its topics (default: none).
+    namespace: ROS namespace of the node, its topics and RViz (default: none).
     mavlink_url: the vehicle's MAVLink connection, given to the node's ``mavlink_url``
         parameter only when not empty (default: empty, the file's value or the node's own
         default stands).
+    use_sim_time: true to follow /clock (a simulator or a bag) instead of the wall clock, for
+        the node and RViz (default: false).
+    log_level: the node's log level: debug, info, warn, error or fatal (default: info).
+    use_rviz: true to start RViz with the package's view (rviz/planner.rviz) in the same
+        namespace, so that it shows this planner's plan (default: false).
+    color: colour codes in the node's log lines: auto (only when this launch writes to a
+        terminal, so a redirected log stays plain text), true or false (default: auto).
 """
+
+import os
+import sys
 
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction
@@ -26,6 +37,10 @@ import yaml
 PACKAGE = 'uav_comm_planner'
 EXECUTABLE = 'planner'
 NODE_NAME = 'uav_comm_planner'
+RVIZ_CONFIG = ('rviz', 'planner.rviz')
+BOOLEANS = ('true', 'false')
+LOG_LEVELS = ('debug', 'info', 'warn', 'error', 'fatal')
+COLORS = ('auto', 'true', 'false')
 
 
 def node_parameters(path, namespace, node_name=NODE_NAME):
@@ -51,15 +66,41 @@ def node_parameters(path, namespace, node_name=NODE_NAME):
     return values
 
 
-def _planner(context):
-    namespace = LaunchConfiguration('namespace').perform(context)
-    params_file = LaunchConfiguration('params_file').perform(context)
-    mavlink_url = LaunchConfiguration('mavlink_url').perform(context)
-    parameters = [node_parameters(params_file, namespace)]
+def colorized_output(color, stdout_is_terminal):
+    """RCUTILS_COLORIZED_OUTPUT for the node: '1' or '0'.
+
+    The node's output goes through a pseudo-terminal (emulate_tty), where rcutils would always
+    colour it; 'auto' colours only when the launch itself writes to a terminal, so that
+    ``ros2 launch ... > planner.log`` holds no escape codes.
+    """
+    if color == 'auto':
+        return '1' if stdout_is_terminal else '0'
+    return '1' if color == 'true' else '0'
+
+
+def _actions(context):
+    def argument(name):
+        return LaunchConfiguration(name).perform(context)
+
+    namespace = argument('namespace')
+    mavlink_url = argument('mavlink_url')
+    use_sim_time = argument('use_sim_time') == 'true'
+    parameters = [node_parameters(argument('params_file'), namespace),
+                  {'use_sim_time': use_sim_time}]
     if mavlink_url:
         parameters.append({'mavlink_url': mavlink_url})
-    return [Node(package=PACKAGE, executable=EXECUTABLE, name=NODE_NAME, namespace=namespace,
-                 parameters=parameters, output='screen', emulate_tty=True)]
+    color = colorized_output(argument('color'), sys.stdout.isatty())
+    actions = [Node(package=PACKAGE, executable=EXECUTABLE, name=NODE_NAME, namespace=namespace,
+                    parameters=parameters, ros_arguments=['--log-level', argument('log_level')],
+                    additional_env={'RCUTILS_COLORIZED_OUTPUT': color},
+                    output='screen', emulate_tty=True)]
+    if argument('use_rviz') == 'true':
+        # In the node's namespace, RViz resolves the view's relative topics to this planner's.
+        view = os.path.join(FindPackageShare(PACKAGE).perform(context), *RVIZ_CONFIG)
+        actions.append(Node(package='rviz2', executable='rviz2', name='rviz2',
+                            namespace=namespace, arguments=['-d', view],
+                            parameters=[{'use_sim_time': use_sim_time}], output='log'))
+    return actions
 
 
 def generate_launch_description():
@@ -71,10 +112,23 @@ def generate_launch_description():
             description='parameters file of the node (default: the letter\'s case I)'),
         DeclareLaunchArgument(
             'namespace', default_value='',
-            description='ROS namespace of the node and its topics'),
+            description='ROS namespace of the node, its topics and RViz'),
         DeclareLaunchArgument(
             'mavlink_url', default_value='',
             description='vehicle MAVLink connection for the mavlink_url parameter, e.g. '
                         'udpin:0.0.0.0:14550; empty: not passed'),
-        OpaqueFunction(function=_planner),
+        DeclareLaunchArgument(
+            'use_sim_time', default_value='false', choices=BOOLEANS,
+            description='follow /clock (simulator or bag) instead of the wall clock'),
+        DeclareLaunchArgument(
+            'log_level', default_value='info', choices=LOG_LEVELS,
+            description='log level of the node'),
+        DeclareLaunchArgument(
+            'use_rviz', default_value='false', choices=BOOLEANS,
+            description='start RViz with the package\'s view of the plan, in the namespace'),
+        DeclareLaunchArgument(
+            'color', default_value='auto', choices=COLORS,
+            description='colour codes in the node\'s log: auto (only on a terminal), true, '
+                        'false'),
+        OpaqueFunction(function=_actions),
     ])

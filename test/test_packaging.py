@@ -1,24 +1,29 @@
-"""The package as ROS users install it: dependency keys, the colcon layout, launch and RViz files.
+"""The package as ROS users install it, with ROS's own tools: rosdep, colcon, launch, RViz.
 
-- Every ``*_depend`` key of package.xml must be a ROS 2 Jazzy package or a rosdep key with a
-  rule for Ubuntu noble, read from a snapshot of rosdistro (``shared/rosdistro`` beside the
-  checkout or above it, or the folder in ``UAV_COMM_PLANNER_ROSDISTRO``); without the
-  snapshot those tests skip and say so.
-- ``setup.py install`` with setup.cfg's script folder, as ``colcon build`` runs it, must give
-  the layout that ``ros2 run`` and ``ros2 launch`` search.
-- The launch file is parsed (and built when ``launch`` is importable); the RViz file is YAML
-  that names the node's own topics.
+- rosdep itself resolves every ``*_depend`` key of package.xml for ROS 2 Jazzy on Ubuntu noble,
+  against a snapshot of rosdistro (``shared/rosdistro`` beside the checkout or above it, or the
+  folder in ``UAV_COMM_PLANNER_ROSDISTRO``) through a local sources list and index, never the
+  network; without the snapshot those tests skip and say so.
+- ``colcon build`` (and ``--symlink-install``) of a copy of the package in a temporary
+  workspace installs what ``ros2 run`` and ``ros2 launch`` find through the ament index, once
+  the workspace's ``setup.sh`` is sourced.
+- The launch file runs against stand-ins of launch's classes that take only the keywords of
+  Jazzy's (launch itself is not on PyPI), and builds for real where launch is installed; the
+  RViz file is YAML that names the node's own topics, relative, so a namespace works.
 """
 
 from __future__ import annotations
 
 import ast
+import importlib.util
+import json
 import os
 from pathlib import Path
 import re
 import shutil
 import subprocess
 import sys
+import types
 import xml.etree.ElementTree as ElementTree
 
 import pytest
@@ -30,76 +35,12 @@ PACKAGE_XML = ROOT / 'package.xml'
 LAUNCH_FILE = ROOT / 'launch' / 'planner.launch.py'
 RVIZ_FILE = ROOT / 'rviz' / 'planner.rviz'
 EXECUTABLES = ('planner', 'send_ground_nodes', 'uav-comm-planner')
-#: libyaml's loader when PyYAML has it: the rosdistro files are about 0.9 MB.
-LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
-#: rosdep installers whose rule is a mapping like ``pip: {packages: [...]}``.
-INSTALLERS = {'apt', 'pip', 'source', 'npm', 'gem'}
-
-
-# --- rosdistro snapshot ----------------------------------------------------------------------
-
-def rosdistro_folder() -> Path | None:
-    """The snapshot: the environment variable's folder, else shared/rosdistro in an ancestor."""
-    given = os.environ.get('UAV_COMM_PLANNER_ROSDISTRO')
-    if given:
-        return Path(given)
-    for folder in (ROOT, *ROOT.parents):
-        candidate = folder / 'shared' / 'rosdistro'
-        if (candidate / 'rosdep' / 'base.yaml').is_file():
-            return candidate
-    return None
-
-
-@pytest.fixture(scope='module')
-def rosdistro() -> dict:
-    folder = rosdistro_folder()
-    if folder is None:
-        pytest.skip('no rosdistro snapshot (shared/rosdistro with rosdep/*.yaml and '
-                    'jazzy/distribution.yaml) beside or above the checkout, and '
-                    'UAV_COMM_PLANNER_ROSDISTRO is not set: cannot check the rosdep keys')
-    rules: dict = {}
-    for name in ('base.yaml', 'python.yaml'):
-        rules.update(yaml.load((folder / 'rosdep' / name).read_text(encoding='utf-8'), LOADER))
-    distribution = yaml.load(
-        (folder / 'jazzy' / 'distribution.yaml').read_text(encoding='utf-8'), LOADER)
-    packages = set()
-    for repository, entry in distribution['repositories'].items():
-        release = entry.get('release')
-        if release:
-            packages.update(release.get('packages', [repository]))
-    return {'rules': rules, 'jazzy': packages}
-
-
-def _platform_rule_resolves(rule: object, release: str) -> bool:
-    """Whether an OS's rule (list, installer mapping or per-release mapping) gives something."""
-    if rule is None:
-        return False
-    if isinstance(rule, list):
-        return True
-    if isinstance(rule, dict):
-        if set(rule) <= INSTALLERS:
-            return True
-        if release in rule:
-            return _platform_rule_resolves(rule[release], release)
-        if '*' in rule:
-            return _platform_rule_resolves(rule['*'], release)
-    return False
-
-
-def resolves_for(rule: object, os_name: str = 'ubuntu', release: str = 'noble') -> bool:
-    """Whether a rosdep rule installs something on ``os_name`` ``release``.
-
-    A rule maps OS names (or ``'*'``) to a package list, to an installer mapping
-    (``pip: {packages: [...]}``) or to a mapping of releases (or ``'*'``) to either; a release
-    mapped to null has no package.
-    """
-    if not isinstance(rule, dict):
-        return False
-    if os_name in rule:
-        return _platform_rule_resolves(rule[os_name], release)
-    if '*' in rule:
-        return _platform_rule_resolves(rule['*'], release)
-    return False
+#: What a workspace needs of the checkout to build the package (no VCS data, caches, venvs).
+NOT_SOURCES = shutil.ignore_patterns('.*', '__pycache__', '*.egg-info', 'build', 'install',
+                                     'log', 'docs')
+#: Any request to the network fails at once: rosdep must read the local snapshot only.
+OFFLINE = {'http_proxy': 'http://127.0.0.1:9', 'https_proxy': 'http://127.0.0.1:9',
+           'HTTP_PROXY': 'http://127.0.0.1:9', 'HTTPS_PROXY': 'http://127.0.0.1:9'}
 
 
 def dependency_keys() -> list[tuple[str, str]]:
@@ -114,23 +55,114 @@ def test_package_xml_has_dependencies_to_check():
     assert len(keys) >= 10 and 'rclpy' in keys and len(set(keys)) == len(keys)
 
 
-def test_every_dependency_key_resolves_on_ubuntu_noble(rosdistro):
-    unresolved = [f'<{tag}>{key}' for tag, key in dependency_keys()
-                  if key not in rosdistro['jazzy']
-                  and not resolves_for(rosdistro['rules'].get(key))]
-    assert unresolved == [], ('rosdep install would stop at these keys: not a Jazzy package '
-                              'and no Ubuntu noble rule in rosdistro')
+def test_versions_of_package_xml_and_setup_py_agree():
+    xml_version = ElementTree.parse(PACKAGE_XML).getroot().findtext('version')
+    tree = ast.parse((ROOT / 'setup.py').read_text(encoding='utf-8'))
+    versions = [ast.literal_eval(node.value) for node in ast.walk(tree)
+                if isinstance(node, ast.keyword) and node.arg == 'version']
+    assert versions == [xml_version]
 
 
-def test_the_keys_that_broke_rosdep_install_are_refused_by_the_check(rosdistro):
-    """The check itself: the earlier package.xml's keys fail it, their replacements pass."""
-    rules = rosdistro['rules']
+# --- rosdep, against the rosdistro snapshot --------------------------------------------------
+
+def rosdistro_folder() -> Path | None:
+    """The snapshot: the environment variable's folder, else shared/rosdistro in an ancestor."""
+    given = os.environ.get('UAV_COMM_PLANNER_ROSDISTRO')
+    if given:
+        return Path(given)
+    for folder in (ROOT, *ROOT.parents):
+        candidate = folder / 'shared' / 'rosdistro'
+        if (candidate / 'rosdep' / 'base.yaml').is_file():
+            return candidate
+    return None
+
+
+def local_rosdep(folder: Path, snapshot: Path) -> dict[str, str]:
+    """The environment in which rosdep reads ``snapshot`` only: a sources list of its rosdep
+    files and a rosdistro index of its Jazzy distribution (file:// URLs), caches in
+    ``folder``."""
+    sources = folder / 'sources.list.d'
+    sources.mkdir(parents=True)
+    (sources / '20-default.list').write_text(''.join(
+        f'yaml {(snapshot / "rosdep" / name).resolve().as_uri()}\n'
+        for name in ('base.yaml', 'python.yaml')), encoding='utf-8')
+    index = {'type': 'index', 'version': 4, 'distributions': {'jazzy': {
+        'distribution': [(snapshot / 'jazzy' / 'distribution.yaml').resolve().as_uri()],
+        'distribution_status': 'active', 'distribution_type': 'ros2', 'python_version': 3}}}
+    (folder / 'index.yaml').write_text(yaml.safe_dump(index), encoding='utf-8')
+    # Without the ament index of the test's own ROS packages: --ignore-src would count them
+    # as sources in the workspace and skip their keys.
+    environment = {name: value for name, value in os.environ.items()
+                   if name not in ('AMENT_PREFIX_PATH', 'ROS_PACKAGE_PATH')}
+    return dict(environment, **OFFLINE, ROSDEP_SOURCE_PATH=str(sources),
+                ROSDISTRO_INDEX_URL=(folder / 'index.yaml').as_uri(),
+                ROS_HOME=str(folder / 'ros_home'), ROS_DISTRO='jazzy', ROS_PYTHON_VERSION='3')
+
+
+@pytest.fixture(scope='module')
+def rosdep(tmp_path_factory):
+    """Runs ``rosdep ARGS... --os ubuntu:noble --rosdistro jazzy`` on the snapshot, after a
+    ``rosdep update`` from it."""
+    snapshot = rosdistro_folder()
+    if snapshot is None:
+        pytest.skip('no rosdistro snapshot (shared/rosdistro with rosdep/*.yaml and '
+                    'jazzy/distribution.yaml) beside or above the checkout, and '
+                    'UAV_COMM_PLANNER_ROSDISTRO is not set: cannot check the rosdep keys')
+    environment = local_rosdep(tmp_path_factory.mktemp('rosdep'), snapshot)
+
+    def run(*arguments: str, platform: str = 'ubuntu:noble') -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, '-m', 'rosdep2', *arguments, '--os', platform,
+                               '--rosdistro', 'jazzy'], capture_output=True, text=True,
+                              env=environment, timeout=120)
+
+    updated = subprocess.run([sys.executable, '-m', 'rosdep2', 'update', '--rosdistro', 'jazzy'],
+                             capture_output=True, text=True, env=environment, timeout=120)
+    assert updated.returncode == 0, updated.stdout + updated.stderr
+    assert 'Add distro "jazzy"' in updated.stdout
+    return run
+
+
+def simulated_install(rosdep) -> dict[str, list[str]]:
+    """What ``rosdep install --simulate`` would install for the checkout, by installer."""
+    done = rosdep('install', '--from-paths', str(ROOT), '--ignore-src', '--simulate',
+                  '--reinstall', '-y')
+    assert done.returncode == 0, done.stdout + done.stderr
+    installs: dict[str, list[str]] = {}
+    for line in done.stdout.splitlines():
+        command = line.split()
+        if command[:3] == ['apt-get', 'install', '-y']:
+            installs.setdefault('apt', []).extend(command[3:])
+        elif command[:2] == ['pip3', 'install']:
+            installs.setdefault('pip', []).extend(w for w in command[2:] if not w.startswith('-'))
+    return installs
+
+
+def test_rosdep_reads_every_key_of_package_xml(rosdep):
+    done = rosdep('keys', '--from-paths', str(ROOT))
+    assert done.returncode == 0, done.stderr
+    assert sorted(done.stdout.split()) == sorted(key for _, key in dependency_keys())
+
+
+def test_rosdep_install_resolves_every_key_on_ubuntu_noble(rosdep):
+    """rosdep install, as docs/node.md runs it, finds one package for every key."""
+    installs = simulated_install(rosdep)
+    assert sum(len(packages) for packages in installs.values()) == len(dependency_keys())
+    assert {'ros-jazzy-rclpy', 'ros-jazzy-diagnostic-msgs', 'python3-numpy',
+            'python3-pymap3d'} <= set(installs['apt'])
+    assert sorted(installs['pip']) == ['cvxpy', 'pymavlink']
+
+
+def test_the_keys_that_broke_rosdep_install_are_refused_by_rosdep(rosdep):
+    """The check itself: the earlier package.xml's keys fail, their replacements resolve."""
     for wrong in ('python3-clarabel-pip', 'python3-pymavlink', 'python3-pymap3d-pip'):
-        assert wrong not in rosdistro['jazzy'] and not resolves_for(rules.get(wrong)), wrong
-    for right in ('python3-pymavlink-pip', 'python3-pymap3d', 'python3-cvxpy-pip'):
-        assert resolves_for(rules[right]), right
+        done = rosdep('resolve', wrong)
+        assert done.returncode != 0 and f"no rosdep rule for '{wrong}'" in done.stderr, wrong
+    right = rosdep('resolve', 'python3-pymavlink-pip', 'python3-pymap3d', 'python3-cvxpy-pip')
+    assert right.returncode == 0, right.stderr
+    assert right.stdout.split('\n#ROSDEP')[0].splitlines()[1:] == ['#pip', 'pymavlink']
     # A release mapped to null has no package: python3-pymap3d is absent on focal.
-    assert not resolves_for(rules['python3-pymap3d'], 'ubuntu', 'focal')
+    focal = rosdep('resolve', 'python3-pymap3d', platform='ubuntu:focal')
+    assert focal.returncode != 0 and 'not available' in focal.stderr
 
 
 def _requirement_names() -> list[str]:
@@ -143,88 +175,96 @@ def _requirement_names() -> list[str]:
     raise AssertionError('setup.py has no install_requires')
 
 
-def test_every_runtime_requirement_has_a_rosdep_key(rosdistro):
-    """Each of setup.py's install_requires is installed on the colcon route by some key.
-
-    A key covers a requirement when its noble rule is ``pip`` with that package or the apt
-    package ``python3-<name>``; Clarabel is a dependency of cvxpy and comes with it.
-    """
-    rules = rosdistro['rules']
-    provided = set()
-    for _, key in dependency_keys():
-        ubuntu = (rules.get(key) or {}).get('ubuntu')
-        if isinstance(ubuntu, dict) and 'pip' in ubuntu:
-            provided.update(name.lower() for name in ubuntu['pip'].get('packages', []))
-        elif isinstance(ubuntu, (list, dict)):
-            listed = ubuntu if isinstance(ubuntu, list) else ubuntu.get('*') or []
-            provided.update(name.lower().removeprefix('python3-') for name in listed)
+def test_every_runtime_requirement_is_installed_by_rosdep(rosdep):
+    """Each of setup.py's install_requires is installed on the colcon route: by pip under its
+    own name or by apt as ``python3-<name>``; Clarabel is a dependency of cvxpy and comes with
+    it."""
+    installs = simulated_install(rosdep)
+    provided = {name.lower() for name in installs['pip']}
+    provided.update(name.removeprefix('python3-') for name in installs['apt'])
     if 'cvxpy' in provided:
         provided.add('clarabel')
-    missing = [name for name in _requirement_names() if name not in provided]
-    assert missing == []
+    assert [name for name in _requirement_names() if name not in provided] == []
 
 
-def test_versions_of_package_xml_and_setup_py_agree():
-    xml_version = ElementTree.parse(PACKAGE_XML).getroot().findtext('version')
-    tree = ast.parse((ROOT / 'setup.py').read_text(encoding='utf-8'))
-    versions = [ast.literal_eval(node.value) for node in ast.walk(tree)
-                if isinstance(node, ast.keyword) and node.arg == 'version']
-    assert versions == [xml_version]
+# --- colcon build ----------------------------------------------------------------------------
+
+#: Run in the workspace's sourced environment: what ros2 run and ros2 launch would find.
+LOOKUPS = '''
+import json, os, sys
+from ament_index_python.packages import get_package_prefix, get_package_share_directory
+from ament_index_python.resources import get_resource
+import uav_comm_planner
+
+package = sys.argv[1]
+prefix = get_package_prefix(package)
+# ros2 run: the executable files under <prefix>/lib/<package>.
+folder = os.path.join(prefix, 'lib', package)
+executables = sorted(name for name in os.listdir(folder)
+                     if os.access(os.path.join(folder, name), os.X_OK))
+# ros2 launch: a file name searched under the package's share folder.
+share = get_package_share_directory(package)
+found = {name: os.path.join(root, name) for root, _, names in os.walk(share, followlinks=True)
+         for name in names}
+print(json.dumps({'prefix': prefix, 'share': share, 'executables': executables,
+                  'marker': get_resource('packages', package)[1],
+                  'files': found, 'module': uav_comm_planner.__file__}))
+'''
 
 
-# --- the colcon layout -----------------------------------------------------------------------
+@pytest.fixture(scope='module', params=[False, True], ids=['copies', 'symlink-install'])
+def workspace(request, tmp_path_factory) -> Path:
+    """A workspace with a copy of the package in src/, built by colcon (with
+    ``--symlink-install`` for the second parameter); colcon runs with this Python, as
+    ``python -m colcon build`` in docs/node.md."""
+    base = tmp_path_factory.mktemp('workspace')
+    shutil.copytree(ROOT, base / 'src' / PACKAGE, ignore=NOT_SOURCES)
+    command = [sys.executable, '-m', 'colcon', '--log-base', 'log', 'build',
+               '--base-paths', 'src', '--build-base', 'build', '--install-base', 'install']
+    if request.param:
+        command.append('--symlink-install')
+    done = subprocess.run(command, cwd=base, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert f'Finished <<< {PACKAGE}' in done.stdout
+    return base
 
-def executables_in(prefix: Path, package: str) -> dict[str, Path]:
-    """What ``ros2 run`` offers: executable files under ``<prefix>/lib/<package>``."""
-    folder = prefix / 'lib' / package
-    return {path.name: path for path in sorted(folder.rglob('*'))
-            if path.is_file() and os.access(path, os.X_OK)}
+
+def sourced(workspace: Path, *command: str) -> subprocess.CompletedProcess:
+    """``command`` run after ``. install/setup.sh``, as a user runs ros2 in a workspace."""
+    script = f'. {workspace / "install" / "setup.sh"} && exec "$@"'
+    return subprocess.run(['sh', '-c', script, 'sh', *command], capture_output=True, text=True,
+                          cwd=workspace, timeout=60)
 
 
 @pytest.fixture(scope='module')
-def colcon_install(tmp_path_factory) -> Path:
-    """The package installed as ``colcon build`` (ament_python, no symlinks) installs it."""
-    base = tmp_path_factory.mktemp('colcon')
-    build, prefix = base / 'build', base / 'install' / PACKAGE
-    build.mkdir()
-    command = [sys.executable, 'setup.py', '--quiet', 'egg_info', '--egg-base', str(build),
-               'build', '--build-base', str(build / 'build'),
-               'install', '--prefix', str(prefix), '--record', str(build / 'files.txt'),
-               '--single-version-externally-managed']
-    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=120)
+def lookups(workspace) -> dict:
+    done = sourced(workspace, sys.executable, '-c', LOOKUPS, PACKAGE)
     assert done.returncode == 0, done.stderr
-    return prefix
+    return json.loads(done.stdout)
 
 
-def test_ros2_run_finds_every_executable_in_the_colcon_layout(colcon_install, monkeypatch):
-    monkeypatch.setenv('AMENT_PREFIX_PATH', str(colcon_install))
-    marker = colcon_install / 'share' / 'ament_index' / 'resource_index' / 'packages' / PACKAGE
-    assert marker.is_file()
-    try:
-        from ament_index_python.packages import get_package_prefix
-    except ImportError:   # the lookup ros2 run makes, done by hand
-        prefix = colcon_install
-    else:
-        prefix = Path(get_package_prefix(PACKAGE))
-    assert prefix == colcon_install
-    assert sorted(executables_in(prefix, PACKAGE)) == sorted(EXECUTABLES)
+def test_ros2_run_finds_every_executable_of_the_built_package(workspace, lookups):
+    prefix = workspace / 'install' / PACKAGE
+    assert Path(lookups['prefix']) == prefix
+    assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages' / PACKAGE).exists()
+    assert lookups['marker'] == str(prefix)
+    assert lookups['executables'] == sorted(EXECUTABLES)
+    # The package the executables import is the workspace's, not another installed copy.
+    assert Path(lookups['module']).resolve().is_relative_to(workspace)
 
 
-def test_ros2_launch_finds_the_launch_rviz_and_config_files(colcon_install):
-    share = colcon_install / 'share' / PACKAGE
+def test_ros2_launch_finds_the_launch_rviz_and_config_files(lookups):
+    assert Path(lookups['share']).name == PACKAGE
     for relative in ('package.xml', 'launch/planner.launch.py', 'rviz/planner.rviz',
                      'config/planner.yaml'):
-        installed = share / relative
+        installed = Path(lookups['files'][Path(relative).name])
         assert installed.read_bytes() == (ROOT / relative).read_bytes(), relative
+        assert installed.parent.name == Path(lookups['share'], relative).parent.name
 
 
-def test_the_installed_command_runs_from_the_colcon_layout(colcon_install):
-    """The script in lib/uav_comm_planner runs the installed copy and reads its version."""
-    site = next(colcon_install.glob('lib/python3*/site-packages'))
-    environment = dict(os.environ, PYTHONPATH=str(site))
-    command = executables_in(colcon_install, PACKAGE)['uav-comm-planner']
-    done = subprocess.run([str(command), '--version'], capture_output=True, text=True,
-                          env=environment, timeout=60)
+def test_the_installed_command_runs_in_the_sourced_workspace(workspace, lookups):
+    command = Path(lookups['prefix']) / 'lib' / PACKAGE / 'uav-comm-planner'
+    done = sourced(workspace, str(command), '--version')
     version = ElementTree.parse(PACKAGE_XML).getroot().findtext('version')
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == f'uav-comm-planner {version}'
@@ -232,56 +272,142 @@ def test_the_installed_command_runs_from_the_colcon_layout(colcon_install):
 
 # --- launch file -----------------------------------------------------------------------------
 
-def _launch_tree() -> ast.Module:
-    return ast.parse(LAUNCH_FILE.read_text(encoding='utf-8'), str(LAUNCH_FILE))
+#: Keywords of Jazzy's launch_ros.actions.Node and of the ExecuteProcess it extends.
+NODE_KEYWORDS = {'executable', 'package', 'name', 'namespace', 'exec_name', 'parameters',
+                 'remappings', 'ros_arguments', 'arguments', 'cmd', 'cwd', 'env',
+                 'additional_env', 'shell', 'sigterm_timeout', 'sigkill_timeout',
+                 'emulate_tty', 'output', 'output_format', 'log_cmd', 'cached_output',
+                 'prefix', 'respawn', 'respawn_delay', 'respawn_max_retries', 'on_exit',
+                 'condition'}
 
 
-def _calls(tree: ast.AST, name: str) -> list[ast.Call]:
-    return [node for node in ast.walk(tree) if isinstance(node, ast.Call)
-            and getattr(node.func, 'id', getattr(node.func, 'attr', None)) == name]
+class _Stand:
+    """A stand-in of one launch class: keeps what it was made with."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        self.args, self.kwargs = args, kwargs
 
 
-def test_launch_file_declares_its_arguments_and_starts_the_planner():
-    tree = _launch_tree()
-    functions = {node.name for node in tree.body if isinstance(node, ast.FunctionDef)}
-    assert 'generate_launch_description' in functions
-    declared = [ast.literal_eval(call.args[0]) for call in _calls(tree, 'DeclareLaunchArgument')]
-    assert declared == ['params_file', 'namespace', 'mavlink_url']
-    constants = {node.targets[0].id: ast.literal_eval(node.value) for node in tree.body
-                 if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant)}
-    assert constants['PACKAGE'] == PACKAGE
+class _Argument(_Stand):
+    def __init__(self, name, *, default_value=None, description=None, choices=None):
+        super().__init__(name, default_value=default_value, description=description,
+                         choices=choices)
+        self.name = name
+
+
+class _Node(_Stand):
+    def __init__(self, **kwargs) -> None:
+        unknown = set(kwargs) - NODE_KEYWORDS
+        assert not unknown, f'launch_ros.actions.Node takes no {sorted(unknown)}'
+        super().__init__(**kwargs)
+
+
+class _Configuration(_Stand):
+    def perform(self, context: dict) -> str:
+        return context[self.args[0]]
+
+
+class _Share(_Stand):
+    def perform(self, context: dict) -> str:
+        return f'/opt/ros/jazzy/share/{self.args[0]}'
+
+
+@pytest.fixture
+def launch_file(monkeypatch):
+    """The launch file imported against stand-ins of launch and launch_ros."""
+    stand_ins = {
+        'launch': {'LaunchDescription': _Stand},
+        'launch.actions': {'DeclareLaunchArgument': _Argument, 'OpaqueFunction': _Stand},
+        'launch.substitutions': {'LaunchConfiguration': _Configuration,
+                                 'PathJoinSubstitution': _Stand},
+        'launch_ros': {}, 'launch_ros.actions': {'Node': _Node},
+        'launch_ros.substitutions': {'FindPackageShare': _Share},
+    }
+    for name, members in stand_ins.items():
+        monkeypatch.setitem(sys.modules, name, types.SimpleNamespace(**members))
+    spec = importlib.util.spec_from_file_location('planner_launch_stand_in', LAUNCH_FILE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+ARGUMENTS = ['params_file', 'namespace', 'mavlink_url', 'use_sim_time', 'log_level',
+             'use_rviz', 'color']
+
+
+def _launch(module, **given) -> list[_Node]:
+    """The nodes the launch file starts with the arguments ``given`` (others: defaults)."""
+    (description,) = module.generate_launch_description().args
+    declared = {a.name: a for a in description if isinstance(a, _Argument)}
+    assert list(declared) == ARGUMENTS
+    context = {name: a.kwargs['default_value'] for name, a in declared.items()}
+    context['params_file'] = str(ROOT / 'config' / 'planner.yaml')
+    context.update(given)
+    for name, value in given.items():
+        choices = declared[name].kwargs['choices']
+        assert choices is None or value in choices, (name, value)
+    (opaque,) = [a for a in description if type(a) is _Stand]
+    return opaque.kwargs['function'](context)
+
+
+def test_launch_declares_its_arguments_with_their_choices(launch_file):
+    (description,) = launch_file.generate_launch_description().args
+    declared = {a.name: a.kwargs for a in description if isinstance(a, _Argument)}
+    assert list(declared) == ARGUMENTS
+    assert declared['use_sim_time']['choices'] == declared['use_rviz']['choices'] == \
+        ('true', 'false')
+    assert declared['log_level']['choices'] == ('debug', 'info', 'warn', 'error', 'fatal')
+    assert [declared[name]['default_value'] for name in ARGUMENTS[1:]] == [
+        '', '', 'false', 'info', 'false', 'auto']
+    assert all(kwargs['description'] for kwargs in declared.values())
     setup_text = (ROOT / 'setup.py').read_text(encoding='utf-8')
-    assert f"'{constants['EXECUTABLE']} = {{PACKAGE}}.ros.launcher:main'" in setup_text
+    assert f"'{launch_file.EXECUTABLE} = {{PACKAGE}}.ros.launcher:main'" in setup_text
     from uav_comm_planner.ros.node import NODE_NAME
-    assert constants['NODE_NAME'] == NODE_NAME
+    assert launch_file.NODE_NAME == NODE_NAME and launch_file.PACKAGE == PACKAGE
 
 
-def test_launch_passes_mavlink_url_only_when_given():
-    (planner,) = [node for node in _launch_tree().body
-                  if isinstance(node, ast.FunctionDef) and node.name == '_planner']
-    guarded = [node for node in ast.walk(planner) if isinstance(node, ast.If)
-               and isinstance(node.test, ast.Name) and node.test.id == 'mavlink_url']
-    assert len(guarded) == 1
-    (append,) = guarded[0].body
-    assert ast.unparse(append) == "parameters.append({'mavlink_url': mavlink_url})"
-    uses = [node for node in ast.walk(planner)
-            if isinstance(node, ast.Constant) and node.value == 'mavlink_url']
-    assert len(uses) == 2   # the launch configuration read, and the guarded parameter
+def test_launch_starts_the_planner_with_its_options(launch_file, monkeypatch):
+    monkeypatch.setattr(sys.stdout, 'isatty', lambda: False)
+    (planner,) = _launch(launch_file)
+    options = planner.kwargs
+    assert (options['package'], options['executable'], options['name']) == (
+        PACKAGE, 'planner', 'uav_comm_planner')
+    assert options['namespace'] == '' and options['output'] == 'screen'
+    shipped = yaml.safe_load((ROOT / 'config' / 'planner.yaml').read_text())
+    assert options['parameters'] == [shipped['uav_comm_planner']['ros__parameters'],
+                                     {'use_sim_time': False}]
+    assert options['ros_arguments'] == ['--log-level', 'info']
+    # A redirected launch: the node's pseudo-terminal output carries no colour codes.
+    assert options['emulate_tty'] is True
+    assert options['additional_env'] == {'RCUTILS_COLORIZED_OUTPUT': '0'}
 
 
-def _launch_function(name: str):
-    """One plain function of the launch file, compiled on its own (no launch import needed)."""
-    tree = _launch_tree()
-    (function,) = [node for node in tree.body
-                   if isinstance(node, ast.FunctionDef) and node.name == name]
-    module = ast.Module(body=[function], type_ignores=[])
-    scope = {'yaml': yaml, 'NODE_NAME': 'uav_comm_planner'}
-    exec(compile(module, str(LAUNCH_FILE), 'exec'), scope)
-    return scope[name]
+def test_launch_arguments_reach_the_node(launch_file, monkeypatch):
+    monkeypatch.setattr(sys.stdout, 'isatty', lambda: True)
+    (planner,) = _launch(launch_file, namespace='uav1', use_sim_time='true', log_level='debug',
+                         mavlink_url='udpin:0.0.0.0:14550')
+    options = planner.kwargs
+    assert options['namespace'] == 'uav1'
+    assert options['parameters'][1:] == [{'use_sim_time': True},
+                                         {'mavlink_url': 'udpin:0.0.0.0:14550'}]
+    assert options['ros_arguments'] == ['--log-level', 'debug']
+    assert options['additional_env'] == {'RCUTILS_COLORIZED_OUTPUT': '1'}
+    (plain,) = _launch(launch_file, color='false')
+    assert plain.kwargs['additional_env'] == {'RCUTILS_COLORIZED_OUTPUT': '0'}
 
 
-def test_launch_parameters_reach_the_node_in_any_namespace(tmp_path):
-    node_parameters = _launch_function('node_parameters')
+def test_use_rviz_starts_rviz_with_the_package_s_view_in_the_namespace(launch_file):
+    planner, rviz = _launch(launch_file, namespace='uav1', use_rviz='true', use_sim_time='true')
+    options = rviz.kwargs
+    assert (options['package'], options['executable']) == ('rviz2', 'rviz2')
+    assert options['namespace'] == planner.kwargs['namespace'] == 'uav1'
+    assert options['arguments'] == ['-d', f'/opt/ros/jazzy/share/{PACKAGE}/rviz/planner.rviz']
+    assert options['parameters'] == [{'use_sim_time': True}]
+    assert (ROOT / 'rviz' / 'planner.rviz').is_file()
+
+
+def test_launch_parameters_reach_the_node_in_any_namespace(launch_file, tmp_path):
+    node_parameters = launch_file.node_parameters
     shipped = node_parameters(str(ROOT / 'config' / 'planner.yaml'), '')
     assert shipped == node_parameters(str(ROOT / 'config' / 'planner.yaml'), 'uav1')
     expected = yaml.safe_load((ROOT / 'config' / 'planner.yaml').read_text())
@@ -302,17 +428,16 @@ def test_launch_description_builds_when_launch_is_installed():
     # launch.actions, not launch: from the checkout, the launch/ folder alone imports as an
     # empty namespace package called launch.
     pytest.importorskip('launch.actions', reason='the launch package comes with a ROS 2 '
-                                                 'installation (not on PyPI); the file was '
-                                                 'parsed above')
+                                                 'installation (not on PyPI); the file ran '
+                                                 'against stand-ins above')
     pytest.importorskip('launch_ros.actions', reason='launch_ros comes with a ROS 2 '
                                                      'installation')
-    import importlib.util
     spec = importlib.util.spec_from_file_location('planner_launch', LAUNCH_FILE)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     description = module.generate_launch_description()
     names = [argument.name for argument in description.get_launch_arguments()]
-    assert names == ['params_file', 'namespace', 'mavlink_url']
+    assert names == ARGUMENTS
 
 
 # --- RViz configuration ----------------------------------------------------------------------
@@ -324,22 +449,28 @@ def _displays() -> list[dict]:
     return manager['Displays']
 
 
-def test_rviz_shows_the_path_the_markers_and_the_ground_nodes():
+def test_rviz_shows_the_plan_the_ground_nodes_and_the_vehicle_on_relative_topics():
     from uav_comm_planner.ros.node import TOPIC_GROUND_NODES
-    from uav_comm_planner.ros.publishing import TOPIC_MARKERS, TOPIC_PATH
     from uav_comm_planner.ros.params import NodeSettings
+    from uav_comm_planner.ros.publishing import TOPIC_MARKERS, TOPIC_PATH
+    from uav_comm_planner.ros.vehicle import TOPIC_VEHICLE_POSE, VEHICLE_POSE_QOS
 
     assert NodeSettings().frame_id == 'map'
     topics = {display['Class']: display['Topic'] for display in _displays()
               if 'Topic' in display}
-    assert topics['rviz_default_plugins/Path']['Value'] == '/' + TOPIC_PATH
-    assert topics['rviz_default_plugins/MarkerArray']['Value'] == '/' + TOPIC_MARKERS
-    assert topics['rviz_default_plugins/PoseArray']['Value'] == '/' + TOPIC_GROUND_NODES
+    # Relative, so that RViz in the planner's namespace resolves them to the planner's.
+    assert {display: topic['Value'] for display, topic in topics.items()} == {
+        'rviz_default_plugins/Path': TOPIC_PATH,
+        'rviz_default_plugins/MarkerArray': TOPIC_MARKERS,
+        'rviz_default_plugins/PoseArray': TOPIC_GROUND_NODES,
+        'rviz_default_plugins/Pose': TOPIC_VEHICLE_POSE}
     # The planner's outputs are transient local: RViz must ask for the same to get a plan
     # published before it started.
     for output in ('rviz_default_plugins/Path', 'rviz_default_plugins/MarkerArray'):
         assert topics[output]['Durability Policy'] == 'Transient Local'
         assert topics[output]['Reliability Policy'] == 'Reliable'
+    assert VEHICLE_POSE_QOS.reliability.name == 'RELIABLE'
+    assert topics['rviz_default_plugins/Pose']['Reliability Policy'] == 'Reliable'
 
 
 def test_rviz_marker_namespaces_are_the_ones_the_node_publishes():

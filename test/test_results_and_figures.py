@@ -142,6 +142,11 @@ def test_titles_name_the_case_and_what_differs():
         'case II, T = 36 s, M = 12'
     other = Scenario(ground_nodes_m=((0.0, 100.0), (50.0, 0.0)), goal_m=(100.0, 0.0))
     assert plots.scenario_label(other) == '2 ground nodes, M = 50'
+    # A title that states M, T, V and H apart leaves them out of the label.
+    stated = plots.STATED_SETTINGS
+    assert plots.scenario_label(paper_scenario('II', num_slots=12, horizon_s=36.0),
+                                besides=stated) == 'case II'
+    assert plots.scenario_label(other, besides=stated) == '2 ground nodes'
 
 
 def _extent(artist, renderer):
@@ -156,9 +161,9 @@ def test_plan_figure_title_and_no_overlaps():
     result = plan(small_scenario(bandwidth_hz=1e6, reference_gain=1e-6, power_budget_w=0.5))
     figure = plots.draw_plan(result)
     title = figure._suptitle.get_text()
-    assert title.startswith(r'case I, T = 36 s, M = 12, B = 1 MHz, $\beta_0$ = -60 dB, '
-                            r'$P_T$ = 0.5 W: min average throughput ')
-    assert title.endswith(plots.format_rate(result.min_throughput))
+    assert title == (r'case I, B = 1 MHz, $\beta_0$ = -60 dB: min average throughput '
+                     f'{plots.format_rate(result.min_throughput)} as planned\n'
+                     'M = 12 slots of 3 s (T = 36 s), V = 100 m/s, H = 100 m, $P_T$ = 0.5 W')
     assert 'Mbit/s' in title
     figure.canvas.draw()
     renderer = figure.canvas.get_renderer()

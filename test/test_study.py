@@ -410,12 +410,24 @@ def test_gain_table_groups_rows_by_the_setting(quick_tables):
 
 
 def test_the_command_draws_the_figures_from_the_table(quick_tables, tmp_path, scheduler):
+    """Into folders it makes when they are missing."""
     design, folder, _, _ = quick_tables
+    figures = tmp_path / 'figures' / 'png'
     code, printed, _ = run_cli('--out', str(folder / 'one.parquet'), '--figure',
-                               str(tmp_path / 'cdf.pdf'), '--figures-dir', str(tmp_path),
+                               str(tmp_path / 'cdf' / 'cdf.pdf'), '--figures-dir', str(figures),
                                '--figure-format', 'png', '--scheduler', scheduler[0])
     assert code == 0, printed
-    assert (tmp_path / 'cdf.pdf').read_bytes().startswith(b'%PDF')
+    assert (tmp_path / 'cdf' / 'cdf.pdf').read_bytes().startswith(b'%PDF')
     for name in ('cdf.png', 'gain_vs_nodes.png', 'time_vs_slots.png'):
-        assert (tmp_path / name).read_bytes().startswith(b'\x89PNG'), name
+        assert (figures / name).read_bytes().startswith(b'\x89PNG'), name
     assert 'default over straight: mean gain' in printed
+    assert re.search(r'default over static: mean gain -?\d+\.\d % \(the static point ignores '
+                     r'launch and landing\)', printed)
+
+
+def test_a_figure_folder_that_cannot_be_made_fails_before_the_study(tmp_path):
+    (tmp_path / 'taken').write_text('')
+    code, _, err = run_cli('--quick', '--out', str(tmp_path / 's.csv'), '--figures-dir',
+                           str(tmp_path / 'taken' / 'figs'))
+    assert code == 2 and err.count('\n') == 1 and 'cannot make the figure folder' in err
+    assert not (tmp_path / 's.csv').exists()

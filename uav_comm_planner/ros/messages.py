@@ -158,20 +158,27 @@ PLANNED = 'planned'
 REFUSED = 'refused'
 
 
+def one_line(text: str) -> str:
+    """``text`` on one line, whole: line breaks become spaces, nothing is cut."""
+    return ' '.join(text.splitlines())
+
+
 def status_message(stamp_ns: int, *, request: str, planned: bool, message: str,
-                   values: dict[str, object] | None = None) -> DiagnosticArray:
+                   values: dict[str, object] | None = None,
+                   hardware_id: str = '') -> DiagnosticArray:
     """diagnostic_msgs/DiagnosticArray saying whether one request was planned or refused.
 
     header.stamp is the plan stamp for a plan (the same as on every output of that plan), the
-    time of the refusal otherwise. One status, named :data:`STATUS_NAME`: level OK and
-    message ``planned: ...``, or level ERROR and ``refused: <reason>``; its values carry
-    ``request`` (what asked for the plan: ``ground_nodes``, ``uav_pose``, ``parameters ...``)
-    and whatever else is known (``nodes``, ``min_throughput_bps``, ...), as text.
+    time of the refusal otherwise. One status, named :data:`STATUS_NAME`, of ``hardware_id``
+    (the node's fully qualified name): level OK and message ``planned: ...``, or level ERROR
+    and ``refused: <reason>``, on one line and whole; its values carry ``request`` (what asked
+    for the plan: ``ground_nodes``, ``uav_pose``, ``parameters ...``) and whatever else is
+    known (``nodes``, ``min_throughput_bps``, ...), as text.
     """
     status = DiagnosticStatus(
         level=DiagnosticStatus.OK if planned else DiagnosticStatus.ERROR,
-        name=STATUS_NAME, hardware_id='',
-        message=f'{PLANNED if planned else REFUSED}: {message}')
+        name=STATUS_NAME, hardware_id=hardware_id,
+        message=one_line(f'{PLANNED if planned else REFUSED}: {message}'))
     status.values = [KeyValue(key='request', value=request)] + [
         KeyValue(key=key, value=str(value)) for key, value in (values or {}).items()]
     return DiagnosticArray(header=Header(stamp=time_msg(stamp_ns)), status=[status])
@@ -219,5 +226,5 @@ def marker_array(result: PlanResult, frame_id: str, start_ns: int) -> MarkerArra
 
 __all__ = ['HOVER_FRACTION', 'PLANNED', 'REFUSED', 'STATUS_NAME', 'duration_msg',
            'ground_nodes_of', 'headings', 'marker_array', 'nanoseconds_of', 'node_names',
-           'nodes_text', 'path_message', 'pose_array', 'power_message', 'power_plan_message',
-           'status_message', 'status_values', 'time_msg', 'yaw_quaternion']
+           'nodes_text', 'one_line', 'path_message', 'pose_array', 'power_message',
+           'power_plan_message', 'status_message', 'status_values', 'time_msg', 'yaw_quaternion']

@@ -33,7 +33,9 @@ Replanning:
   firmware, end, frame, home, link and replan settings) never replan.
 
 Every request ends in one ``planner_status`` message: planned (with the plan stamp that
-every output of the plan carries) or refused, with the reason.
+every output of the plan carries) or refused, with the reason. The node's state (planner,
+vehicle link, mission clock) is on ``/diagnostics``
+(:mod:`uav_comm_planner.ros.diagnostics`).
 """
 
 from __future__ import annotations
@@ -55,6 +57,7 @@ from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.mission.pipeline import Planner
 from uav_comm_planner.mission.request import InFlight, MissionRequest
 from uav_comm_planner.ros.binding import ParameterBinding
+from uav_comm_planner.ros.diagnostics import NodeDiagnostics
 from uav_comm_planner.ros.flight import MissionFlight
 from uav_comm_planner.ros.messages import ground_nodes_of, nodes_text
 from uav_comm_planner.ros.params import flat_pairs, OUTPUT_ONLY, PlannerConfig
@@ -120,6 +123,7 @@ class PlannerNode(Node):
         self.vehicle = VehicleAdapter(self, self._on_vehicle_position, self._on_vehicle_report,
                                       frame_id=lambda: self.config.node.frame_id)
         self._publisher = PlanPublisher(self)
+        self.diagnostics = NodeDiagnostics(self)
         self.create_subscription(PoseArray, TOPIC_GROUND_NODES, self._on_ground_nodes,
                                  GROUND_NODES_QOS)
         self.create_subscription(PoseStamped, TOPIC_UAV_POSE, self._on_uav_pose, UAV_POSE_QOS)
@@ -206,6 +210,7 @@ class PlannerNode(Node):
             self.report_error(message)
         else:
             self.get_logger().info(message)
+        self.diagnostics.update()
 
     # Planning.
 
@@ -249,6 +254,7 @@ class PlannerNode(Node):
             line += f'; mission written to {outcome.mission_path}'
         # Logged first, so that whoever receives the plan can already read its line.
         self.get_logger().info(line)
+        self.diagnostics.planned(outcome)
         self._publisher.publish(outcome)
         self.stats.plans_published += 1
         if self.vehicle.linked:
@@ -261,10 +267,12 @@ class PlannerNode(Node):
 
     def refuse(self, request: str, message: str, *, nodes: str | None = None,
                stamp_ns: int | None = None) -> None:
-        """Log an error and say on planner_status that ``request`` was refused and why."""
+        """Log an error and say on planner_status and /diagnostics that ``request`` was
+        refused and why."""
         self.report_error(message)
         self._publisher.refused(self.now_ns() if stamp_ns is None else stamp_ns, request,
                                 message, nodes=nodes)
+        self.diagnostics.refused(request, message, nodes=nodes)
 
     def report_error(self, message: str) -> None:
         self.stats.error_count += 1

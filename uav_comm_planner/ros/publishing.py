@@ -52,6 +52,7 @@ class PlanPublisher:
         self._throughput = node.create_publisher(Float64, TOPIC_MIN_THROUGHPUT, OUTPUT_QOS)
         self._markers = node.create_publisher(MarkerArray, TOPIC_MARKERS, OUTPUT_QOS)
         self._status = node.create_publisher(DiagnosticArray, TOPIC_STATUS, STATUS_QOS)
+        self._hardware_id = node.get_fully_qualified_name()
 
     def publish(self, outcome: PlanOutcome) -> None:
         """Publish the plan of a successful ``outcome`` on every output, then its status."""
@@ -65,7 +66,7 @@ class PlanPublisher:
         self._markers.publish(marker_array(result, frame_id, stamp))
         self._status.publish(status_message(
             stamp, request=request.reason, planned=True, message=summary_line(result),
-            values=plan_values(outcome)))
+            values=plan_values(outcome), hardware_id=self._hardware_id))
 
     def refused(self, stamp_ns: int, request: str, reason: str, *,
                 nodes: str | None = None) -> None:
@@ -73,7 +74,8 @@ class PlanPublisher:
         asked for, as :func:`~uav_comm_planner.ros.messages.nodes_text` writes it."""
         values = {} if nodes is None else {'nodes': nodes}
         self._status.publish(status_message(stamp_ns, request=request, planned=False,
-                                            message=reason, values=values))
+                                            message=reason, values=values,
+                                            hardware_id=self._hardware_id))
 
 
 def plan_values(outcome: PlanOutcome) -> dict[str, object]:

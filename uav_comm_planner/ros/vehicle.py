@@ -1,5 +1,5 @@
 """The vehicle side of the node: the MAVLink link's events on the executor, the vehicle's
-pose on ``vehicle_pose``, and every plan uploaded.
+pose on ``vehicle_pose`` (advertised only while a link runs), and every plan uploaded.
 
 A :class:`VehicleAdapter` takes the node (as tf2_ros's TransformListener does): with
 ``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge`,
@@ -13,6 +13,7 @@ from typing import Callable
 
 from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from uav_comm_planner.ros.handoff import ExecutorHandoff
@@ -41,8 +42,11 @@ class VehicleAdapter:
 
     ``time_s`` is the vehicle's time of its latest position (None before any);
     ``mission_item`` the item it flies to; ``uploads_verified`` counts uploads read back;
-    ``upload_pending`` is True while the latest plan's upload is not yet verified or failed.
-    ``frame_id`` gives the frame of the poses published.
+    ``upload_pending`` is True while the latest plan's upload is not yet verified or failed;
+    ``last_error`` is the link's latest error ('' when none; a link error ends when the link is
+    up again, a failed upload when an upload is verified).
+    ``frame_id`` gives the frame of the poses published on ``vehicle_pose``, a topic that
+    exists only while a link runs.
     """
 
     def __init__(self, node: Node, on_position: PositionCallback, report: Reporter, *,
@@ -54,11 +58,14 @@ class VehicleAdapter:
         self._bridge: VehicleBridge | None = None
         self._events: ExecutorHandoff[Event] = ExecutorHandoff(node, self._drain,
                                                                maxlen=EVENTS_KEPT)
-        self._pose = node.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE, VEHICLE_POSE_QOS)
+        self._pose: Publisher | None = None
         self._pending_tag: int | None = None
+        self._position_ns: int | None = None
         self.time_s: float | None = None
         self.mission_item: int | None = None
         self.uploads_verified = 0
+        self.last_error = ''
+        self._upload_failed = False
 
     @property
     def linked(self) -> bool:
@@ -68,11 +75,19 @@ class VehicleAdapter:
     def upload_pending(self) -> bool:
         return self._pending_tag is not None
 
+    def telemetry_age_s(self, now_ns: int) -> float | None:
+        """Seconds on the node's clock since the latest position (None before any)."""
+        return None if self._position_ns is None else (now_ns - self._position_ns) / 1e9
+
     def connect(self, output: NodeSettings) -> None:
         """(Re)start the link for ``output.mavlink_url``; stop it when the URL is empty."""
         self.stop()
-        self.time_s = None
+        self.time_s = self._position_ns = None
+        self.last_error = ''
+        self._upload_failed = False
         if output.mavlink_url:
+            self._pose = self._node.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE,
+                                                     VEHICLE_POSE_QOS)
             self._bridge = VehicleBridge(output.mavlink_url, output.home, self._events.put)
             self._report(f'vehicle link: connecting to {output.mavlink_url}', False)
 
@@ -90,15 +105,20 @@ class VehicleAdapter:
                             tag=outcome.request.start_ns)
 
     def stop(self) -> None:
+        """End the link and withdraw ``vehicle_pose``."""
         if self._bridge is not None:
             self._bridge.stop()
             self._bridge = None
+        if self._pose is not None:
+            self._node.destroy_publisher(self._pose)
+            self._pose = None
 
     def _drain(self, events: list[Event]) -> None:
         """Executor thread: positions, mission progress and link events from the vehicle."""
         for event in events:
             if isinstance(event, Position):
                 self.time_s = event.time_s
+                self._position_ns = self._node.get_clock().now().nanoseconds
                 self._publish_pose(event)
                 self._on_position(event.time_s, event.east_m, event.north_m, event.up_m)
             elif isinstance(event, MissionProgressReport):
@@ -110,8 +130,15 @@ class VehicleAdapter:
         if event.kind == 'error':
             if event.tag is not None and event.tag == self._pending_tag:
                 self._pending_tag = None
+            self.last_error = event.message
+            self._upload_failed = event.tag is not None
             self._report(event.message, True)
             return
+        # A verified upload ends any error; the link up again ends a link error, not a failed
+        # upload (the plan in force is still not on the vehicle).
+        if event.kind == 'uploaded' or (event.kind == 'connected' and not self._upload_failed):
+            self.last_error = ''
+            self._upload_failed = False
         if event.kind == 'uploaded':
             self.uploads_verified += 1
             if event.tag == self._pending_tag:
@@ -119,6 +146,8 @@ class VehicleAdapter:
         self._report(event.message, False)
 
     def _publish_pose(self, event: Position) -> None:
+        if self._pose is None:      # a position the link sent before it was stopped
+            return
         message = PoseStamped()
         message.header.frame_id = self._frame_id()
         message.header.stamp = self._node.get_clock().now().to_msg()

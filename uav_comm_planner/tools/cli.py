@@ -22,7 +22,7 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, write_text_atomic
 from uav_comm_planner.tools import bench
-from uav_comm_planner.tools.plots import check_figure_path, METHOD_LABELS
+from uav_comm_planner.tools.plots import check_figure_path, make_folder, METHOD_LABELS
 from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
                                               scenario_from_dict, scenario_to_dict,
                                               settings_from_dict)
@@ -262,12 +262,14 @@ def format_flown(vehicle_plan) -> str:
 
 def _check_outputs(*paths: Path | None, figure: Path | None = None) -> None:
     """Fail before planning, not after, when an output file cannot be placed or its format
-    is unknown: each path must be a regular file (or absent) in a writable folder."""
+    is unknown: each path must be a regular file (or absent) in a writable folder; a figure's
+    folder is made if missing."""
+    if figure is not None:
+        check_figure_path(figure)
+        make_folder(figure.parent)
     for path in (*paths, figure):
         if path is not None:
             check_output_path(path)
-    if figure is not None:
-        check_figure_path(figure)
 
 
 def json_text(data: object) -> str:
@@ -308,7 +310,7 @@ def _command_plan(args: argparse.Namespace) -> int:
         print(f'wrote {write_text_atomic(args.json, text)}')
     if args.figure is not None:
         from uav_comm_planner.tools.plots import plan_figure
-        print(f'wrote {plan_figure(result, args.figure)}')
+        print(f'wrote {plan_figure(result, args.figure, as_flown=vehicle_aware)}')
     if args.mission is not None:
         print(f'wrote {planned.write(args.mission)}')
     return 0

@@ -1,8 +1,11 @@
 """Figures of the letter's evaluation, fit for a paper; matplotlib is imported only when drawing.
 
-The file's suffix chooses the format (``.png``, ``.pdf`` or ``.svg``). Titles name the case
-(or what differs from it) and P_T, and give rates in scaled units (bit/s, kbit/s, Mbit/s...);
-legends sit outside the axes. The files carry no date and no software version, and SVG ids
+The file's suffix chooses the format (``.png``, ``.pdf`` or ``.svg``); a missing folder is
+made. Titles name the case (or what differs from it), state the plan's settings (M, delta, T,
+V, H, P_T) and whether a throughput is as planned or as the vehicle flies it, and give rates in
+scaled units (bit/s, kbit/s, Mbit/s...); the sweep draws the upper bound beside the methods;
+the static access point's caveat (it ignores launch and landing) stands beside it in every
+legend; legends sit outside the axes. The files carry no date and no software version, and SVG ids
 come from a fixed salt, so drawing the same plan twice writes the same bytes and
 ``make figures`` leaves unchanged figures unchanged.
 """
@@ -16,14 +19,18 @@ from pathlib import Path
 from typing import Sequence
 
 from uav_comm_planner.core.model import flown_path, speeds
-from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.optimizer import PlanResult, throughput_upper_bound
 from uav_comm_planner.core.scenario import paper_scenario, Scenario
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import write_with
 
 METHOD_LABELS = {'proposed': 'proposed (joint power and trajectory)',
                  'straight': 'straight line, optimal power',
-                 'static': 'static access point, optimal power'}
+                 'static': 'static access point, optimal power',
+                 'bound': 'upper bound (every channel at its best)'}
+#: Said wherever the static point's number is shown: it hovers over the nodes' centroid for
+#: the whole horizon, never flying from q0 nor to qF, as in the letter's comparison.
+STATIC_CAVEAT = 'ignores launch and landing'
 
 #: Suffix -> what the file omits so that the same figure gives the same bytes.
 FIGURE_METADATA = {
@@ -70,6 +77,25 @@ def _point(point: Sequence[float]) -> str:
     return f'({point[0]:g}, {point[1]:g}) m'
 
 
+def legend_label(method: str, label: str | None = None) -> str:
+    """``label`` (default: :data:`METHOD_LABELS`'s) of ``method``, with the static point's
+    caveat."""
+    label = label or METHOD_LABELS.get(method, method)
+    return f'{label} ({STATIC_CAVEAT})' if method == 'static' else label
+
+
+def settings_text(scenario: Scenario) -> str:
+    """The settings every title states: 'M = 50 slots of 1 s (T = 50 s), V = 100 m/s,
+    H = 100 m'."""
+    return (f'M = {scenario.num_slots} slots of {scenario.slot_s:.4g} s '
+            f'(T = {scenario.horizon_s:g} s), V = {scenario.max_speed_mps:g} m/s, '
+            f'H = {scenario.altitude_m:g} m')
+
+
+#: The settings :func:`settings_text` states, which titles leave out of the scenario's label.
+STATED_SETTINGS = ('num_slots', 'horizon_s', 'max_speed_mps', 'altitude_m')
+
+
 #: How a setting that differs from the letter's case is named in a title.
 _SETTING_TEXT = {
     'altitude_m': lambda v: f'H = {v:g} m',
@@ -84,11 +110,12 @@ _SETTING_TEXT = {
 }
 
 
-def scenario_label(scenario: Scenario) -> str:
+def scenario_label(scenario: Scenario, *, besides: Sequence[str] = ()) -> str:
     """'case I', 'case II', 'case I, B = 1 MHz, beta0 = -60 dB' or 'N nodes, M slots'.
 
     The letter's case whose settings differ least (P_T aside, which titles give apart) names
-    the scenario when the ground nodes are the letter's; the differing settings follow.
+    the scenario when the ground nodes are the letter's; the differing settings follow, except
+    those named in ``besides`` (a title that states them apart).
     """
     best = None
     for case in ('I', 'II'):
@@ -103,9 +130,11 @@ def scenario_label(scenario: Scenario) -> str:
         if not unnamed and (best is None or len(changed) < len(best[1])):
             best = (case, changed)
     if best is None:
-        return f'{scenario.num_nodes} ground nodes, M = {scenario.num_slots}'
+        nodes = f'{scenario.num_nodes} ground nodes'
+        return nodes if 'num_slots' in besides else f'{nodes}, M = {scenario.num_slots}'
     case, changed = best
-    named = [_SETTING_TEXT[name](getattr(scenario, name)) for name in changed]
+    named = [_SETTING_TEXT[name](getattr(scenario, name)) for name in changed
+             if name not in besides]
     return ', '.join([f'case {case}', *named])
 
 
@@ -118,6 +147,18 @@ def check_figure_path(path: str | os.PathLike) -> str:
     return suffix
 
 
+def make_folder(folder: str | os.PathLike) -> Path:
+    """Make ``folder`` (and its parents) if missing; a PlannerError that says why when it
+    cannot be made (a file in the way, no permission)."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise PlannerError(f'cannot make the figure folder {str(folder)!r}: '
+                           f'{exc.strerror or exc}') from None
+    return folder
+
+
 def _pyplot():
     import matplotlib
     matplotlib.use('Agg')
@@ -126,10 +167,12 @@ def _pyplot():
 
 
 def save_figure(figure, path: str | os.PathLike) -> Path:
-    """Write ``figure`` atomically in the format of the suffix, without date or version."""
+    """Write ``figure`` atomically in the format of the suffix, without date or version, in a
+    folder made if missing."""
     import matplotlib
 
     fmt = check_figure_path(path)
+    make_folder(Path(path).parent)
     with matplotlib.rc_context({'svg.hashsalt': SVG_HASH_SALT}):
         written = write_with(path, lambda temporary: figure.savefig(
             temporary, format=fmt, dpi=DPI, metadata=FIGURE_METADATA[fmt]))
@@ -142,10 +185,22 @@ def _legend_below(ax, columns: int = 1) -> None:
               frameon=False)
 
 
-def draw_plan(result: PlanResult, *, title: str = ''):
+def plan_title(result: PlanResult, *, as_flown: bool = False) -> str:
+    """Two lines: the scenario and its min throughput, said to be as planned or (``as_flown``:
+    a vehicle-aware plan) as the vehicle flies it; the settings and P_T."""
+    scenario = result.scenario
+    how = 'as the vehicle flies it' if as_flown else 'as planned'
+    return (f'{scenario_label(scenario, besides=STATED_SETTINGS)}: min average throughput '
+            f'{format_rate(result.min_throughput)} {how}\n{settings_text(scenario)}, '
+            f'$P_T$ = {scenario.power_budget_w:g} W')
+
+
+def draw_plan(result: PlanResult, *, title: str = '', as_flown: bool = False):
     """The letter's Fig. 1 for one plan: trajectory, speed per leg, power per node per slot.
 
-    Returns the matplotlib figure; :func:`plan_figure` draws and saves it.
+    The title (by default :func:`plan_title`) says whether the throughput is as planned or,
+    ``as_flown``, as the vehicle flies it. Returns the matplotlib figure; :func:`plan_figure`
+    draws and saves it.
     """
     plt = _pyplot()
     scenario = result.scenario
@@ -185,16 +240,15 @@ def draw_plan(result: PlanResult, *, title: str = ''):
     ax_power.set(xlabel='time (s)', ylabel=f'transmit power ({"W" if watts == 1 else "mW"})',
                  title='transmit power')
     _legend_below(ax_power, columns=min(scenario.num_nodes, 5))
-    figure.suptitle(title or f'{scenario_label(scenario)}, $P_T$ = '
-                             f'{scenario.power_budget_w:g} W: min average throughput '
-                             f'{format_rate(result.min_throughput)}')
+    figure.suptitle(title or plan_title(result, as_flown=as_flown))
     return figure
 
 
-def plan_figure(result: PlanResult, path: str | os.PathLike, *, title: str = '') -> Path:
+def plan_figure(result: PlanResult, path: str | os.PathLike, *, title: str = '',
+                as_flown: bool = False) -> Path:
     """Draw :func:`draw_plan` into ``path`` (.png, .pdf or .svg) atomically."""
     check_figure_path(path)
-    return save_figure(draw_plan(result, title=title), path)
+    return save_figure(draw_plan(result, title=title, as_flown=as_flown), path)
 
 
 def draw_sweep(budgets_w: Sequence[float], rows: dict[str, Sequence[float]], *,
@@ -202,26 +256,35 @@ def draw_sweep(budgets_w: Sequence[float], rows: dict[str, Sequence[float]], *,
     """The letter's Fig. 2: minimum average throughput against the power budget P_T.
 
     ``rows`` maps a method ('proposed', 'straight', 'static') to its min throughput at each
-    budget, bit/s; the axis ticks are the budgets swept. Returns the matplotlib figure.
+    budget, bit/s; the axis ticks are the budgets swept. With the ``scenario`` swept, the
+    upper bound (:func:`~uav_comm_planner.core.optimizer.throughput_upper_bound`) at each
+    budget is drawn too and the title states its settings. Returns the matplotlib figure.
     """
     from matplotlib.ticker import FuncFormatter, NullLocator
 
     plt = _pyplot()
     figure, ax = plt.subplots(figsize=(6.4, 5.0), layout='constrained')
+    rows = dict(rows)
+    if scenario is not None and 'bound' not in rows:
+        rows['bound'] = [throughput_upper_bound(scenario.replace(power_budget_w=float(b)))
+                         for b in budgets_w]
     largest = max((abs(v) for values in rows.values() for v in values), default=1.0)
     factor, unit = rate_unit(largest)
-    markers = {'proposed': 'o-', 'straight': 's--', 'static': '^:'}
+    markers = {'proposed': 'o-', 'straight': 's--', 'static': '^:', 'bound': 'k-.'}
     for name, values in rows.items():
         ax.plot(budgets_w, [v / factor for v in values], markers.get(name, '.-'),
-                label=METHOD_LABELS.get(name, name))
+                label=legend_label(name))
     ax.set_xscale('log')
     ax.set_xticks(list(budgets_w))
     ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f'{value:g}'))
     ax.xaxis.set_minor_locator(NullLocator())
-    label = scenario_label(scenario) if scenario is not None else ''
+    if not title:
+        title = 'min average throughput versus $P_T$'
+        if scenario is not None:
+            title = (f'{scenario_label(scenario, besides=STATED_SETTINGS)}: {title}\n'
+                     f'{settings_text(scenario)}')
     ax.set(xlabel='power budget $P_T$ (W)', ylabel=f'min average throughput ({unit})',
-           title=title or (f'{label}: ' if label else '')
-           + 'min average throughput versus $P_T$')
+           title=title)
     ax.grid(True, alpha=0.3)
     _legend_below(ax)
     return figure

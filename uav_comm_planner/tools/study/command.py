@@ -13,6 +13,7 @@ from typing import Sequence
 
 from uav_comm_planner.core.drops import AREAS
 from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.tools.plots import make_folder
 from uav_comm_planner.tools.study.design import ENDPOINTS, SETTINGS, StudyDesign, StudyError
 from uav_comm_planner.tools.study.methods import METHODS
 from uav_comm_planner.tools.study.runner import (format_run, INSTALL_HINT, MAX_BATCH,
@@ -132,14 +133,15 @@ def command(args: argparse.Namespace) -> int:
     for path in (args.figure,):
         if path is not None and path.suffix.lower() not in ('.pdf', '.png'):
             raise StudyError(f'--figure {str(path)!r}: name a .pdf or .png file')
-    for folder in (args.figure.parent if args.figure else None, args.figures_dir):
-        if folder is not None and not folder.is_dir():
-            raise StudyError(f'folder {str(folder)!r} does not exist')
     if args.figure is not None or args.figures_dir is not None:
         try:
             import matplotlib  # noqa: F401
         except ImportError:
             raise StudyError(f'figures need matplotlib: {INSTALL_HINT}') from None
+    # Made before the study runs, so that a folder that cannot be made fails at once.
+    for folder in (args.figure.parent if args.figure else None, args.figures_dir):
+        if folder is not None:
+            make_folder(folder)
     if args.scaling:
         if args.repeats < 1:
             raise StudyError(f'--repeats must be >= 1, got {args.repeats}')

@@ -7,7 +7,10 @@ only when a figure is drawn.
 * :func:`time_figure`: the solve time of each optimised method against M.
 
 Only rows with status 'ok' (every method succeeded) are drawn, so that each method is shown
-on the same scenarios.
+on the same scenarios. Every title states the study's design (:func:`design_text`); an
+integer setting (N, M) gets integer ticks; a setting with a single value is drawn as such
+(bars or points per method, the value in the axis label), not on a stretched axis; the static
+access point's caveat (it ignores launch and landing) stands beside it.
 """
 
 from __future__ import annotations
@@ -20,8 +23,8 @@ import numpy as np
 from scipy import stats
 
 from uav_comm_planner.errors import PlannerError
-from uav_comm_planner.tools.plots import _pyplot, save_figure
-from uav_comm_planner.tools.study.design import SETTINGS, StudyDesign
+from uav_comm_planner.tools.plots import _pyplot, legend_label, make_folder, save_figure
+from uav_comm_planner.tools.study.design import Draw, SETTINGS, StudyDesign
 from uav_comm_planner.tools.study.methods import BASELINES, METHODS
 
 #: Confidence level of the intervals.
@@ -31,6 +34,66 @@ MAX_GROUPS = 8
 STYLES = {'default': 'o-', 'letter': 's--'}
 LINES = {'default': '-', 'letter': '--', 'straight': ':', 'static': '-.',
          'bound': (0, (6, 2, 1, 2))}
+#: How titles write each setting: its symbol and unit.
+SYMBOLS = {'nodes': ('N', ''), 'slots': ('M', ''), 'horizon_s': ('T', ' s'),
+           'max_speed_mps': ('V', ' m/s'), 'altitude_m': ('H', ' m'),
+           'power_budget_w': ('$P_T$', ' W'), 'bandwidth_hz': ('B', ' Hz'),
+           'noise_psd_dbm_per_hz': ('$\\sigma^2$', ' dBm/Hz'),
+           'reference_gain': ('$\\beta_0$', ''), 'side_m': ('side', ' m')}
+#: The settings every title states; the radio's only where they are not the study defaults.
+ALWAYS_STATED = ('nodes', 'slots', 'horizon_s', 'max_speed_mps', 'altitude_m',
+                 'power_budget_w')
+ENDPOINT_TEXT = {'diagonal': 'flown from (0, 0) to (side, side)',
+                 'across': 'flown from (0, side/2) to (side, side/2)',
+                 'centre': 'a loop from the centre', 'random': 'start and goal drawn in it'}
+
+
+def draw_text(draw: Draw, unit: str = '') -> str:
+    """A setting's draw as a title writes it, with its ``unit``: '5 W', '{1, 2, 5} W',
+    '2..4 W' (uniform), or '0.5..20 W (log-uniform)'."""
+    if not draw.is_range:
+        values = [f'{draw.cast(v):g}' for v in draw.grid]
+        text = values[0] if len(values) == 1 else '{' + ', '.join(values) + '}'
+        return text + unit
+    return f'{draw.cast(draw.low):g}..{draw.cast(draw.high):g}{unit}' + (
+        ' (log-uniform)' if draw.log else '')
+
+
+def design_text(design: StudyDesign) -> str:
+    """The study's design in two lines: its settings ('N = 2..4, M = 20, T = M s, ...'), and
+    the area, the endpoints and the drops."""
+    parts = []
+    for name in SETTINGS:
+        draw = design.draws.get(name)
+        if name == 'side_m' or (name not in ALWAYS_STATED
+                                and draw == Draw.parse(SETTINGS[name].default)):
+            continue
+        symbol, unit = SYMBOLS[name]
+        parts.append(f'{symbol} = M s' if draw is None else f'{symbol} = {draw_text(draw, unit)}')
+    side = draw_text(design.draws['side_m'], ' m')
+    area = f'square of side {side}' if design.area == 'square' else f'disc of diameter {side}'
+    return (', '.join(parts) + '\n' + f'{design.cases} drops, nodes uniform in a {area}, '
+            f'{ENDPOINT_TEXT[design.endpoints]}')
+
+
+def _setting_ticks(ax, values: np.ndarray, integer: bool) -> None:
+    """x ticks at a few values of a setting themselves, else integer ones for N or M."""
+    from matplotlib.ticker import MaxNLocator
+    values = np.unique(values)
+    if values.size <= MAX_GROUPS:
+        ax.set_xticks(values, [f'{v:g}' for v in values])
+    elif integer:
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+
+
+def _method_ticks(ax, methods: Sequence[str]) -> np.ndarray:
+    """Positions 0..K-1 ticked with the methods' labels: one value is drawn as such."""
+    import textwrap
+    positions = np.arange(len(methods))
+    ax.set_xticks(positions, [textwrap.fill(METHODS[m].label, 20) for m in methods],
+                  fontsize=8)
+    ax.set_xlim(-0.6, len(methods) - 0.4)
+    return positions
 
 
 def _ok(rows: Sequence[dict]) -> list[dict]:
@@ -98,15 +161,16 @@ def cdf_figure(design: StudyDesign, rows: Sequence[dict], path: str | os.PathLik
     for method in design.methods:
         values = np.sort([row[f'{method}_bps'] for row in ok])
         fraction = np.arange(1, values.size + 1) / values.size
-        ax.step(values, fraction, where='post', label=METHODS[method].label,
+        ax.step(values, fraction, where='post', label=legend_label(method, METHODS[method].label),
                 linestyle=LINES.get(method, '-'))
         positive = values[values > 0]
         if positive.size:
             lowest, highest = min(lowest, positive[0]), max(highest, positive[-1])
     if highest > 0 and highest / lowest > 30:
         ax.set_xscale('log')
-    ax.set(xlabel='min average throughput (bit/s)', ylabel='fraction of scenarios',
-           title=f'CDF over {len(ok)} random scenarios', ylim=(0, 1.02))
+    ax.set(xlabel='min average throughput (bit/s)', ylabel='fraction of scenarios', ylim=(0, 1.02))
+    ax.set_title(f'CDF of the min throughput over {len(ok)} random scenarios\n'
+                 f'{design_text(design)}', fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(loc='best', fontsize=8)
     figure.tight_layout()
@@ -122,45 +186,82 @@ def gain_figure(design: StudyDesign, rows: Sequence[dict], path: str | os.PathLi
     baselines = [b for b in BASELINES if b in design.methods]
     if not table or not baselines:
         raise PlannerError('the gain figure needs an optimised method and a baseline')
+    methods = optimised_methods(design)
+    values = np.unique([row[against] for row in _ok(rows)])
     plt = _pyplot()
-    figure, axes = plt.subplots(1, len(baselines), figsize=(6.0 * len(baselines), 4.4),
+    figure, axes = plt.subplots(1, len(baselines), figsize=(6.0 * len(baselines), 4.8),
                                 squeeze=False)
     for ax, baseline in zip(axes[0], baselines):
-        for method in optimised_methods(design):
-            x, mean, half, _ = np.array(table[(method, baseline)]).T
-            ax.errorbar(x, mean, yerr=np.nan_to_num(half), fmt=STYLES.get(method, 'o-'),
-                        capsize=3, label=METHODS[method].label)
-        ax.set(xlabel=f'{SETTINGS[against].help}', ylabel='mean gain (%)',
-               title=f'over the {METHODS[baseline].label}')
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc='best', fontsize=8)
-    figure.suptitle(f'mean gain with {100 * CONFIDENCE:.0f} % confidence intervals')
+        if values.size == 1:
+            positions = _method_ticks(ax, methods)
+            for position, method in zip(positions, methods):
+                ((_, mean, half, _),) = table[(method, baseline)]
+                half = float(np.nan_to_num(half))
+                ax.bar(position, mean, width=0.6, yerr=half, capsize=4, color=f'C{position}')
+                # The value beyond the end of its interval, clear of the bar and its cap.
+                ax.annotate(f'{mean:+.1f} %', (position, mean + np.sign(mean or 1) * half),
+                            textcoords='offset points', xytext=(0, 5 if mean >= 0 else -12),
+                            ha='center', fontsize=8)
+            ax.axhline(0.0, color='k', linewidth=0.8)
+            ax.margins(y=0.15)
+            ax.set_xlabel(f'{SETTINGS[against].help} = {values[0]:g}')
+        else:
+            for method in methods:
+                x, mean, half, _ = np.array(table[(method, baseline)]).T
+                ax.errorbar(x, mean, yerr=np.nan_to_num(half), fmt=STYLES.get(method, 'o-'),
+                            capsize=3, label=METHODS[method].label)
+            _setting_ticks(ax, values, SETTINGS[against].integer)
+            ax.set_xlabel(SETTINGS[against].help)
+            ax.legend(loc='best', fontsize=8)
+        ax.set_ylabel('mean gain (%)')
+        ax.set_title(f'over the {legend_label(baseline, METHODS[baseline].label)}', fontsize=9)
+        ax.grid(True, axis='y' if values.size == 1 else 'both', alpha=0.3)
+    figure.suptitle(f'mean gain with {100 * CONFIDENCE:.0f} % confidence intervals\n'
+                    f'{design_text(design)}', fontsize=10)
     figure.tight_layout()
     return save_figure(figure, path)
 
 
 def time_figure(design: StudyDesign, rows: Sequence[dict], path: str | os.PathLike) -> Path:
     """Solve time of each optimised method against M: every scenario, and the mean per group
-    with its 95 % confidence interval."""
+    with its 95 % confidence interval; with a single M, one labelled point per method."""
     ok = _ok(rows)
     methods = optimised_methods(design)
     if not methods:
         raise PlannerError('the time figure needs an optimised method')
     plt = _pyplot()
-    figure, ax = plt.subplots(figsize=(6.4, 4.6))
+    figure, ax = plt.subplots(figsize=(6.4, 4.8))
     slots = np.array([row['slots'] for row in ok], dtype=float)
-    for method in methods:
+    single = np.unique(slots).size == 1
+    if single:
+        positions = _method_ticks(ax, methods)
+        ax.set_xlabel(f'number of slots M = {slots[0]:g}')
+    for index, method in enumerate(methods):
         seconds = np.array([row[f'{method}_s'] for row in ok], dtype=float)
+        if single:
+            # Every scenario spread evenly across the method's slot, its mean on top.
+            spread = positions[index] + np.linspace(-0.2, 0.2, seconds.size)
+            ax.plot(spread, seconds, '.', alpha=0.25, color=f'C{index}')
+            mean, half = mean_interval(seconds)
+            ax.errorbar(positions[index], mean, yerr=np.nan_to_num(half), fmt='o',
+                        color=f'C{index}', capsize=4)
+            ax.annotate(f'{mean:.3g} s', (positions[index], mean), textcoords='offset points',
+                        xytext=(14, 0), va='center', fontsize=8)
+            continue
         dots = ax.plot(slots, seconds, '.', alpha=0.25)[0]
         points = [(slots[m].mean(), *mean_interval(seconds[m])) for m in groups(slots)]
         x, mean, half = np.array(points).T
         ax.errorbar(x, mean, yerr=np.nan_to_num(half), fmt=STYLES.get(method, 'o-'),
                     color=dots.get_color(), capsize=3, label=METHODS[method].label)
     ax.set_yscale('log')
-    ax.set(xlabel='number of slots M', ylabel='solve time (s)',
-           title='solve time per scenario (one worker core)')
+    if not single:
+        _setting_ticks(ax, slots, integer=True)
+        ax.set_xlabel('number of slots M')
+        ax.legend(loc='best', fontsize=8)
+    ax.set_ylabel('solve time (s)')
+    ax.set_title(f'solve time per scenario (one worker core)\n{design_text(design)}',
+                 fontsize=9)
     ax.grid(True, which='both', alpha=0.3)
-    ax.legend(loc='best', fontsize=8)
     figure.tight_layout()
     return save_figure(figure, path)
 
@@ -173,8 +274,8 @@ def default_against(design: StudyDesign) -> str:
 
 def all_figures(design: StudyDesign, rows: Sequence[dict], folder: str | os.PathLike, *,
                 fmt: str = 'pdf', against: str | None = None) -> list[Path]:
-    """cdf.FMT, gain_vs_SETTING.FMT and time_vs_slots.FMT in ``folder``."""
-    folder = Path(folder)
+    """cdf.FMT, gain_vs_SETTING.FMT and time_vs_slots.FMT in ``folder`` (made if missing)."""
+    folder = make_folder(folder)
     against = against or default_against(design)
     written = [cdf_figure(design, rows, folder / f'cdf.{fmt}')]
     if optimised_methods(design):

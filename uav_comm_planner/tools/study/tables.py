@@ -21,6 +21,7 @@ import time
 from typing import Sequence, TYPE_CHECKING
 
 from uav_comm_planner.files import write_text_atomic, write_with
+from uav_comm_planner.tools.plots import STATIC_CAVEAT
 from uav_comm_planner.tools.study.design import (row_scenario, row_settings, SETTINGS,
                                                  StudyDesign, StudyError)
 from uav_comm_planner.tools.study.methods import BASELINES, METHODS, Outcome
@@ -326,7 +327,7 @@ def summary(design: StudyDesign, rows: Sequence[dict]) -> str:
         values = [row[f'{method}_bps'] for row in ok]
         times = [row[f'{method}_s'] for row in ok]
         lines.append(f'{METHODS[method].label:<44}{statistics.fmean(values):>28.6g}'
-                     f'{statistics.fmean(times):>15.4f}')
+                     f'{statistics.fmean(times):>15.4f}' + _caveat(method, '  '))
     for method in design.methods:
         if method in BASELINES or method == 'bound':
             continue
@@ -335,5 +336,10 @@ def summary(design: StudyDesign, rows: Sequence[dict]) -> str:
                      if row[f'{baseline}_bps'] > 0]
             if gains:
                 lines.append(f'{method} over {baseline}: mean gain '
-                             f'{100 * statistics.fmean(gains):.1f} %')
+                             f'{100 * statistics.fmean(gains):.1f} %' + _caveat(baseline, ' '))
     return '\n'.join(lines)
+
+
+def _caveat(method: str, gap: str) -> str:
+    """The static point's caveat, to stand beside its number; '' for any other method."""
+    return f'{gap}(the static point {STATIC_CAVEAT})' if method == 'static' else ''
