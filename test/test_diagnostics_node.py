@@ -90,7 +90,8 @@ def test_a_refused_change_is_on_diagnostics_whole_with_its_fix(harness):
     result = set_parameter(h, 'goal_m', [9000.0, 0.0])
     assert not result.successful
     assert result.reason.startswith('goal unreachable: start and goal are 9000.0 m apart')
-    assert result.reason.endswith('raise horizon_s or max_speed_mps, or move the goal')
+    assert result.reason.endswith('raise horizon_s to 87.8 s or more, or max_speed_mps, or move '
+                                  'the goal')
     h.spin_until(lambda: probe.status(PLANNER) is not None
                  and probe.status(PLANNER).level == DiagnosticStatus.WARN, 'the refusal')
     planner = probe.status(PLANNER)
@@ -146,7 +147,7 @@ def test_the_link_has_its_status_and_vehicle_pose_only_while_it_runs(harness):
 
 
 def test_a_link_error_ends_with_the_link_up_and_a_failed_upload_with_a_verified_one(harness):
-    from uav_comm_planner.vehicle.telemetry import LinkEvent
+    from uav_comm_planner.vehicle.mavlink.telemetry import LinkEvent
 
     vehicle = harness(**FINE).node.vehicle
     events = vehicle._on_link_event
