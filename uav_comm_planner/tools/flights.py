@@ -43,6 +43,25 @@ def random_six_nodes(seed: int = 1) -> Scenario:
                     goal_m=(1500.0, 0.0), max_speed_mps=10.0, horizon_s=400.0, num_slots=100)
 
 
+#: Wind flights: ArduCopter SITL's SIM_WIND_* and the same wind told to the planner, for the
+#: letter's case I at 10 m/s over 800 s (a 6 m/s headwind leaves 3 m/s over the ground).
+WIND_HORIZON_S, WIND_SLOTS = 800.0, 200
+WIND_TURBULENCE_MPS = 2.0
+
+
+def wind_case(speed_mps: float, from_deg: float, *, told: bool = True) -> FlightCase:
+    """Case I in a wind of ``speed_mps`` from ``from_deg`` (SIM_WIND_SPD, SIM_WIND_DIR,
+    SIM_WIND_TURB 2 m/s), planned for it (``told``) or for still air."""
+    scenario = paper_scenario('I', max_speed_mps=10.0, horizon_s=WIND_HORIZON_S,
+                              num_slots=WIND_SLOTS)
+    if told:
+        scenario = scenario.replace(wind_speed_mps=speed_mps, wind_from_deg=from_deg)
+    name = f'case I, wind {speed_mps:g} from {from_deg:g}' + ('' if told else ', not told')
+    return FlightCase(name, scenario, VehicleLimits(),
+                      {'SIM_WIND_SPD': speed_mps, 'SIM_WIND_DIR': from_deg,
+                       'SIM_WIND_TURB': WIND_TURBULENCE_MPS if speed_mps else 0.0})
+
+
 def flight_cases(quick: bool = False) -> list[FlightCase]:
     case_one = paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0, num_slots=100)
     cases = [FlightCase('case I, 10 m/s, defaults', case_one, VehicleLimits(), {})]
@@ -54,6 +73,8 @@ def flight_cases(quick: bool = False) -> list[FlightCase]:
         FlightCase('case I, 12 m/s, tuned', case_one.replace(max_speed_mps=12.0), tuned,
                    {'WPNAV_SPEED': 1200, 'WPNAV_ACCEL': 500, 'WPNAV_JERK': 5,
                     'ANGLE_MAX': 4500}),
+        wind_case(6.0, 90.0),
+        wind_case(6.0, 0.0),
     ]
 
 
@@ -67,12 +88,12 @@ def fly_case(case: FlightCase, binary=None) -> tuple[float, SitlFlight]:
 
 
 def format_flights(rows: list[tuple[FlightCase, float, SitlFlight]]) -> str:
-    lines = [f'{"case":<28}{"ideal":>10}{"stated":>10}{"flown":>10}{"flown/stated":>14}'
+    lines = [f'{"case":<34}{"ideal":>10}{"stated":>10}{"flown":>10}{"flown/stated":>14}'
              f'{"worst":>8}{"median":>8}{"track_m":>9}{"qF_late_s":>11}']
     for case, ideal, flight in rows:
         report, scenario = flight.report, case.scenario
         late = flight.arrival_s - scenario.slot_s * (scenario.num_slots + 1)
-        lines.append(f'{case.name:<28}{ideal:>10.4f}{report.stated:>10.4f}{report.flown:>10.4f}'
+        lines.append(f'{case.name:<34}{ideal:>10.4f}{report.stated:>10.4f}{report.flown:>10.4f}'
                      f'{report.flown_to_stated:>14.4%}{report.worst_reach_slots:>8.2f}'
                      f'{report.median_reach_slots:>8.2f}{report.cross_track_m:>9.2f}'
                      f'{late:>11.1f}')
