@@ -65,3 +65,22 @@ def test_the_nodes_get_what_the_plan_states_and_more_than_the_baselines(flight):
     vehicle_plan, report = flight
     assert report.flown_to_stated >= 0.99
     assert report.flown > max(vehicle_plan.ideal.baselines.values())
+
+
+def test_a_plan_told_the_wind_is_flown_on_time_in_it(tmp_path):
+    """Case I planned for a 3 m/s wind from the east and flown in it (SIM_WIND_SPD 3,
+    SIM_WIND_DIR 90, SIM_WIND_TURB 2): on time, and delivering what it states. (Planned for
+    still air, the same flight arrives late; docs/flying.md has the table.)"""
+    scenario = paper_scenario('I', max_speed_mps=10.0, horizon_s=500.0, num_slots=125,
+                              wind_speed_mps=3.0, wind_from_deg=90.0)
+    vehicle_plan = plan_for_vehicle(scenario)
+    assert vehicle_plan.ideal.scenario.airspeed_mps == 9.0      # 10 m/s less the gust margin
+    flown = fly_plan(vehicle_plan, tmp_path, home=HOME,
+                     parameters={'SIM_WIND_SPD': 3.0, 'SIM_WIND_DIR': 90.0, 'SIM_WIND_TURB': 2.0})
+    report, planned = flown.report, vehicle_plan.ideal.scenario
+    print(f'\ncase I in 3 m/s from the east: {report.summary()}; qF at {flown.arrival_s:.1f} s, '
+          f'planned {planned.slot_s * (planned.num_slots + 1):g} s')
+    assert report.worst_reach_slots <= 1.0
+    assert report.median_reach_slots <= 0.25
+    assert abs(flown.arrival_s - planned.slot_s * (planned.num_slots + 1)) <= planned.slot_s
+    assert report.flown_to_stated >= 0.99
