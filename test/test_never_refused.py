@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import Scenario
-from uav_comm_planner.vehicle.flyable import GOAL_TOLERANCE_SLOTS, plan_for_vehicle
+from uav_comm_planner.vehicle.flyable import (GOAL_TOLERANCE_SLOTS, MIN_STOP_HOLD_S,
+                                              plan_for_vehicle)
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.timing import LEG_LATENCY_S, Profile
 
@@ -31,7 +32,8 @@ def straight_line_time_s(start, goal, wind_mps, airspeed_mps) -> float:
     along = float(u @ w)
     air = along + math.sqrt(airspeed_mps ** 2 - float(w @ w) + along ** 2)
     speed = min(LIMITS.cruise_speed_mps, air)
-    return Profile.rest_to_rest(distance, speed, LIMITS).duration_s + LEG_LATENCY_S
+    return (MIN_STOP_HOLD_S + Profile.rest_to_rest(distance, speed, LIMITS).duration_s
+            + LEG_LATENCY_S)
 
 
 def random_request(rng: np.random.Generator) -> Scenario:

@@ -49,7 +49,9 @@ MERGE_RADIUS_M = 2.0
 PATH_TOLERANCE_M = 1.0
 #: Slowest commanded speed; a slower leg waits at its start instead.
 MIN_SPEED_MPS = 0.5
-#: A hover stop holds at least this long: with no hold the autopilot would fly through it.
+#: A stop holds at least this long: with no hold the autopilot would fly through it. q0 too:
+#: ArduCopter runs the DO_CHANGE_SPEED after a waypoint while it holds there; at q0 without a
+#: hold the first leg starts at the previous speed and was measured up to 6 s early at 3 m/s.
 MIN_STOP_HOLD_S = 1.0
 #: Sharper turns are stops: ArduCopter cuts a fly-through corner by up to WPNAV_RADIUS (2 m),
 #: and by less below about 20 degrees (at 10 m/s and its default acceleration and jerk).
@@ -225,7 +227,7 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
                        Profile.rest_to_rest(length_of(path[kept]), speed, limits)))
     # Centre each leg's motion on the plan's time for it, but start it no later than lets
     # every later leg, with the shortest holds, reach qF by the end of the horizon.
-    minimum_holds = [0.0] + [MIN_STOP_HOLD_S] * (len(shapes) - 1)
+    minimum_holds = [MIN_STOP_HOLD_S] * len(shapes)
     latest = times[-1]
     latest_starts = []
     for (_, _, profile), shortest in zip(reversed(shapes), reversed(minimum_holds)):
@@ -377,16 +379,17 @@ def _straight_line_plan(scenario: Scenario, limits: VehicleLimits,
     start = np.asarray(scenario.start_m, dtype=float)
     goal = np.asarray(scenario.goal_m, dtype=float)
     cruise = _leg_cruise(np.vstack([start, goal]), scenario, limits.cruise_speed_mps)
-    fitted = speed_for_time(distance, end_s - LEG_LATENCY_S, cruise, limits)
+    hold = MIN_STOP_HOLD_S
+    fitted = speed_for_time(distance, end_s - hold - LEG_LATENCY_S, cruise, limits)
     # Commanded in hundredths, rounded up so that the leg is not late.
     fitted = min(max(math.ceil(fitted * 100.0) / 100.0, MIN_SPEED_MPS), cruise)
     profile = Profile.rest_to_rest(distance, fitted, limits)
-    leg = Leg(np.vstack([start, goal]), fitted, LEG_LATENCY_S / 2, profile)
+    leg = Leg(np.vstack([start, goal]), fitted, hold + LEG_LATENCY_S / 2, profile)
     arrival = leg.end_s + LEG_LATENCY_S / 2
     if arrival > end_s + GOAL_TOLERANCE_SLOTS * scenario.slot_s:
         raise InfeasibleHorizonError(_no_flyable_plan(scenario, limits)) from first_error
-    flight = Flight((Dwell(start, 0.0, 0.0), leg, Dwell(goal, arrival, arrival)))
-    schedule = Schedule((Stop(start, 0.0), Stop(goal, 0.0)), (leg,), flight, firmware)
+    flight = Flight((Dwell(start, 0.0, hold), leg, Dwell(goal, arrival, arrival)))
+    schedule = Schedule((Stop(start, hold), Stop(goal, 0.0)), (leg,), flight, firmware)
     return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
 
 
@@ -397,7 +400,8 @@ def _no_flyable_plan(scenario: Scenario, limits: VehicleLimits) -> str:
     direction = (np.asarray(scenario.goal_m) - np.asarray(scenario.start_m)) / distance
     speed = _leg_cruise(np.vstack([scenario.start_m, scenario.goal_m]), scenario,
                         limits.cruise_speed_mps)
-    flight_s = Profile.rest_to_rest(distance, speed, limits).duration_s + LEG_LATENCY_S
+    flight_s = (MIN_STOP_HOLD_S + Profile.rest_to_rest(distance, speed, limits).duration_s
+                + LEG_LATENCY_S)
     # qF may come GOAL_TOLERANCE_SLOTS after (M + 1) delta = T (M + 1) / M.
     needed = flight_s * scenario.num_slots / (scenario.num_slots + 1 + GOAL_TOLERANCE_SLOTS)
     heading = math.degrees(math.atan2(direction[0], direction[1])) % 360.0
