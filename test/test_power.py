@@ -172,3 +172,22 @@ def test_an_answer_the_certificate_refuses_is_solved_again_then_an_error():
     assert len(problem_seen) == 2
     # A NaN gap never holds.
     assert not Certificate(gap=float('nan'), tolerance=1.0).holds
+
+
+def test_the_power_never_sums_above_the_budget_not_even_by_an_ulp():
+    """Over seeded plans and allocations the sum of p is at most P_T exactly (a scaling that
+    rounds up is lowered a ulp at a time)."""
+    from uav_comm_planner import plan, SolverSettings
+
+    from helpers import random_scenario
+
+    rng = np.random.default_rng(25)
+    for _ in range(300):
+        a = 10.0 ** rng.uniform(-1.0, 14.0, size=(int(rng.integers(1, 6)),
+                                                  int(rng.integers(2, 60))))
+        budget = float(10.0 ** rng.uniform(-3.0, 2.0))
+        assert waterfilling_power(a, budget).p.sum() <= budget
+    for seed in range(20):
+        result = plan(random_scenario(seed, nodes=4, slots=30),
+                      SolverSettings(compute_baselines=False))
+        assert result.power.sum() <= result.scenario.power_budget_w

@@ -31,6 +31,8 @@ from uav_comm_planner.core.model import LN2, spectral_efficiencies
 from uav_comm_planner.errors import SolverError
 
 _NEWTON_MAX_STEPS = 200
+#: The largest double below 1: multiplying by it lowers a positive number by one ulp or less.
+_ONE_ULP_BELOW_ONE = float(np.nextafter(1.0, 0.0))
 
 #: Clarabel's defaults stop at a 1e-8 gap; the tighter ones cost little here and let the
 #: conic answers agree with the exact water-filling well below 1e-6.
@@ -58,10 +60,18 @@ class PowerAllocation:
 def _within_budget(p: np.ndarray, a: np.ndarray, power_budget_w: float,
                    offsets: np.ndarray | None = None) -> PowerAllocation:
     """p >= 0 (N, M), scaled down in place if round-off put its total above the budget, with
-    the efficiency it reaches for SNR per watt a (plus the offsets o (N,), if any)."""
+    the efficiency it reaches for SNR per watt a (plus the offsets o (N,), if any).
+
+    The scaling itself rounds, so p is lowered a ulp at a time until sum(p) <= P_T holds
+    exactly (once or twice at most).
+    """
     total = float(p.sum())
     if total > power_budget_w:
         p *= power_budget_w / total
+        for _ in range(64):
+            if float(p.sum()) <= power_budget_w:
+                break
+            p *= _ONE_ULP_BELOW_ONE
     return PowerAllocation(p=p, efficiency=float(spectral_efficiencies(a, p, offsets).min()))
 
 
