@@ -25,6 +25,14 @@ from uav_comm_planner.ros.node import NODE_NAME
 pytestmark = pytest.mark.filterwarnings('ignore::DeprecationWarning')
 
 
+def release_reader(fifo: FilePath) -> None:
+    """Open ``fifo`` for writing and close it: a reader blocked opening it goes on (EOF)."""
+    try:
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+    except OSError:
+        pass        # no reader: nothing to release
+
+
 def set_parameter(h: Harness, name: str, value):
     answer = h.call('set_parameters', SetParameters.Request(
         parameters=[Parameter(name, value=value).to_parameter_msg()]))
@@ -180,3 +188,30 @@ def test_double_ctrl_c_during_a_long_plan_exits_quietly(ros_context):
         probe.destroy_node()
     assert status == 0, stderr
     assert 'Traceback' not in stderr and 'rethrown' not in stderr
+
+
+def test_a_parameter_file_that_is_a_device_a_pipe_or_a_folder_is_refused_at_once(
+        harness, tmp_path):
+    fifo = tmp_path / 'fifo.param'
+    os.mkfifo(fifo)
+    h = harness()
+    h.published(1)
+    before = h.node.current_plan
+    # Should the node open the FIFO blocking, a writer comes later and lets it go.
+    release = threading.Timer(10.0, release_reader, args=(fifo,))
+    release.daemon = True
+    release.start()
+    try:
+        # The FIFO first: a reader that blocks on it would also read /dev/zero to the end.
+        for path, reason in ((str(fifo), 'it is a pipe'), (str(tmp_path), 'it is a folder'),
+                             ('/dev/zero', 'it is a device')):
+            began = time.monotonic()
+            result = set_parameter(h, 'vehicle_params_file', path)
+            assert time.monotonic() - began < 5.0, path
+            assert not result.successful and reason in result.reason, (path, result.reason)
+    finally:
+        release.cancel()
+    assert h.node.get_parameter('vehicle_params_file').value == ''
+    assert h.node.current_plan is before
+    # The executor still answers.
+    assert h.call('replan', Trigger.Request()).success

@@ -1,4 +1,6 @@
-"""Atomic file replacement: a reader sees the old file or the new one, never half of one.
+"""Atomic file replacement, and the one safe way the package reads a file.
+
+Writing: a reader sees the old file or the new one, never half of one.
 
 Only regular files are written: a path that is a folder, a device (such as ``/dev/null``), a
 pipe, a socket or a symbolic link is refused before anything is written (an OSError saying
@@ -7,7 +9,13 @@ device or the link itself. A new file gets the mode ``0o666 & ~umask``, as ``ope
 give it; a replaced file keeps its mode. The temporary file is
 ``.<name>.partial-<pid>-<random><suffix>`` beside the target, so that one left by a killed
 process is recognisable; writing a target removes the leftovers of that target whose process
-is gone."""
+is gone.
+
+Reading (:func:`read_regular_file`, :func:`read_text_file`): only a regular file is read, opened
+without blocking (a FIFO or a device never stalls the caller), checked again on the open
+descriptor (a path swapped for a pipe between the check and the open is caught) and read up to
+a size cap; every refusal is a typed error naming the file and the reason, raised before any
+byte past the cap is read."""
 
 from __future__ import annotations
 
@@ -18,6 +26,8 @@ from pathlib import Path
 import stat
 import tempfile
 from typing import Callable, Iterator
+
+from uav_comm_planner.errors import InputFileError, PlannerError
 
 
 class NotARegularFileError(OSError):
@@ -145,3 +155,81 @@ def write_with(path: str | os.PathLike, writer: Callable[[Path], None]) -> Path:
     with atomic_path(path) as temporary:
         writer(temporary)
     return Path(path)
+
+
+#: Flags of every read: no blocking on a FIFO or device, no controlling terminal, closed on exec.
+_READ_FLAGS = (os.O_RDONLY | getattr(os, 'O_NONBLOCK', 0) | getattr(os, 'O_NOCTTY', 0)
+               | getattr(os, 'O_CLOEXEC', 0))
+
+
+def _kind_of(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return 'a folder'
+    if stat.S_ISFIFO(mode):
+        return 'a pipe (FIFO)'
+    if stat.S_ISSOCK(mode):
+        return 'a socket'
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return 'a device'
+    return 'not a regular file'
+
+
+def read_regular_file(path: str | os.PathLike, *, max_bytes: int, what: str = 'file',
+                      error: type[PlannerError] = InputFileError) -> bytes:
+    """The bytes of the regular file ``path``, at most ``max_bytes`` of them.
+
+    A folder, device (``/dev/zero``), pipe or socket is refused from ``os.stat`` before it is
+    opened; the file is opened with ``O_NONBLOCK`` and checked again with ``os.fstat`` (the same
+    file, still regular, still within the cap), then read to at most ``max_bytes + 1`` bytes,
+    so that a file growing while read is refused too. Raises ``error`` (a PlannerError; by
+    default :class:`~uav_comm_planner.errors.InputFileError`) whose message names ``what``, the
+    path and the reason.
+    """
+    name = f'{what} {str(path)!r}'
+    try:
+        before = os.stat(path)
+    except FileNotFoundError:
+        raise error(f'cannot read {name}: there is no such {what}') from None
+    except (OSError, ValueError) as exc:
+        raise error(f'cannot read {name}: {getattr(exc, "strerror", None) or exc}') from None
+    if not stat.S_ISREG(before.st_mode):
+        raise error(f'cannot read {name}: it is {_kind_of(before.st_mode)}, not a regular file')
+    if before.st_size > max_bytes:
+        raise error(f'{name} is larger than {max_bytes} bytes ({before.st_size})')
+    try:
+        handle = os.open(path, _READ_FLAGS)
+    except OSError as exc:
+        raise error(f'cannot read {name}: {exc.strerror or exc}') from None
+    try:
+        opened = os.fstat(handle)
+        if (not stat.S_ISREG(opened.st_mode)
+                or (opened.st_dev, opened.st_ino) != (before.st_dev, before.st_ino)):
+            raise error(f'cannot read {name}: it was replaced while it was opened')
+        chunks = []
+        left = max_bytes + 1
+        while left > 0:
+            chunk = os.read(handle, min(left, 1 << 20))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            left -= len(chunk)
+    except OSError as exc:
+        raise error(f'cannot read {name}: {exc.strerror or exc}') from None
+    finally:
+        os.close(handle)
+    data = b''.join(chunks)
+    if len(data) > max_bytes:
+        raise error(f'{name} is larger than {max_bytes} bytes')
+    return data
+
+
+def read_text_file(path: str | os.PathLike, *, max_bytes: int, what: str = 'file',
+                   error: type[PlannerError] = InputFileError) -> str:
+    """The UTF-8 text of the regular file ``path`` (:func:`read_regular_file`); a file that is
+    not UTF-8 raises ``error`` with the byte where it stops being text."""
+    raw = read_regular_file(path, max_bytes=max_bytes, what=what, error=error)
+    try:
+        return raw.decode('utf-8')
+    except UnicodeDecodeError as exc:
+        raise error(f'{what} {str(path)!r} is not UTF-8 text ({exc.reason} at byte '
+                    f'{exc.start})') from None

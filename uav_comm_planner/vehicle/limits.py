@@ -13,10 +13,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 import os
-from pathlib import Path
 
 from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.files import read_text_file
 from uav_comm_planner.vehicle.firmware import firmware_named
+
+#: A parameter file larger than this is refused before it is read (a full ArduCopter
+#: parameter file is about 50 kB).
+MAX_PARAMETER_FILE_BYTES = 4 * 1024 * 1024
 
 
 @dataclass(frozen=True)
@@ -89,15 +93,14 @@ def read_parameter_file(path: str | os.PathLike, *, firmware: str = 'ardupilot',
 
     Lines are ``NAME VALUE``, ``NAME,VALUE`` or QGroundControl's tab-separated
     ``SYSID COMPID NAME VALUE TYPE``; ``#`` starts a comment. Raises
-    :class:`~uav_comm_planner.errors.InvalidScenarioError` for an unreadable file, a malformed
-    value of a parameter it uses, or a file that sets none of them.
+    :class:`~uav_comm_planner.errors.InvalidScenarioError` for a file that is not a regular file
+    (a device, a pipe, a folder: refused without blocking), is larger than
+    :data:`MAX_PARAMETER_FILE_BYTES`, is not UTF-8, has a malformed value of a parameter it
+    uses, or sets none of them.
     """
     wanted = firmware_named(firmware).parameters
-    try:
-        text = Path(path).read_text(encoding='utf-8', errors='strict')
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidScenarioError(f'cannot read the parameter file {str(path)!r}: '
-                                   f'{exc}') from exc
+    text = read_text_file(path, max_bytes=MAX_PARAMETER_FILE_BYTES, what='parameter file',
+                          error=InvalidScenarioError)
     values = {}
     for number, line in enumerate(text.splitlines(), start=1):
         fields = line.split('#', 1)[0].replace(',', ' ').split()
