@@ -14,8 +14,8 @@ from typing import Callable, Iterator
 
 import pytest
 
-from uav_comm_planner.errors import InputFileError, InvalidScenarioError, MissionFileError
-from uav_comm_planner.files import read_regular_file, read_text_file
+from uav_comm_planner.errors import InvalidScenarioError, MissionFileError
+from uav_comm_planner.files import InputFileError, read_regular_file, read_text_file
 from uav_comm_planner.tools import cli
 from uav_comm_planner.vehicle.limits import read_parameter_file
 from uav_comm_planner.vehicle.mavlink.files import MAX_MISSION_ITEMS, read_mission_file

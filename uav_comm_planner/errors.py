@@ -35,8 +35,3 @@ class ComputeBudgetError(InvalidScenarioError):
 
 class PlanCancelledError(PlannerError):
     """A plan was given up between two steps because its caller asked it to stop."""
-
-
-class InputFileError(PlannerError):
-    """A file to read is not a regular file (a folder, device, pipe or socket), is larger than
-    the reader's cap, cannot be opened, or is not text; nothing was read past the check."""

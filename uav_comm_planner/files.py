@@ -27,11 +27,14 @@ import stat
 import tempfile
 from typing import Callable, Iterator
 
-from uav_comm_planner.errors import InputFileError, PlannerError
-
 
 class NotARegularFileError(OSError):
     """The output path is a device, a pipe, a socket or a symbolic link, not a regular file."""
+
+
+class InputFileError(OSError):
+    """A file to read is not a regular file (a folder, device, pipe or socket), is larger than
+    the reader's cap, cannot be opened or is not text; nothing past the check was read."""
 
 
 #: Marks a temporary file: ``.<target name>.partial-<pid>-<random><suffix>``.
@@ -175,15 +178,15 @@ def _kind_of(mode: int) -> str:
 
 
 def read_regular_file(path: str | os.PathLike, *, max_bytes: int, what: str = 'file',
-                      error: type[PlannerError] = InputFileError) -> bytes:
+                      error: type[Exception] = InputFileError) -> bytes:
     """The bytes of the regular file ``path``, at most ``max_bytes`` of them.
 
     A folder, device (``/dev/zero``), pipe or socket is refused from ``os.stat`` before it is
     opened; the file is opened with ``O_NONBLOCK`` and checked again with ``os.fstat`` (the same
     file, still regular, still within the cap), then read to at most ``max_bytes + 1`` bytes,
-    so that a file growing while read is refused too. Raises ``error`` (a PlannerError; by
-    default :class:`~uav_comm_planner.errors.InputFileError`) whose message names ``what``, the
-    path and the reason.
+    so that a file growing while read is refused too. Raises ``error`` (by default
+    :class:`InputFileError`; the callers pass their own typed error) whose message names
+    ``what``, the path and the reason.
     """
     name = f'{what} {str(path)!r}'
     try:
@@ -224,7 +227,7 @@ def read_regular_file(path: str | os.PathLike, *, max_bytes: int, what: str = 'f
 
 
 def read_text_file(path: str | os.PathLike, *, max_bytes: int, what: str = 'file',
-                   error: type[PlannerError] = InputFileError) -> str:
+                   error: type[Exception] = InputFileError) -> str:
     """The UTF-8 text of the regular file ``path`` (:func:`read_regular_file`); a file that is
     not UTF-8 raises ``error`` with the byte where it stops being text."""
     raw = read_regular_file(path, max_bytes=max_bytes, what=what, error=error)
