@@ -13,7 +13,7 @@ import time
 
 from helpers import DEADLINE_S, Harness, NODES_B, PROCESS_DEADLINE_S
 import pytest
-from rcl_interfaces.srv import SetParameters
+from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -215,3 +215,40 @@ def test_a_parameter_file_that_is_a_device_a_pipe_or_a_folder_is_refused_at_once
     assert h.node.current_plan is before
     # The executor still answers.
     assert h.call('replan', Trigger.Request()).success
+
+
+def set_parameters(h: Harness, **values):
+    """Set ``values`` in one request (atomically); the one result."""
+    answer = h.call('set_parameters_atomically', SetParametersAtomically.Request(
+        parameters=[Parameter(name, value=value).to_parameter_msg()
+                    for name, value in values.items()]))
+    return answer.result
+
+
+@pytest.mark.parametrize('values, reason', [
+    ({'vehicle_jerk_time_s': 1e-300}, 'jerk_time_s must be in [0.01, 10) s'),
+    ({'vehicle_max_accel_mpss': 1e300, 'vehicle_max_jerk_mpsss': 1e-300},
+     'max_accel_mpss must be in [0.01, 1000]'),
+    ({'vehicle_max_jerk_mpsss': 1e-300}, 'max_jerk_mpsss must be in [0.01, 10000]'),
+    ({'vehicle_max_speed_mps': 1000.0, 'vehicle_max_accel_mpss': 0.01,
+      'vehicle_max_jerk_mpsss': 0.01}, 'to reach its cruise speed from rest'),
+])
+def test_vehicle_limits_no_plan_could_be_made_with_are_refused_when_set(
+        harness, values, reason):
+    h = harness()
+    h.published(1)
+    before = h.node.current_plan
+    result = set_parameters(h, **values)
+    assert not result.successful and reason in result.reason, result.reason
+    assert h.node.config.vehicle == before.request.mission.vehicle
+    assert h.call('replan', Trigger.Request()).success
+    h.published(2)
+
+
+def test_a_vehicle_that_cannot_reach_the_goal_in_time_is_refused_when_set(harness):
+    h = harness(max_speed_mps=10.0, horizon_s=400.0, num_slots=100, vehicle_aware=True)
+    h.published(1)
+    result = set_parameters(h, vehicle_max_accel_mpss=0.01)
+    assert not result.successful
+    assert 'cannot reach qF in time' in result.reason and 'raise horizon_s' in result.reason
+    assert h.node.config.vehicle.max_accel_mpss == 2.5

@@ -27,7 +27,7 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 
 from uav_comm_planner.core.scenario import paper_scenario, Point, Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
-from uav_comm_planner.mission.request import vehicle_limits
+from uav_comm_planner.mission.request import check_goal_in_time, vehicle_limits
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.flyable import check_speed
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
@@ -400,6 +400,7 @@ def config_from_parameters(values: Mapping[str, Any],
     settings.check(scenario)
     if node.vehicle_aware:
         check_speed(scenario, vehicle)
+        check_goal_in_time(scenario, vehicle)
     return PlannerConfig(scenario, settings, node, vehicle)
 
 
