@@ -268,3 +268,46 @@ def test_upload_refuses_a_mission_that_is_not_a_regular_file_before_connecting(
             with contextlib.suppress(OSError):
                 os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK))
     assert 'not a regular file' in err or 'a .waypoints' in err
+
+
+# The node's mission folder: opened once, written by descriptor.
+
+def test_an_output_folder_keeps_writing_where_it_was_opened(tmp_path):
+    from uav_comm_planner.files import OutputFolder
+
+    folder = tmp_path / 'missions'
+    folder.mkdir()
+    elsewhere = tmp_path / 'elsewhere'
+    elsewhere.mkdir()
+    with OutputFolder(folder) as output:
+        output.write_with('a.txt', lambda path: path.write_text('one'))
+        os.chmod(folder / 'a.txt', 0o640)
+        # The folder's path is replaced by a link to another folder after it was opened.
+        folder.rename(tmp_path / 'moved')
+        folder.symlink_to(elsewhere, target_is_directory=True)
+        output.write_with('a.txt', lambda path: path.write_text('two'))
+        assert (tmp_path / 'moved' / 'a.txt').read_text() == 'two'
+        assert ((tmp_path / 'moved' / 'a.txt').stat().st_mode & 0o777) == 0o640
+        assert list(elsewhere.iterdir()) == []
+        assert sorted(p.name for p in (tmp_path / 'moved').iterdir()) == ['a.txt']
+
+
+@pytest.mark.parametrize('name, make, error', [
+    ('link.txt', lambda folder: (folder / 'link.txt').symlink_to(folder / 'target.txt'),
+     'symbolic link'),
+    ('sub', lambda folder: (folder / 'sub').mkdir(), 'it is a folder'),
+    ('../up.txt', lambda folder: None, 'not a bare file name'),
+    ('..', lambda folder: None, 'not a bare file name'),
+])
+def test_an_output_folder_never_follows_a_link_nor_leaves_its_folder(tmp_path, name, make,
+                                                                     error):
+    from uav_comm_planner.files import OutputFolder
+
+    (tmp_path / 'target.txt').write_text('kept')
+    make(tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    with OutputFolder(tmp_path) as output, pytest.raises((OSError, ValueError), match=error):
+        output.write_with(name, lambda path: path.write_text('new'))
+    assert (tmp_path / 'target.txt').read_text() == 'kept'
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert not (tmp_path.parent / 'up.txt').exists()

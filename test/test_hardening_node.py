@@ -252,3 +252,29 @@ def test_a_vehicle_that_cannot_reach_the_goal_in_time_is_refused_when_set(harnes
     assert not result.successful
     assert 'cannot reach qF in time' in result.reason and 'raise horizon_s' in result.reason
     assert h.node.config.vehicle.max_accel_mpss == 2.5
+
+
+def test_mission_dir_is_opened_once_so_replacing_it_cannot_redirect_writes(harness, tmp_path):
+    folder = tmp_path / 'missions'
+    folder.mkdir()
+    elsewhere = tmp_path / 'elsewhere'
+    elsewhere.mkdir()
+    h = harness(mission_dir=str(folder), mission_file='flight.waypoints', max_speed_mps=10.0,
+                horizon_s=400.0, num_slots=100, vehicle_aware=True)
+    h.published(1)
+    folder.rename(tmp_path / 'moved')
+    folder.symlink_to(elsewhere, target_is_directory=True)
+    (tmp_path / 'moved' / 'flight.waypoints').unlink()
+    answer = h.call('export_mission', Trigger.Request())
+    assert answer.success, answer.message
+    assert (tmp_path / 'moved' / 'flight.waypoints').read_text().startswith('QGC WPL 110')
+    assert list(elsewhere.iterdir()) == []
+
+
+def test_a_mission_dir_that_cannot_be_opened_stops_the_node_at_start(ros_context, tmp_path):
+    from uav_comm_planner.errors import PlannerError
+    from uav_comm_planner.ros.node import PlannerNode
+
+    with pytest.raises(PlannerError, match='mission_dir .* cannot be opened as a folder'):
+        PlannerNode(context=ros_context, parameter_overrides=[
+            Parameter('mission_dir', value=str(tmp_path / 'missing'))])

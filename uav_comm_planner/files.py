@@ -23,6 +23,7 @@ import contextlib
 import errno
 import os
 from pathlib import Path
+import secrets
 import stat
 import tempfile
 from typing import Callable, Iterator
@@ -53,6 +54,21 @@ def _umask() -> int:
     return mask
 
 
+def _check_replaceable(info: os.stat_result | None, name: str) -> None:
+    """Refuse a target that is not absent or a regular, writable file of this user."""
+    if info is not None and stat.S_ISDIR(info.st_mode):
+        raise IsADirectoryError(errno.EISDIR, 'it is a folder', name)
+    if info is not None and not stat.S_ISREG(info.st_mode):
+        kind = ('a symbolic link; give the path of the file it points to'
+                if stat.S_ISLNK(info.st_mode) else 'a device, pipe or socket')
+        raise NotARegularFileError(errno.EEXIST, f'not a regular file: it is {kind}', name)
+    if info is not None and not info.st_mode & 0o222:
+        raise PermissionError(errno.EACCES, 'the file is read-only; it is not replaced', name)
+    if info is not None and info.st_uid != os.geteuid():
+        raise PermissionError(errno.EPERM, 'the file belongs to another user; it is not '
+                              'replaced', name)
+
+
 def check_output_path(path: str | os.PathLike) -> Path:
     """Refuse an output path that cannot be replaced safely; return it as a Path.
 
@@ -73,19 +89,7 @@ def check_output_path(path: str | os.PathLike) -> Path:
         info = target.lstat()
     except FileNotFoundError:
         info = None
-    if info is not None and stat.S_ISDIR(info.st_mode):
-        raise IsADirectoryError(errno.EISDIR, 'it is a folder', str(target))
-    if info is not None and not stat.S_ISREG(info.st_mode):
-        kind = ('a symbolic link; give the path of the file it points to'
-                if stat.S_ISLNK(info.st_mode) else 'a device, pipe or socket')
-        raise NotARegularFileError(errno.EEXIST, f'not a regular file: it is {kind}',
-                                   str(target))
-    if info is not None and not info.st_mode & 0o222:
-        raise PermissionError(errno.EACCES, 'the file is read-only; it is not replaced',
-                              str(target))
-    if info is not None and info.st_uid != os.geteuid():
-        raise PermissionError(errno.EPERM, 'the file belongs to another user; it is not '
-                              'replaced', str(target))
+    _check_replaceable(info, str(target))
     if not os.access(folder, os.W_OK | os.X_OK):
         raise PermissionError(errno.EACCES, 'the folder is not writable', str(folder))
     return target
@@ -158,6 +162,97 @@ def write_with(path: str | os.PathLike, writer: Callable[[Path], None]) -> Path:
     with atomic_path(path) as temporary:
         writer(temporary)
     return Path(path)
+
+
+class OutputFolder:
+    """A folder opened once, by descriptor, whose files are replaced by bare name only.
+
+    The folder is opened when the object is made; every write after that is relative to the
+    descriptor (``openat``, ``renameat``), so moving, replacing or linking the folder's path
+    later cannot redirect a write. A target must be absent or a regular file (the same rules
+    as :func:`check_output_path`; a link in its place is refused, never followed); the file is
+    rendered in a private temporary folder, copied into ``.<name>.partial-<pid>-<random>``
+    created with ``O_EXCL | O_NOFOLLOW`` beside the target, synced and renamed over it. Raises
+    the OSError of :func:`check_output_path`, or NotADirectoryError / FileNotFoundError when
+    the folder itself cannot be opened.
+    """
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+        self._fd: int | None = os.open(self.path, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+
+    def close(self) -> None:
+        """Close the folder's descriptor; later writes raise OSError (EBADF)."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> OutputFolder:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    def _descriptor(self) -> int:
+        if self._fd is None:
+            raise OSError(errno.EBADF, 'the output folder is closed', str(self.path))
+        return self._fd
+
+    def check(self, name: str) -> None:
+        """Refuse ``name`` when it is not a bare name or its file cannot be replaced."""
+        if not name or '/' in name or '\0' in name or name in ('.', '..'):
+            raise ValueError(f'{name!r} is not a bare file name')
+        folder = self._descriptor()
+        try:
+            info = os.lstat(name, dir_fd=folder)
+        except FileNotFoundError:
+            info = None
+        _check_replaceable(info, str(self.path / name))
+        if not os.access('.', os.W_OK | os.X_OK, dir_fd=folder):
+            raise PermissionError(errno.EACCES, 'the folder is not writable', str(self.path))
+
+    def write_with(self, name: str, writer: Callable[[Path], None]) -> Path:
+        """Let ``writer`` fill a file, then replace ``name`` in the folder with it atomically;
+        returns the path shown for it (the folder's path as opened, and ``name``)."""
+        self.check(name)
+        folder = self._descriptor()
+        self._remove_stale_partials(name)
+        try:
+            mode = os.lstat(name, dir_fd=folder).st_mode & 0o7777
+        except FileNotFoundError:
+            mode = 0o666 & ~_umask()
+        with tempfile.TemporaryDirectory(prefix='uav-comm-planner-') as private:
+            rendered = Path(private) / name
+            writer(rendered)
+            data = rendered.read_bytes()
+        temporary = (f'.{name}{PARTIAL_MARK}{os.getpid()}-{secrets.token_hex(4)}'
+                     f'{Path(name).suffix}')
+        handle = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
+                         | os.O_CLOEXEC, 0o600, dir_fd=folder)
+        try:
+            with os.fdopen(handle, 'wb') as out:
+                out.write(data)
+                out.flush()
+                os.fsync(out.fileno())
+                os.fchmod(out.fileno(), mode)
+            os.replace(temporary, name, src_dir_fd=folder, dst_dir_fd=folder)
+        except BaseException:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(temporary, dir_fd=folder)
+            raise
+        return self.path / name
+
+    def _remove_stale_partials(self, name: str) -> None:
+        prefix = f'.{name}{PARTIAL_MARK}'
+        folder = self._descriptor()
+        with contextlib.suppress(OSError):
+            for entry in os.scandir(folder):
+                if not entry.name.startswith(prefix):
+                    continue
+                pid = entry.name[len(prefix):].split('-', 1)[0]
+                if pid.isdigit() and not _running(int(pid)):
+                    with contextlib.suppress(OSError):
+                        os.unlink(entry.name, dir_fd=folder)
 
 
 #: Flags of every read: no blocking on a FIFO or device, no controlling terminal, closed on exec.

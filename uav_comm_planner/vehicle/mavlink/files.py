@@ -22,7 +22,7 @@ from pymavlink import mavutil, mavwp
 
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.errors import MissionExportError, MissionFileError
-from uav_comm_planner.files import read_text_file, write_with
+from uav_comm_planner.files import OutputFolder, read_text_file, write_with
 from uav_comm_planner.vehicle.flyable import VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
@@ -134,10 +134,11 @@ def check_mission_path(path: str | os.PathLike) -> None:
 
 
 def write_mission_file(items: Sequence[MissionItem], path: str | os.PathLike, home: Home, *,
-                       firmware: str = 'ardupilot') -> Path:
+                       firmware: str = 'ardupilot', folder: OutputFolder | None = None) -> Path:
     """Write mission ``items`` (:func:`~.items.build_mission_items`) as the file ``path``, its
     format from the extension, atomically (as :func:`export_mission`); return the path
-    written."""
+    written. With ``folder`` (opened once, :class:`~uav_comm_planner.files.OutputFolder`)
+    ``path`` is a bare name inside it, written relative to the folder's descriptor."""
     check_mission_path(path)
     check_home(home)
     target = Path(path)
@@ -147,13 +148,15 @@ def write_mission_file(items: Sequence[MissionItem], path: str | os.PathLike, ho
     else:
         def writer(temporary: Path) -> None:
             write_waypoints(items, temporary)
-    _write_atomically(target, writer)
-    return target
+    if folder is not None:
+        return _write_atomically(folder.path / target, lambda: folder.write_with(
+            str(path), writer))
+    return _write_atomically(target, lambda: write_with(target, writer))
 
 
-def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
+def _write_atomically(target: Path, write: Callable[[], Path]) -> Path:
     try:
-        write_with(target, writer)
+        return write()
     except MissionExportError:
         raise
     except (OSError, ValueError, TypeError, mavwp.MAVWPError) as exc:
