@@ -278,3 +278,15 @@ def test_a_mission_dir_that_cannot_be_opened_stops_the_node_at_start(ros_context
     with pytest.raises(PlannerError, match='mission_dir .* cannot be opened as a folder'):
         PlannerNode(context=ros_context, parameter_overrides=[
             Parameter('mission_dir', value=str(tmp_path / 'missing'))])
+
+
+@pytest.mark.parametrize('url, reason', [('flight.tlog', "unknown kind 'flight.tlog'"),
+                                         ('tcp:127.0.0.1:0', 'port must be a number'),
+                                         ('/dev/zero', 'a memory device'),
+                                         ('/dev/ttyNOTHERE,57600', 'No such file')])
+def test_a_link_url_the_planner_does_not_open_is_refused_when_set(harness, url, reason):
+    h = harness()
+    h.published(1)
+    result = set_parameter(h, 'mavlink_url', url)
+    assert not result.successful and reason in result.reason, result.reason
+    assert not h.node.vehicle.linked

@@ -34,6 +34,7 @@ from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_R
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.files import MISSION_FORMATS
 from uav_comm_planner.vehicle.mavlink.items import MISSION_ENDS
+from uav_comm_planner.vehicle.mavlink.urls import parse_link_url
 
 #: Node settings that take one of a few names, and the names.
 CHOICES = {'mission_end': MISSION_ENDS, 'mission_firmware': tuple(FIRMWARES)}
@@ -81,7 +82,7 @@ class NodeSettings:
             raise InvalidScenarioError(f'vehicle_aware must be true or false, got '
                                        f'{self.vehicle_aware!r}')
         for name in ('frame_id', 'mission_dir', 'mission_file', 'vehicle_params_file',
-                     *CHOICES):
+                     'mavlink_url', *CHOICES):
             if not isinstance(getattr(self, name), str):
                 raise InvalidScenarioError(f'{name} must be a string, got '
                                            f'{getattr(self, name)!r}')
@@ -97,6 +98,10 @@ class NodeSettings:
             raise InvalidScenarioError('mission_dir must be a folder path')
         if self.mission_file:
             _check_bare_file_name(self.mission_file)
+        if self.mavlink_url:
+            # Checked on set: an unknown kind, a bad port or a missing serial device is
+            # refused now, not found by the link's thread later.
+            parse_link_url(self.mavlink_url)
         try:
             self.home
         except InvalidScenarioError as exc:
