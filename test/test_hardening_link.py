@@ -147,3 +147,38 @@ def test_a_vehicle_that_answers_slowly_is_cut_at_the_deadline(no_leaks):
 def test_link_settings_are_checked(changes):
     with pytest.raises(VehicleLinkError, match='link setting'):
         LinkSettings(**changes)
+
+
+def test_the_vehicle_thread_stops_at_once_even_while_it_waits_for_a_heartbeat(no_leaks):
+    from uav_comm_planner.vehicle.geodesy import Home
+    from uav_comm_planner.vehicle.mavlink.telemetry import VehicleBridge
+
+    with FakeVehicle('mute') as vehicle:
+        bridge = VehicleBridge(vehicle.url, Home(47.0, 8.0, 400.0), lambda event: None,
+                               connect_timeout_s=30.0)
+        time.sleep(0.5)                      # connected, waiting for the heartbeat
+        began = time.monotonic()
+        bridge.stop()
+        assert time.monotonic() - began < 2.0
+        assert not bridge._thread.is_alive()
+
+
+def test_reconnection_attempts_back_off(monkeypatch, no_leaks):
+    from uav_comm_planner.vehicle.geodesy import Home
+    from uav_comm_planner.vehicle.mavlink import telemetry
+
+    attempts, events = [], []
+
+    def refused(url, **options):
+        attempts.append(time.monotonic())
+        raise VehicleLinkError(f'cannot open {url!r}: refused')
+    monkeypatch.setattr(telemetry, 'connect', refused)
+    monkeypatch.setattr(telemetry, 'RECONNECT_PAUSE_S', 0.05)
+    bridge = telemetry.VehicleBridge('tcp:127.0.0.1:9', Home(47.0, 8.0, 400.0), events.append)
+    time.sleep(1.6)
+    bridge.stop()
+    # 0.05, 0.1, 0.2, 0.4, 0.8 s: six attempts at most, not one every 0.05 s.
+    assert 3 <= len(attempts) <= 6, len(attempts)
+    gaps = [b - a for a, b in zip(attempts, attempts[1:])]
+    assert all(later > earlier for earlier, later in zip(gaps, gaps[1:]))
+    assert len(events) == 1 and 'retrying' in events[0].message

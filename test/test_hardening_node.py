@@ -290,3 +290,19 @@ def test_a_link_url_the_planner_does_not_open_is_refused_when_set(harness, url, 
     result = set_parameter(h, 'mavlink_url', url)
     assert not result.successful and reason in result.reason, result.reason
     assert not h.node.vehicle.linked
+
+
+def test_a_vehicle_link_error_is_one_line_on_the_log_and_on_planner_status(harness):
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from uav_comm_planner.ros.publishing import STATUS_QOS, TOPIC_STATUS
+    h = harness()
+    h.published(1)
+    statuses = []
+    h.probe.create_subscription(DiagnosticArray, TOPIC_STATUS, statuses.append, STATUS_QOS)
+    h.spin_until(lambda: h.node.count_subscribers(TOPIC_STATUS) > 0, 'status subscriber')
+    h.node._on_vehicle_report('vehicle link: the vehicle keeps asking for items: it loops',
+                              True)
+    h.spin_until(lambda: any('it loops' in s.status[0].message for s in statuses),
+                 'link error on planner_status')
+    assert h.node.stats.last_error.count('\n') == 0

@@ -70,6 +70,8 @@ TOPIC_GROUND_NODES = 'ground_nodes'
 TOPIC_UAV_POSE = 'uav_pose'
 #: Name of the telemetry as a position source.
 SOURCE_VEHICLE = 'vehicle'
+#: Name of the vehicle link's errors on planner_status.
+SOURCE_VEHICLE_LINK = 'vehicle link'
 #: Parameters that remake the vehicle link when they change.
 LINK_PARAMETERS = frozenset({'mavlink_url', 'home_latitude_deg', 'home_longitude_deg',
                              'home_altitude_m'})
@@ -206,7 +208,8 @@ class PlannerNode(Node):
 
     def _on_vehicle_report(self, message: str, is_error: bool) -> None:
         if is_error:
-            self.report_error(message)
+            # One line on the log and on planner_status.
+            self.refuse(SOURCE_VEHICLE_LINK, message)
         else:
             self.get_logger().info(message)
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import math
 import socket
 import time
-from typing import Sequence
+from typing import Callable, Sequence
 
 from pymavlink import mavutil
 
@@ -31,6 +31,8 @@ from uav_comm_planner.vehicle.mavlink.urls import parse_link_url
 MAV = mavutil.mavlink
 #: MISSION_COUNT carries a uint16.
 MAX_ITEMS = 65535
+#: How often a connect that waits for the heartbeat asks whether to stop, seconds.
+HEARTBEAT_POLL_S = 0.2
 #: Refusals an autopilot gives while busy (parameters or a previous transfer still loading).
 TRANSIENT_RESULTS = (MAV.MAV_MISSION_NO_SPACE, MAV.MAV_MISSION_DENIED,
                      MAV.MAV_MISSION_OPERATION_CANCELLED)
@@ -102,12 +104,15 @@ class _TimedTcp(mavutil.mavtcp):
         self.port.setsockopt(socket.SOL_TCP, socket.TCP_NODELAY, 1)
 
 
-def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255):
+def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255,
+            should_stop: Callable[[], bool] | None = None):
     """Open ``url`` and wait for the vehicle's heartbeat; return the pymavlink connection.
 
     The URL is checked first (:func:`~.urls.parse_link_url`: only live links, never a file to
     replay); ``timeout_s`` bounds the whole of it, the TCP connect and the heartbeat together.
-    The connection's ``target_system`` and ``target_component`` are the vehicle's. Raises
+    ``should_stop`` is asked every HEARTBEAT_POLL_S while the heartbeat is awaited, so that
+    a link being stopped never waits out the timeout. The connection's ``target_system`` and
+    ``target_component`` are the vehicle's. Raises
     :class:`~uav_comm_planner.errors.InvalidLinkUrlError` for a URL it does not open and
     :class:`VehicleLinkError` when the URL cannot be opened or no heartbeat comes in time.
     """
@@ -125,11 +130,13 @@ def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255):
                                               autoreconnect=False)
     except (OSError, ValueError) as exc:
         raise VehicleLinkError(f'cannot open {url!r}: {exc}') from exc
-    left = deadline - time.monotonic()
     heartbeat = None
     try:
-        if left > 0:
-            heartbeat = link.wait_heartbeat(timeout=left)
+        while heartbeat is None and (left := deadline - time.monotonic()) > 0:
+            if should_stop is not None and should_stop():
+                link.close()
+                raise VehicleLinkError(f'connecting to {url!r} was stopped')
+            heartbeat = link.wait_heartbeat(timeout=min(left, HEARTBEAT_POLL_S))
     except (OSError, ConnectionError) as exc:
         link.close()
         raise VehicleLinkError(f'link to {url!r} lost while waiting for the heartbeat: '
