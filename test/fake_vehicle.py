@@ -10,7 +10,8 @@ It listens on a free TCP port (``url``), takes one connection at a time and, by 
 - ``out_of_range``: asks for an item past the end of the mission;
 - ``wrong_ack``: answers the mission count with a refusal drawn from ``seed``;
 - ``wrong_count``: stores the mission, reports one item more on read-back;
-- ``wrong_item``: stores the mission, reads one item back moved by a degree;
+- ``wrong_item``: stores the mission, reads its last item back moved by a degree (home, the
+  only item of a one-item mission, as another command);
 - ``slow``: the mission protocol done right, each answer ``delay_s`` late;
 - ``garbage``: heartbeats among seeded random bytes and random MAVLink messages, answering
   mission messages with random seqs, counts and results.
@@ -48,6 +49,15 @@ class FakeVehicle:
         self.port = self._server.getsockname()[1]
         self._thread = threading.Thread(target=self._run, name='fake-vehicle', daemon=True)
         self._thread.start()
+
+    def reset(self, behaviour: str, *, seed: int = 0) -> None:
+        """Play ``behaviour`` with a fresh ``seed`` and no mission from the next connection
+        on (one vehicle serves many fuzz cases)."""
+        if behaviour not in BEHAVIOURS:
+            raise ValueError(f'unknown behaviour {behaviour!r}')
+        self.behaviour = behaviour
+        self.random = random.Random(seed)
+        self.stored = []
 
     @property
     def url(self) -> str:
@@ -158,7 +168,13 @@ class FakeVehicle:
             item = self.stored[message.seq]
             if item is None:
                 return
-            x = item.x + (10_000_000 if behaviour == 'wrong_item' and message.seq == 1 else 0)
+            x, command = item.x, item.command
+            if behaviour == 'wrong_item' and message.seq == len(self.stored) - 1:
+                # Home (row 0) is compared by its command alone, the others by place too.
+                if message.seq == 0:
+                    command = MAV.MAV_CMD_NAV_TAKEOFF
+                else:
+                    x += 10_000_000
             self._send(mav.mission_item_int_encode(
-                255, 0, item.seq, item.frame, item.command, item.current, item.autocontinue,
+                255, 0, item.seq, item.frame, command, item.current, item.autocontinue,
                 item.param1, item.param2, item.param3, item.param4, x, item.y, item.z, 0))

@@ -182,3 +182,17 @@ def test_reconnection_attempts_back_off(monkeypatch, no_leaks):
     gaps = [b - a for a, b in zip(attempts, attempts[1:])]
     assert all(later > earlier for earlier, later in zip(gaps, gaps[1:]))
     assert len(events) == 1 and 'retrying' in events[0].message
+
+
+def test_a_short_seeded_run_of_the_fake_vehicle_fuzzer_finds_nothing(capsys):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent / 'fuzz' / 'fuzz_vehicle.py'
+    spec = importlib.util.spec_from_file_location('fuzz_vehicle', path)
+    fuzzer = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fuzzer)
+    status = fuzzer.main(['--cases', '60', '--seed', '7'])
+    out = capsys.readouterr().out
+    assert status == 0, out
+    assert '0 failures' in out and 'api good' in out
