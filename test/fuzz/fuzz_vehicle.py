@@ -15,13 +15,10 @@ one.
 
 from __future__ import annotations
 
-import argparse
-import collections
 import contextlib
 import io
 import os
 from pathlib import Path
-import random
 import re
 import string
 import sys
@@ -30,9 +27,11 @@ import threading
 import time
 import traceback
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+# The fake vehicle lives beside the tests, the report beside this file.
+sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]
 
 from fake_vehicle import BEHAVIOURS, FakeVehicle  # noqa: E402
+from fuzz_report import parse_arguments, report, SeededFuzzer  # noqa: E402
 
 from uav_comm_planner.errors import MissionFileError, VehicleLinkError  # noqa: E402
 from uav_comm_planner.tools import cli  # noqa: E402
@@ -51,14 +50,12 @@ MISSION = ('QGC WPL 110\n' + ''.join(
     f'\t{10.0 * k:.1f}\t1\n' for k in range(5)))
 
 
-class Fuzzer:
-    """Draws the cases, runs them and keeps the counts and the failures."""
+class Fuzzer(SeededFuzzer):
+    """Draws the cases against one fake vehicle, runs them and keeps the counts and the
+    failures."""
 
     def __init__(self, seed: int, folder: Path) -> None:
-        self.rng = random.Random(seed)
-        self.folder = folder
-        self.counts: collections.Counter = collections.Counter()
-        self.failures: list[str] = []
+        super().__init__(seed, folder)
         self.vehicle = FakeVehicle('good')
         self.mission = folder / 'm.waypoints'
         self.mission.write_text(MISSION)
@@ -67,9 +64,6 @@ class Fuzzer:
 
     def close(self) -> None:
         self.vehicle.close()
-
-    def fail(self, kind: str, what: str, why: str) -> None:
-        self.failures.append(f'{kind} {what}: {why}')
 
     def items(self) -> list[MissionItem]:
         count = self.rng.choice((1, 2, 5, 20))
@@ -202,10 +196,7 @@ class Fuzzer:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--cases', type=int, default=10_000)
-    parser.add_argument('--seed', type=int, default=1)
-    args = parser.parse_args(argv)
+    args = parse_arguments(argv, __doc__)
     began = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix='uav-fuzz-vehicle-') as name:
         fuzzer = Fuzzer(args.seed, Path(name))
@@ -214,16 +205,8 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             fuzzer.close()
         left = sorted(p.name for p in Path(name).iterdir() if p.name != 'm.waypoints')
-    elapsed = time.perf_counter() - began
-    print(f'{args.cases} cases, seed {args.seed}, {elapsed:.1f} s')
-    for (kind, outcome), count in sorted(fuzzer.counts.items()):
-        print(f'  {kind:<20} {outcome:<48} {count:>6}')
-    if left:
-        fuzzer.failures.append(f'left in the work folder: {left[:10]}')
-    print(f'{len(fuzzer.failures)} failures')
-    for failure in fuzzer.failures[:30]:
-        print('  ' + failure.replace('\n', '\n    '))
-    return 1 if fuzzer.failures else 0
+    return report(args.cases, args.seed, time.perf_counter() - began, fuzzer.counts,
+                  fuzzer.failures, left, widths=(20, 48))
 
 
 if __name__ == '__main__':
