@@ -311,3 +311,22 @@ def test_an_output_folder_never_follows_a_link_nor_leaves_its_folder(tmp_path, n
     assert (tmp_path / 'target.txt').read_text() == 'kept'
     assert sorted(p.name for p in tmp_path.iterdir()) == before
     assert not (tmp_path.parent / 'up.txt').exists()
+
+
+def test_a_study_is_counted_before_its_grid_is_crossed_and_its_stored_design_read_safely(
+        tmp_path):
+    from uav_comm_planner.tools.study.design import MAX_ROWS, StudyDesign, StudyError
+    from uav_comm_planner.tools.study.tables import saved_design
+
+    with pytest.raises(InvalidScenarioError, match=f'cases must be at most {MAX_ROWS}'):
+        StudyDesign(cases=10 ** 12)
+    grid = ','.join(str(v) for v in range(1, 101))
+    with pytest.raises(InvalidScenarioError, match='more than'):
+        StudyDesign(cases=1000, draws={'slots': grid, 'nodes': '1:5',
+                                       'power_budget_w': ','.join(f'{v}' for v in
+                                                                  range(1, 201))})
+    table = tmp_path / 'study.csv'
+    table.write_text('index\n')
+    os.mkfifo(tmp_path / 'study.csv.json')
+    with pytest.raises(StudyError, match='it is a pipe'):
+        promptly(lambda: saved_design(table))

@@ -20,13 +20,16 @@ import statistics
 import time
 from typing import Sequence, TYPE_CHECKING
 
-from uav_comm_planner.files import write_text_atomic, write_with
+from uav_comm_planner.files import read_text_file, write_text_atomic, write_with
 from uav_comm_planner.tools.study.design import (row_scenario, row_settings, SETTINGS,
                                                  StudyDesign, StudyError)
 from uav_comm_planner.tools.study.methods import BASELINES, METHODS, Outcome
 
 if TYPE_CHECKING:
     import pyarrow
+
+#: A stored study design larger than this is refused before it is read.
+MAX_DESCRIPTION_BYTES = 1024 * 1024
 
 
 # ---------------------------------------------------------------------------------------------
@@ -273,8 +276,10 @@ def saved_design(path: str | os.PathLike) -> StudyDesign | None:
     if not probe.exists():
         return None
     try:
-        return StudyDesign.from_dict(json.loads(probe.description.read_text(encoding='utf-8')))
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+        text = read_text_file(probe.description, max_bytes=MAX_DESCRIPTION_BYTES,
+                              what='study description', error=StudyError)
+        return StudyDesign.from_dict(json.loads(text))
+    except (OSError, ValueError, KeyError, TypeError, RecursionError) as exc:
         raise StudyError(f'{path} is not a study table of this package ({probe.description}: '
                          f'{exc})') from None
 
