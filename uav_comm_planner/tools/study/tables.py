@@ -20,7 +20,7 @@ import statistics
 import time
 from typing import Sequence, TYPE_CHECKING
 
-from uav_comm_planner.files import read_text_file, write_text_atomic, write_with
+from uav_comm_planner.files import write_text_atomic, write_with
 from uav_comm_planner.tools.study.design import (row_scenario, row_settings, SETTINGS,
                                                  StudyDesign, StudyError)
 from uav_comm_planner.tools.study.methods import BASELINES, METHODS, Outcome
@@ -272,6 +272,7 @@ def table_for(path: str | os.PathLike, design: StudyDesign) -> StudyTable:
 
 def saved_design(path: str | os.PathLike) -> StudyDesign | None:
     """The design stored with the table at ``path``, or None when there is no table."""
+    from uav_comm_planner.files import read_text_file
     probe = table_for(path, StudyDesign(cases=1))
     if not probe.exists():
         return None
