@@ -38,6 +38,9 @@ setup(
         # outside one, the PyPI wheels of Jazzy provide them.
         'ros': ROS_JAZZY,
         'plots': ['matplotlib>=3.8,<4'],
+        # Serial links to a vehicle (mavlink_url /dev/ttyACM0,115200): pymavlink opens them
+        # with pyserial.
+        'serial': ['pyserial>=3.5,<4'],
         # PyYAML (RViz configuration and launch parameters in the tests) also comes with
         # the ROS wheels; named here so that the tests do not rely on that.
         # colcon (with its ROS and setup.py extensions) and rosdep: the tests build the

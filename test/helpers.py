@@ -10,7 +10,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from nav_msgs.msg import Path
 import pytest
 from rcl_interfaces.msg import Log
-from rcl_interfaces.srv import SetParameters
+from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -136,7 +136,8 @@ class Harness:
         self.pose_pub.publish(message)
 
     def call(self, service: str, request):
-        kind = Trigger if isinstance(request, Trigger.Request) else SetParameters
+        kind = next(service for service in (Trigger, SetParameters, SetParametersAtomically)
+                    if isinstance(request, service.Request))
         client = self.probe.create_client(kind, f'/{NODE_NAME}/{service}')
         self.spin_until(client.service_is_ready, f'service {service}')
         future = client.call_async(request)

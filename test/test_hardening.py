@@ -387,6 +387,10 @@ def test_bad_scenario_files_are_one_line_refusals(tmp_path, capsys, content, mes
      'unknown mission format'),
     (['sweep', '--budgets', '1,nan', '--json', '{tmp}/r.json'], 'power_budget_w must be'),
     (['sweep', '--budgets', ''], 'expected comma-separated numbers'),
+    (['plan', '--vehicle', '--speed', '10', '--horizon', '400', '--wp-jerk', '1e-300'],
+     'vehicle max_jerk_mpsss must be in [0.01, 10000]'),
+    (['plan', '--vehicle', '--speed', '10', '--horizon', '400', '--wp-accel', '1e300'],
+     'vehicle max_accel_mpss must be in [0.01, 1000]'),
 ])
 def test_bad_command_lines_are_one_line_refusals_before_any_file(tmp_path, capsys, argv,
                                                                  message):

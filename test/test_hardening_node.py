@@ -13,7 +13,7 @@ import time
 
 from helpers import DEADLINE_S, Harness, NODES_B, PROCESS_DEADLINE_S
 import pytest
-from rcl_interfaces.srv import SetParameters
+from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -23,6 +23,14 @@ from uav_comm_planner import plan
 from uav_comm_planner.ros.node import NODE_NAME
 
 pytestmark = pytest.mark.filterwarnings('ignore::DeprecationWarning')
+
+
+def release_reader(fifo: FilePath) -> None:
+    """Open ``fifo`` for writing and close it: a reader blocked opening it goes on (EOF)."""
+    try:
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+    except OSError:
+        pass        # no reader: nothing to release
 
 
 def set_parameter(h: Harness, name: str, value):
@@ -180,3 +188,121 @@ def test_double_ctrl_c_during_a_long_plan_exits_quietly(ros_context):
         probe.destroy_node()
     assert status == 0, stderr
     assert 'Traceback' not in stderr and 'rethrown' not in stderr
+
+
+def test_a_parameter_file_that_is_a_device_a_pipe_or_a_folder_is_refused_at_once(
+        harness, tmp_path):
+    fifo = tmp_path / 'fifo.param'
+    os.mkfifo(fifo)
+    h = harness()
+    h.published(1)
+    before = h.node.current_plan
+    # Should the node open the FIFO blocking, a writer comes later and lets it go.
+    release = threading.Timer(10.0, release_reader, args=(fifo,))
+    release.daemon = True
+    release.start()
+    try:
+        # The FIFO first: a reader that blocks on it would also read /dev/zero to the end.
+        for path, reason in ((str(fifo), 'it is a pipe'), (str(tmp_path), 'it is a folder'),
+                             ('/dev/zero', 'it is a device')):
+            began = time.monotonic()
+            result = set_parameter(h, 'vehicle_params_file', path)
+            assert time.monotonic() - began < 5.0, path
+            assert not result.successful and reason in result.reason, (path, result.reason)
+    finally:
+        release.cancel()
+    assert h.node.get_parameter('vehicle_params_file').value == ''
+    assert h.node.current_plan is before
+    # The executor still answers.
+    assert h.call('replan', Trigger.Request()).success
+
+
+def set_parameters(h: Harness, **values):
+    """Set ``values`` in one request (atomically); the one result."""
+    answer = h.call('set_parameters_atomically', SetParametersAtomically.Request(
+        parameters=[Parameter(name, value=value).to_parameter_msg()
+                    for name, value in values.items()]))
+    return answer.result
+
+
+@pytest.mark.parametrize('values, reason', [
+    ({'vehicle_jerk_time_s': 1e-300}, 'jerk_time_s must be in [0.01, 10) s'),
+    ({'vehicle_max_accel_mpss': 1e300, 'vehicle_max_jerk_mpsss': 1e-300},
+     'max_accel_mpss must be in [0.01, 1000]'),
+    ({'vehicle_max_jerk_mpsss': 1e-300}, 'max_jerk_mpsss must be in [0.01, 10000]'),
+    ({'vehicle_max_speed_mps': 1000.0, 'vehicle_max_accel_mpss': 0.01,
+      'vehicle_max_jerk_mpsss': 0.01}, 'to reach its cruise speed from rest'),
+])
+def test_vehicle_limits_no_plan_could_be_made_with_are_refused_when_set(
+        harness, values, reason):
+    h = harness()
+    h.published(1)
+    before = h.node.current_plan
+    result = set_parameters(h, **values)
+    assert not result.successful and reason in result.reason, result.reason
+    assert h.node.config.vehicle == before.request.mission.vehicle
+    assert h.call('replan', Trigger.Request()).success
+    h.published(2)
+
+
+def test_a_vehicle_that_cannot_reach_the_goal_in_time_is_refused_when_set(harness):
+    h = harness(max_speed_mps=10.0, horizon_s=400.0, num_slots=100, vehicle_aware=True)
+    h.published(1)
+    result = set_parameters(h, vehicle_max_accel_mpss=0.01)
+    assert not result.successful
+    assert 'cannot reach qF in time' in result.reason and 'raise horizon_s' in result.reason
+    assert h.node.config.vehicle.max_accel_mpss == 2.5
+
+
+def test_mission_dir_is_opened_once_so_replacing_it_cannot_redirect_writes(harness, tmp_path):
+    folder = tmp_path / 'missions'
+    folder.mkdir()
+    elsewhere = tmp_path / 'elsewhere'
+    elsewhere.mkdir()
+    h = harness(mission_dir=str(folder), mission_file='flight.waypoints', max_speed_mps=10.0,
+                horizon_s=400.0, num_slots=100, vehicle_aware=True)
+    h.published(1)
+    folder.rename(tmp_path / 'moved')
+    folder.symlink_to(elsewhere, target_is_directory=True)
+    (tmp_path / 'moved' / 'flight.waypoints').unlink()
+    answer = h.call('export_mission', Trigger.Request())
+    assert answer.success, answer.message
+    assert (tmp_path / 'moved' / 'flight.waypoints').read_text().startswith('QGC WPL 110')
+    assert list(elsewhere.iterdir()) == []
+
+
+def test_a_mission_dir_that_cannot_be_opened_stops_the_node_at_start(ros_context, tmp_path):
+    from uav_comm_planner.errors import PlannerError
+    from uav_comm_planner.ros.node import PlannerNode
+
+    with pytest.raises(PlannerError, match='mission_dir .* cannot be opened as a folder'):
+        PlannerNode(context=ros_context, parameter_overrides=[
+            Parameter('mission_dir', value=str(tmp_path / 'missing'))])
+
+
+@pytest.mark.parametrize('url, reason', [('flight.tlog', "unknown kind 'flight.tlog'"),
+                                         ('tcp:127.0.0.1:0', 'port must be a number'),
+                                         ('/dev/zero', 'a memory device'),
+                                         ('/dev/ttyNOTHERE,57600', 'No such file')])
+def test_a_link_url_the_planner_does_not_open_is_refused_when_set(harness, url, reason):
+    h = harness()
+    h.published(1)
+    result = set_parameter(h, 'mavlink_url', url)
+    assert not result.successful and reason in result.reason, result.reason
+    assert not h.node.vehicle.linked
+
+
+def test_a_vehicle_link_error_is_one_line_on_the_log_and_on_planner_status(harness):
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from uav_comm_planner.ros.publishing import STATUS_QOS, TOPIC_STATUS
+    h = harness()
+    h.published(1)
+    statuses = []
+    h.probe.create_subscription(DiagnosticArray, TOPIC_STATUS, statuses.append, STATUS_QOS)
+    h.spin_until(lambda: h.node.count_subscribers(TOPIC_STATUS) > 0, 'status subscriber')
+    h.node._on_vehicle_report('vehicle link: the vehicle keeps asking for items: it loops',
+                              True)
+    h.spin_until(lambda: any('it loops' in s.status[0].message for s in statuses),
+                 'link error on planner_status')
+    assert h.node.stats.last_error.count('\n') == 0

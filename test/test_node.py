@@ -29,6 +29,7 @@ from std_srvs.srv import Trigger
 
 from uav_comm_planner import (InfeasibleHorizonError, paper_scenario, plan, SolverError,
                               SolverSettings)
+from uav_comm_planner.mission.plausible import CONFIRMING_SAMPLES
 from uav_comm_planner.ros.messages import nanoseconds_of
 from uav_comm_planner.ros.node import PlannerNode
 from uav_comm_planner.ros.publishing import (OUTPUT_QOS, TOPIC_MARKERS, TOPIC_MIN_THROUGHPUT,
@@ -217,6 +218,12 @@ def test_uav_pose_replans_the_rest_and_refuses_an_unreachable_goal(harness):
 
     errors = h.node.stats.error_count
     h.node.flight._last_pose_replan_s = -math.inf        # past the replan interval
+    # 100 km away at once is no flight: refused, until samples in a row confirm the jump.
+    for sent in range(1, CONFIRMING_SAMPLES):
+        h.send_pose(100000.0, 0.0)
+        h.spin_until(lambda: h.node.flight.positions_refused == sent, f'refusal {sent}')
+    assert 'farther than the UAV flies' in h.node.stats.last_error
+    errors = h.node.stats.error_count
     h.send_pose(100000.0, 0.0)
     h.errors_after(errors)
     assert 'goal unreachable' in h.node.stats.last_error

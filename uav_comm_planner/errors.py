@@ -29,6 +29,10 @@ class VehicleLinkError(PlannerError):
     """The vehicle's MAVLink link failed or the vehicle refused what was sent; says which."""
 
 
+class InvalidLinkUrlError(VehicleLinkError, ValueError):
+    """A vehicle link URL that is not one the planner opens (scheme, host, port, device)."""
+
+
 class ComputeBudgetError(InvalidScenarioError):
     """A problem larger than the compute budget (nodes x slots) was refused before any work."""
 

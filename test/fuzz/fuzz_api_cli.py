@@ -12,19 +12,17 @@ failure; exits 1 if there was one.
 
 from __future__ import annotations
 
-import argparse
-import collections
 import contextlib
 import io
 import json
 import math
 from pathlib import Path
-import random
 import sys
 import tempfile
 import time
 import traceback
 
+from fuzz_report import parse_arguments, report, SeededFuzzer
 import numpy as np
 
 from uav_comm_planner import plan, PlannerError, Scenario, SolverSettings
@@ -48,12 +46,7 @@ SPECIAL_FLOATS = (0.0, -0.0, 1e-300, 5e-324, 1e300, 1e308, -1e308, math.inf, -ma
                   math.nan, 1e6, -1e6, 2.0 ** 63, 1e-9)
 
 
-class Fuzzer:
-    def __init__(self, seed: int, folder: Path) -> None:
-        self.rng = random.Random(seed)
-        self.folder = folder
-        self.counts: collections.Counter = collections.Counter()
-        self.failures: list[str] = []
+class Fuzzer(SeededFuzzer):
 
     # Values.
 
@@ -101,10 +94,6 @@ class Fuzzer:
         return fields
 
     # Checks.
-
-    def fail(self, kind: str, what: str, detail: str) -> None:
-        self.counts[(kind, 'FAILED')] += 1
-        self.failures.append(f'{kind}: {what}: {detail}')
 
     def check_result(self, kind: str, result, what: str) -> None:
         scenario = result.scenario
@@ -289,25 +278,14 @@ class Fuzzer:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--cases', type=int, default=10_000)
-    parser.add_argument('--seed', type=int, default=1)
-    args = parser.parse_args(argv)
+    args = parse_arguments(argv, __doc__)
     began = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix='uav-fuzz-') as name:
         fuzzer = Fuzzer(args.seed, Path(name))
         fuzzer.run(args.cases)
         left = sorted(str(p.relative_to(name)) for p in Path(name).rglob('*'))
-    elapsed = time.perf_counter() - began
-    print(f'{args.cases} cases, seed {args.seed}, {elapsed:.1f} s')
-    for (kind, outcome), count in sorted(fuzzer.counts.items()):
-        print(f'  {kind:<15} {outcome:<40} {count:>6}')
-    if left:
-        fuzzer.failures.append(f'left in the work folder: {left[:10]}')
-    print(f'{len(fuzzer.failures)} failures')
-    for failure in fuzzer.failures[:30]:
-        print('  ' + failure.replace('\n', '\n    '))
-    return 1 if fuzzer.failures else 0
+    return report(args.cases, args.seed, time.perf_counter() - began, fuzzer.counts,
+                  fuzzer.failures, left)
 
 
 if __name__ == '__main__':

@@ -23,6 +23,7 @@ from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.receding import receding_problem, RecedingPlan
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.files import OutputFolder
 from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
@@ -70,14 +71,15 @@ class MissionPlan:
         return replace(self, request=request,
                        **_items(request, self.vehicle_plan or self.result))
 
-    def write(self, path: str | os.PathLike) -> Path:
-        """Write the mission items as the file ``path`` (.waypoints or .plan), atomically;
-        raises :class:`~uav_comm_planner.errors.MissionExportError` (or the reason the items
-        could not be built) on failure."""
+    def write(self, path: str | os.PathLike, *, folder: OutputFolder | None = None) -> Path:
+        """Write the mission items as the file ``path`` (.waypoints or .plan; with ``folder``
+        a bare name inside it), atomically; raises
+        :class:`~uav_comm_planner.errors.MissionExportError` (or the reason the items could
+        not be built) on failure."""
         if self.items is None:
             raise PlannerError(self.items_error or 'this plan was made without mission items')
         return write_mission_file(self.items, path, self.request.home,
-                                  firmware=self.request.firmware)
+                                  firmware=self.request.firmware, folder=folder)
 
 
 def _bound(planner: Planner, **options) -> Callable[[Scenario, SolverSettings | None],

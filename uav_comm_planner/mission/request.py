@@ -10,6 +10,7 @@ defaults.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+import math
 import os
 from typing import Mapping
 
@@ -17,8 +18,10 @@ import numpy as np
 
 from uav_comm_planner.core.receding import FlownSlots
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
+from uav_comm_planner.vehicle.timing import leg_time
 
 
 def vehicle_limits(explicit: Mapping[str, float] | None = None,
@@ -33,7 +36,51 @@ def vehicle_limits(explicit: Mapping[str, float] | None = None,
     limits = VehicleLimits()
     if parameter_file:
         limits = read_parameter_file(parameter_file, firmware=firmware, base=limits)
-    return replace(limits, **dict(explicit or {}))
+    limits = replace(limits, **dict(explicit or {}))
+    check_legs_timed(limits)
+    return limits
+
+
+#: Leg lengths, metres, that :func:`check_legs_timed` times: a waypoint step to a crossing.
+PROBE_LEGS_M = (0.1, 10.0, 1000.0, 100000.0)
+
+
+def check_legs_timed(limits: VehicleLimits) -> None:
+    """Refuse (InvalidScenarioError) limits whose S-curve cannot time a leg: each of
+    PROBE_LEGS_M at the cruise speed must take a finite, positive time. Run when the limits are
+    set (a node parameter, a command line flag, a parameter file), so that a plan made later
+    never fails on them."""
+    for length_m in PROBE_LEGS_M:
+        try:
+            seconds = leg_time(length_m, limits.cruise_speed_mps, limits)
+        except (ArithmeticError, ValueError) as exc:
+            seconds, why = math.nan, f': {exc}'
+        else:
+            why = ''
+        if not (math.isfinite(seconds) and seconds > 0):
+            raise InvalidScenarioError(
+                f'the vehicle limits cannot time a {length_m:g} m leg (got {seconds!r} s{why}): '
+                f'speed {limits.cruise_speed_mps:g} m/s, acceleration '
+                f'{limits.max_accel_mpss:g} m/s/s, jerk {limits.max_jerk_mpsss:g} m/s/s/s, '
+                f'jerk time {limits.jerk_time_s:g} s')
+
+
+def check_goal_in_time(scenario: Scenario, limits: VehicleLimits) -> None:
+    """Refuse (InvalidScenarioError) a mission the vehicle cannot fly at all: even the straight
+    line from q0 to qF, one leg rest to rest at the cruise speed (the fastest any plan flies it,
+    in any wind, since the waypoint speed bounds the ground speed), takes longer than the
+    mission's M + 1 slots. Cheap, and run when the parameters are set, so that a node never
+    accepts limits every later plan would fail on."""
+    length_m = math.dist(scenario.start_m, scenario.goal_m)
+    seconds = leg_time(length_m, limits.cruise_speed_mps, limits)
+    end_s = scenario.slot_s * (scenario.num_slots + 1)
+    if seconds > end_s:
+        raise InvalidScenarioError(
+            f'the vehicle cannot reach qF in time with these limits: the straight line from q0 '
+            f'to qF ({length_m:.6g} m) takes {seconds:.6g} s at cruise '
+            f'{limits.cruise_speed_mps:g} m/s, acceleration {limits.max_accel_mpss:g} m/s/s, '
+            f'jerk {limits.max_jerk_mpsss:g} m/s/s/s, and the mission ends after {end_s:g} s; '
+            f'raise horizon_s or give the vehicle\'s real limits')
 
 
 @dataclass(frozen=True)

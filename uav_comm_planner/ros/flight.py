@@ -12,12 +12,14 @@ UAV's position (the receding horizon), and a position off the plan does too, wit
 from __future__ import annotations
 
 import math
+import time
 from typing import Protocol
 
 import numpy as np
 
 from uav_comm_planner.core.receding import rest_of_mission
 from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.mission.plausible import PositionGate
 from uav_comm_planner.mission.progress import (MissionProgress, off_plan, planned_position,
                                                PoseTrack)
 from uav_comm_planner.mission.request import InFlight
@@ -29,6 +31,8 @@ from uav_comm_planner.ros.vehicle import VehicleAdapter
 #: The UAV is at q0, and the mission clock starts, within this distance of it (metres);
 #: ArduCopter counts a waypoint reached within WPNAV_RADIUS, 2 m by default.
 START_RADIUS_M = 2.5
+#: A source's refused positions are reported at most once in this many seconds (wall clock).
+REFUSAL_REPORT_S = 1.0
 
 
 class FlightHost(Protocol):
@@ -53,16 +57,53 @@ class MissionFlight:
         self._node = node
         self.progress = MissionProgress()
         self.track = PoseTrack()
+        self.gate = PositionGate()
+        #: Position samples refused by the plausibility check so far.
+        self.positions_refused = 0
+        self._unreported: dict[str, int] = {}
+        self._reported_at: dict[str, float] = {}
         self._last_pose_replan_s = -math.inf
 
     def on_position(self, time_s: float, x_m: float, y_m: float, *, source: str,
                     height_m: float | None = None) -> None:
         """The UAV at (x, y) metres (``height_m`` above the ground, when known) at ``time_s``
-        on the mission clock's time base: starts the clock at q0, replans when off the plan."""
-        node = self._node
-        if not (math.isfinite(x_m) and math.isfinite(y_m) and math.isfinite(time_s)):
-            node.refuse(source, f'{source} refused: position ({x_m}, {y_m}) is not finite')
+        on the mission clock's time base: starts the clock at q0, replans when off the plan.
+
+        Every sample passes the plausibility check (:mod:`uav_comm_planner.mission.plausible`)
+        first; a refused one never reaches the track nor the clock and is reported in one
+        line (at most once every :data:`REFUSAL_REPORT_S` per source, with the count). No
+        error of a sample ends the node: it is refused with its reason."""
+        reason = self.gate.check((time_s, x_m, y_m), self._top_speed_mps(), height_m)
+        if reason is not None:
+            self._refuse_position(source, reason)
             return
+        try:
+            self._take_position(time_s, x_m, y_m, source=source, height_m=height_m)
+        except (PlannerError, ArithmeticError, ValueError) as exc:
+            self._refuse_position(source, f'cannot use it: {exc}')
+
+    def _top_speed_mps(self) -> float:
+        """The fastest the UAV may move over the ground: the planning speed or the vehicle's
+        cruise, whichever is faster, plus the wind."""
+        config = self._node.config
+        cruise = config.vehicle.cruise_speed_mps
+        speed = max(config.scenario.max_speed_mps, cruise if math.isfinite(cruise) else 0.0)
+        return speed + config.scenario.wind_speed_mps
+
+    def _refuse_position(self, source: str, reason: str) -> None:
+        self.positions_refused += 1
+        self._unreported[source] = self._unreported.get(source, 0) + 1
+        now = time.monotonic()
+        if now - self._reported_at.get(source, -math.inf) < REFUSAL_REPORT_S:
+            return
+        count = self._unreported.pop(source)
+        self._reported_at[source] = now
+        more = f' ({count} samples refused since the last report)' if count > 1 else ''
+        self._node.refuse(source, f'{source} refused: {reason}{more}')
+
+    def _take_position(self, time_s: float, x_m: float, y_m: float, *, source: str,
+                       height_m: float | None) -> None:
+        node = self._node
         self.track.add(time_s, x_m, y_m)
         segment = self.progress.current
         if segment is None:
@@ -128,9 +169,9 @@ class MissionFlight:
         """Replan the rest of the mission in flight from ``position`` at ``time_s``."""
         mission = self._node.config.scenario
         segment = self.progress.current
-        flown = self.progress.flown_slots(time_s, mission.ground_nodes_m, self.track)
         begun = segment.slots_begun(time_s) if segment.start_s is not None else 0
         try:
+            flown = self.progress.flown_slots(time_s, mission.ground_nodes_m, self.track)
             rest_of_mission(mission, position, flown)
         except PlannerError as exc:
             self._node.refuse(reason, f'{reason} refused: {exc}',
@@ -162,4 +203,4 @@ class MissionFlight:
         return True
 
 
-__all__ = ['FlightHost', 'MissionFlight', 'START_RADIUS_M']
+__all__ = ['FlightHost', 'MissionFlight', 'REFUSAL_REPORT_S', 'START_RADIUS_M']

@@ -61,7 +61,8 @@ from uav_comm_planner.ros.diagnostics import NodeDiagnostics
 from uav_comm_planner.ros.flight import MissionFlight
 from uav_comm_planner.ros.messages import ground_nodes_of, nodes_text
 from uav_comm_planner.ros.params import flat_pairs, OUTPUT_ONLY, PlannerConfig
-from uav_comm_planner.ros.planning import PlanningWorker, PlanOutcome, PlanRequest
+from uav_comm_planner.ros.planning import (open_mission_folder, PlanningWorker, PlanOutcome,
+                                           PlanRequest)
 from uav_comm_planner.ros.publishing import PlanPublisher, summary_line
 from uav_comm_planner.ros.services import PlannerServices
 from uav_comm_planner.ros.vehicle import VehicleAdapter
@@ -72,6 +73,8 @@ TOPIC_GROUND_NODES = 'ground_nodes'
 TOPIC_UAV_POSE = 'uav_pose'
 #: Name of the telemetry as a position source.
 SOURCE_VEHICLE = 'vehicle'
+#: Name of the vehicle link's errors on planner_status.
+SOURCE_VEHICLE_LINK = 'vehicle link'
 #: Parameters that remake the vehicle link when they change.
 LINK_PARAMETERS = frozenset({'mavlink_url', 'home_latitude_deg', 'home_longitude_deg',
                              'home_altitude_m'})
@@ -127,8 +130,10 @@ class PlannerNode(Node):
         self.create_subscription(PoseArray, TOPIC_GROUND_NODES, self._on_ground_nodes,
                                  GROUND_NODES_QOS)
         self.create_subscription(PoseStamped, TOPIC_UAV_POSE, self._on_uav_pose, UAV_POSE_QOS)
+        # Opened once: replacing mission_dir's path later cannot redirect a mission write.
+        self.mission_folder = open_mission_folder(self.config.node)
         self._trigger_services = PlannerServices(self)
-        self._worker = PlanningWorker(self, planner, self._deliver)
+        self._worker = PlanningWorker(self, planner, self._deliver, folder=self.mission_folder)
         self.vehicle.connect(self.config.node)
         self.flight.request_plan('start')
 
@@ -207,7 +212,8 @@ class PlannerNode(Node):
 
     def _on_vehicle_report(self, message: str, is_error: bool) -> None:
         if is_error:
-            self.report_error(message)
+            # One line on the log and on planner_status.
+            self.refuse(SOURCE_VEHICLE_LINK, message)
         else:
             self.get_logger().info(message)
         self.diagnostics.update()
@@ -293,6 +299,7 @@ class PlannerNode(Node):
         """Stop the worker (a plan in progress is abandoned) and the link, then destroy."""
         self._worker.stop()
         self.vehicle.stop()
+        self.mission_folder.close()
         super().destroy_node()
 
 

@@ -27,13 +27,14 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 
 from uav_comm_planner.core.scenario import paper_scenario, Point, Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
-from uav_comm_planner.mission.request import vehicle_limits
+from uav_comm_planner.mission.request import check_goal_in_time, vehicle_limits
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.flyable import check_speed
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.files import MISSION_FORMATS
 from uav_comm_planner.vehicle.mavlink.items import MISSION_ENDS
+from uav_comm_planner.vehicle.mavlink.urls import parse_link_url
 
 #: Node settings that take one of a few names, and the names.
 CHOICES = {'mission_end': MISSION_ENDS, 'mission_firmware': tuple(FIRMWARES)}
@@ -81,7 +82,7 @@ class NodeSettings:
             raise InvalidScenarioError(f'vehicle_aware must be true or false, got '
                                        f'{self.vehicle_aware!r}')
         for name in ('frame_id', 'mission_dir', 'mission_file', 'vehicle_params_file',
-                     *CHOICES):
+                     'mavlink_url', *CHOICES):
             if not isinstance(getattr(self, name), str):
                 raise InvalidScenarioError(f'{name} must be a string, got '
                                            f'{getattr(self, name)!r}')
@@ -97,6 +98,10 @@ class NodeSettings:
             raise InvalidScenarioError('mission_dir must be a folder path')
         if self.mission_file:
             _check_bare_file_name(self.mission_file)
+        if self.mavlink_url:
+            # Checked on set: an unknown kind, a bad port or a missing serial device is
+            # refused now, not found by the link's thread later.
+            parse_link_url(self.mavlink_url)
         try:
             self.home
         except InvalidScenarioError as exc:
@@ -400,6 +405,7 @@ def config_from_parameters(values: Mapping[str, Any],
     settings.check(scenario)
     if node.vehicle_aware:
         check_speed(scenario, vehicle)
+        check_goal_in_time(scenario, vehicle)
     return PlannerConfig(scenario, settings, node, vehicle)
 
 

@@ -10,6 +10,7 @@ file when asked, and hands each :class:`PlanOutcome` back to the executor.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+import os
 from pathlib import Path as FilePath
 from typing import Callable
 
@@ -18,6 +19,7 @@ from rclpy.node import Node
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.receding import RecedingPlan
 from uav_comm_planner.errors import PlanCancelledError, PlannerError
+from uav_comm_planner.files import OutputFolder
 from uav_comm_planner.mission.pipeline import MissionPlan, plan_mission, Planner
 from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.ros.handoff import ExecutorHandoff, LatestOnlyWorker
@@ -75,18 +77,37 @@ class PlanOutcome:
         return self.plan.min_throughput
 
 
-def write_mission(outcome: PlanOutcome, output: NodeSettings) -> FilePath:
-    """Write an outcome's mission to ``output.mission_path`` (``mission_file`` inside
-    ``mission_dir``) for ``output``'s home, end and firmware; raises
-    :class:`~uav_comm_planner.errors.PlannerError` (MissionExportError) on failure."""
+def open_mission_folder(output: NodeSettings) -> OutputFolder:
+    """The node's mission folder, opened once at start-up (``mission_dir``; empty: the working
+    directory); raises :class:`~uav_comm_planner.errors.PlannerError` when it cannot be
+    opened, so that a node never starts with a mission folder it could only find later."""
+    path = output.mission_dir or os.getcwd()
+    try:
+        return OutputFolder(path)
+    except OSError as exc:
+        raise PlannerError(f'mission_dir {path!r} cannot be opened as a folder: '
+                           f'{exc.strerror or exc}') from None
+
+
+def write_mission(outcome: PlanOutcome, output: NodeSettings,
+                  folder: OutputFolder | None = None) -> FilePath:
+    """Write an outcome's mission as ``mission_file`` inside ``mission_dir`` for ``output``'s
+    home, end and firmware: inside ``folder`` (the mission folder the node opened at start-up,
+    so that replacing the folder's path later cannot redirect the write), else at
+    ``output.mission_path``; raises :class:`~uav_comm_planner.errors.PlannerError`
+    (MissionExportError) on failure."""
     plan = outcome.plan.for_output(home=output.home, end=output.mission_end,
                                    firmware=output.mission_firmware)
+    if folder is not None:
+        return plan.write(output.mission_file, folder=folder)
     return plan.write(output.mission_path)
 
 
 def attempt(planner: Planner, request: PlanRequest, *,
-            should_stop: Callable[[], bool] | None = None) -> PlanOutcome:
-    """Plan ``request`` and write its mission if asked; every failure becomes the outcome.
+            should_stop: Callable[[], bool] | None = None,
+            folder: OutputFolder | None = None) -> PlanOutcome:
+    """Plan ``request`` and write its mission (into ``folder``, when given) if asked; every
+    failure becomes the outcome.
 
     ``should_stop`` is passed on to the planner, which asks it between steps; a plan given up
     that way is an outcome with ``cancelled`` set.
@@ -103,7 +124,7 @@ def attempt(planner: Planner, request: PlanRequest, *,
     if not request.output.mission_file:
         return outcome
     try:
-        return replace(outcome, mission_path=write_mission(outcome, request.output))
+        return replace(outcome, mission_path=write_mission(outcome, request.output, folder))
     except PlannerError as exc:
         return replace(outcome, mission_error=str(exc))
 
@@ -114,8 +135,10 @@ class PlanningWorker:
     waiting and asks the running plan to give up at its next step."""
 
     def __init__(self, node: Node, planner: Planner,
-                 deliver: Callable[[list[PlanOutcome]], None]) -> None:
+                 deliver: Callable[[list[PlanOutcome]], None], *,
+                 folder: OutputFolder | None = None) -> None:
         self._planner = planner
+        self._folder = folder
         self._handoff: ExecutorHandoff[PlanOutcome] = ExecutorHandoff(node, deliver)
         self._worker: LatestOnlyWorker[PlanRequest] = LatestOnlyWorker(
             self._plan, name=f'{node.get_name()}.worker')
@@ -125,7 +148,8 @@ class PlanningWorker:
         return self._worker.submit(request)
 
     def _plan(self, request: PlanRequest) -> None:
-        self._handoff.put(attempt(self._planner, request, should_stop=self._worker.superseded))
+        self._handoff.put(attempt(self._planner, request, should_stop=self._worker.superseded,
+                                  folder=self._folder))
 
     def stop(self) -> None:
         """Drop what waits, ask the running plan to give up, and deliver nothing more."""
@@ -133,4 +157,5 @@ class PlanningWorker:
         self._worker.stop()
 
 
-__all__ = ['PlanOutcome', 'PlanRequest', 'PlanningWorker', 'attempt', 'write_mission']
+__all__ = ['PlanOutcome', 'PlanRequest', 'PlanningWorker', 'attempt', 'open_mission_folder',
+           'write_mission']

@@ -12,6 +12,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
 from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.files import OutputFolder
 from uav_comm_planner.ros.flight import MissionFlight
 from uav_comm_planner.ros.params import PlannerConfig
 from uav_comm_planner.ros.planning import PlanOutcome, write_mission
@@ -31,6 +32,7 @@ class ServiceHost(Protocol):
     config: PlannerConfig
     flight: MissionFlight
     current_plan: PlanOutcome | None
+    mission_folder: OutputFolder
 
     def create_service(self, *args, **kwargs): ...
 
@@ -87,7 +89,8 @@ class PlannerServices:
             response.message = 'no plan yet'
         else:
             try:
-                written = write_mission(node.current_plan, node.config.node)
+                written = write_mission(node.current_plan, node.config.node,
+                                        node.mission_folder)
             except PlannerError as exc:
                 node.report_error(f'mission export failed: {exc}')
                 response.message = str(exc)

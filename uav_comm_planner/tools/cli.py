@@ -20,7 +20,7 @@ from typing import Sequence
 from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.errors import PlannerError
-from uav_comm_planner.files import check_output_path, write_text_atomic
+from uav_comm_planner.files import check_output_path, read_text_file, write_text_atomic
 from uav_comm_planner.tools import bench
 from uav_comm_planner.tools.plots import check_figure_path, make_folder, METHOD_LABELS
 from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
@@ -37,6 +37,8 @@ SWEEP_BUDGETS_W = (0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
 PROG = 'uav-comm-planner'
 #: A scenario file larger than this is refused before it is parsed.
 MAX_SCENARIO_FILE_BYTES = 16 * 1024 * 1024
+#: A sweep plans once per budget: more budgets than this are refused before the first plan.
+MAX_SWEEP_BUDGETS = 1000
 
 
 class CommandLineError(Exception):
@@ -146,22 +148,12 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def read_scenario_file(path: Path) -> dict:
-    """The JSON object of a scenario file; refuses (PlannerError) a file that is not UTF-8, not
-    JSON, nested too deeply, larger than MAX_SCENARIO_FILE_BYTES or not an object at the top."""
+    """The JSON object of a scenario file; refuses (PlannerError) a file that is not a regular
+    file (a device, pipe or folder, refused without blocking), not UTF-8, not JSON, nested too
+    deeply, larger than MAX_SCENARIO_FILE_BYTES or not an object at the top."""
     name = str(path)
-    try:
-        with open(path, 'rb') as handle:
-            raw = handle.read(MAX_SCENARIO_FILE_BYTES + 1)
-    except OSError as exc:
-        raise PlannerError(f'cannot read scenario file {name!r}: {exc.strerror or exc}') from None
-    if len(raw) > MAX_SCENARIO_FILE_BYTES:
-        raise PlannerError(f'scenario file {name!r} is larger than '
-                           f'{MAX_SCENARIO_FILE_BYTES} bytes')
-    try:
-        text = raw.decode('utf-8')
-    except UnicodeDecodeError as exc:
-        raise PlannerError(f'scenario file {name!r} is not UTF-8 text ({exc.reason} at byte '
-                           f'{exc.start})') from None
+    text = read_text_file(path, max_bytes=MAX_SCENARIO_FILE_BYTES, what='scenario file',
+                          error=PlannerError)
     try:
         data = json.loads(text)
     except RecursionError:
@@ -174,11 +166,27 @@ def read_scenario_file(path: Path) -> dict:
     return data
 
 
+def _scenario_data(args: argparse.Namespace) -> dict:
+    """The scenario file's object, read once per command: the scenario, the settings and the
+    budgets all come from the same read, never from a file changed in between."""
+    data = getattr(args, '_scenario_data', None)
+    if data is None:
+        data = read_scenario_file(args.scenario)
+        args._scenario_data = data
+    return data
+
+
 def _scenario(args: argparse.Namespace, vehicle=None) -> Scenario:
     """The scenario the flags describe; planned for ``vehicle`` (VehicleLimits) in wind, its
     airspeed is the vehicle's (the airframe's less the gust margin)."""
     if args.scenario is not None:
-        base = scenario_from_dict(read_scenario_file(args.scenario))
+        data = _scenario_data(args)
+        fields = data['scenario'] if isinstance(data.get('scenario'), dict) else data
+        nodes = fields.get('ground_nodes_m')
+        if isinstance(nodes, list):
+            # The limit before the scenario's own checks, which grow with the nodes.
+            _settings(args).check_node_count(len(nodes))
+        base = scenario_from_dict(data)
     else:
         base = paper_scenario(args.case)
     changes = {field: getattr(args, field) for field in _SCALAR_FLAGS
@@ -205,9 +213,13 @@ def _settings(args: argparse.Namespace) -> SolverSettings:
         return SolverSettings.letter(**changes)
     if args.scenario is not None:
         # A result file records the settings it was made with: run it again with them.
-        data = read_scenario_file(args.scenario)
+        data = _scenario_data(args)
         if 'settings' in data:
-            return settings_from_dict({**data['settings'], **changes})
+            recorded = data['settings']
+            if not isinstance(recorded, dict):
+                raise PlannerError(f'settings in {str(args.scenario)!r} must be a JSON object '
+                                   f'of solver settings, not {type(recorded).__name__}')
+            return settings_from_dict({**recorded, **changes})
     return SolverSettings(**changes)
 
 
@@ -321,16 +333,33 @@ def _sweep_budgets(args: argparse.Namespace) -> list[float]:
     if args.budgets is not None:
         return args.budgets
     if args.scenario is not None:
-        recorded = read_scenario_file(args.scenario).get('budgets_w')
+        recorded = _scenario_data(args).get('budgets_w')
         if recorded is not None:
+            if isinstance(recorded, list) and len(recorded) > MAX_SWEEP_BUDGETS:
+                raise PlannerError(f'budgets_w in {str(args.scenario)!r} holds '
+                                   f'{len(recorded)} budgets, more than {MAX_SWEEP_BUDGETS}')
             try:
-                if not isinstance(recorded, list) or not recorded:
+                if not isinstance(recorded, list) or not recorded or any(
+                        isinstance(v, (bool, str)) for v in recorded):
                     raise TypeError
                 return [float(v) for v in recorded]
             except (TypeError, ValueError):
                 raise PlannerError(f'budgets_w in {str(args.scenario)!r} must be a list of '
-                                   f'numbers, at least one, got {recorded!r}') from None
+                                   f'numbers, at least one, got {_short(recorded)}') from None
     return list(SWEEP_BUDGETS_W)
+
+
+def _short(value: object, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for a one-line error about a file's
+    content."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + '...'
+
+
+def _check_budget_count(budgets: Sequence[float]) -> None:
+    if len(budgets) > MAX_SWEEP_BUDGETS:
+        raise PlannerError(f'{len(budgets)} budgets given, more than {MAX_SWEEP_BUDGETS}: a '
+                           f'sweep plans once per budget')
 
 
 def _command_sweep(args: argparse.Namespace) -> int:
@@ -340,6 +369,7 @@ def _command_sweep(args: argparse.Namespace) -> int:
     scenario = _scenario(args)
     settings = dataclasses.replace(_settings(args), compute_baselines=True)
     budgets = _sweep_budgets(args)
+    _check_budget_count(budgets)
     scenarios = [scenario.replace(power_budget_w=budget) for budget in budgets]
     for each in scenarios:
         settings.check(each)

@@ -13,10 +13,24 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 import os
-from pathlib import Path
 
 from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.files import read_text_file
 from uav_comm_planner.vehicle.firmware import firmware_named
+
+#: A parameter file larger than this is refused before it is read (a full ArduCopter
+#: parameter file is about 50 kB).
+MAX_PARAMETER_FILE_BYTES = 4 * 1024 * 1024
+#: The limits a plan can be made with, [low, high] (the jerk time's high end excluded): far
+#: beyond any multirotor's parameters, yet inside what the S-curve's arithmetic holds.
+LIMIT_RANGES = {
+    'max_speed_mps': (0.01, 1000.0),
+    'max_accel_mpss': (0.01, 1000.0),
+    'max_jerk_mpsss': (0.01, 10000.0),
+    'jerk_time_s': (0.01, 10.0),
+}
+#: A vehicle slower than this to reach its cruise speed from rest is refused (seconds).
+MAX_RAMP_S = 3600.0
 
 
 @dataclass(frozen=True)
@@ -49,10 +63,16 @@ class VehicleLimits:
                     or not math.isfinite(value) or value <= 0):
                 raise InvalidScenarioError(f'vehicle {name} must be a positive finite number, '
                                            f'got {value!r}')
+            low, high = LIMIT_RANGES[name]
+            if not low <= value <= high:
+                raise InvalidScenarioError(
+                    f'vehicle {name} must be in [{low:g}, {high:g}] for a plan to be made, got '
+                    f'{value!r}')
+        low, high = LIMIT_RANGES['jerk_time_s']
         if (isinstance(self.jerk_time_s, bool) or not isinstance(self.jerk_time_s, (int, float))
-                or not 0 < self.jerk_time_s < 10):
-            raise InvalidScenarioError(f'vehicle jerk_time_s must be in (0, 10) s, got '
-                                       f'{self.jerk_time_s!r}')
+                or not low <= self.jerk_time_s < high):
+            raise InvalidScenarioError(f'vehicle jerk_time_s must be in [{low:g}, {high:g}) s '
+                                       f'for a plan to be made, got {self.jerk_time_s!r}')
         speed = self.airframe_speed_mps
         if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not speed > 0:
             raise InvalidScenarioError(f'vehicle airframe_speed_mps must be positive (inf: '
@@ -63,6 +83,24 @@ class VehicleLimits:
             raise InvalidScenarioError(
                 f'vehicle gust_margin_mps must be >= 0 and below the airframe\'s speed, got '
                 f'{margin!r}')
+        ramp_s = self.ramp_s
+        if ramp_s > MAX_RAMP_S:
+            raise InvalidScenarioError(
+                f'the vehicle would take {ramp_s:.4g} s to reach its cruise speed from rest '
+                f'(acceleration {self.max_accel_mpss:g} m/s/s, jerk {self.max_jerk_mpsss:g} '
+                f'm/s/s/s, jerk time {self.jerk_time_s:g} s), more than {MAX_RAMP_S:g} s: no '
+                f'leg could be timed; give the vehicle\'s real limits')
+
+    @property
+    def ramp_s(self) -> float:
+        """Seconds from rest to the cruise speed V along the S-curve: V / A + A / J + tj when
+        the acceleration limit A is reached, else tj + sqrt(tj^2 + 4 V / J)
+        (:func:`~uav_comm_planner.vehicle.timing.ramp_time`)."""
+        speed, accel = self.cruise_speed_mps, self.max_accel_mpss
+        jerk, tj = self.max_jerk_mpsss, self.jerk_time_s
+        if speed >= accel * (accel / jerk + tj):
+            return speed / accel + accel / jerk + tj
+        return tj + math.sqrt(tj * tj + 4 * speed / jerk)
 
     @property
     def airspeed_mps(self) -> float:
@@ -89,15 +127,14 @@ def read_parameter_file(path: str | os.PathLike, *, firmware: str = 'ardupilot',
 
     Lines are ``NAME VALUE``, ``NAME,VALUE`` or QGroundControl's tab-separated
     ``SYSID COMPID NAME VALUE TYPE``; ``#`` starts a comment. Raises
-    :class:`~uav_comm_planner.errors.InvalidScenarioError` for an unreadable file, a malformed
-    value of a parameter it uses, or a file that sets none of them.
+    :class:`~uav_comm_planner.errors.InvalidScenarioError` for a file that is not a regular file
+    (a device, a pipe, a folder: refused without blocking), is larger than
+    :data:`MAX_PARAMETER_FILE_BYTES`, is not UTF-8, has a malformed value of a parameter it
+    uses, or sets none of them.
     """
     wanted = firmware_named(firmware).parameters
-    try:
-        text = Path(path).read_text(encoding='utf-8', errors='strict')
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidScenarioError(f'cannot read the parameter file {str(path)!r}: '
-                                   f'{exc}') from exc
+    text = read_text_file(path, max_bytes=MAX_PARAMETER_FILE_BYTES, what='parameter file',
+                          error=InvalidScenarioError)
     values = {}
     for number, line in enumerate(text.splitlines(), start=1):
         fields = line.split('#', 1)[0].replace(',', ' ').split()

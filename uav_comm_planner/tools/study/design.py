@@ -30,6 +30,10 @@ from uav_comm_planner.tools.study.methods import METHODS
 TABLE_FORMAT = 'uav_comm_planner montecarlo 1'
 
 
+#: The most rows (cases x grid points) a study may have.
+MAX_ROWS = 10_000_000
+
+
 class StudyError(PlannerError):
     """A study cannot start or go on (bad option, foreign table, missing extra, lost cluster)."""
 
@@ -167,6 +171,8 @@ class StudyDesign:
     def __post_init__(self) -> None:
         if isinstance(self.cases, bool) or not isinstance(self.cases, int) or self.cases < 1:
             raise InvalidScenarioError(f'cases must be an integer >= 1, got {self.cases!r}')
+        if self.cases > MAX_ROWS:
+            raise InvalidScenarioError(f'cases must be at most {MAX_ROWS}, got {self.cases}')
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise InvalidScenarioError(f'seed must be an integer >= 0, got {self.seed!r}')
         unknown = set(self.draws) - set(SETTINGS)
@@ -183,6 +189,11 @@ class StudyDesign:
             if value is not None:
                 draws[name] = value
         object.__setattr__(self, 'draws', draws)
+        # Counted before the grid is crossed: the rows grow as the product of the grids.
+        points = math.prod(len(d.grid) for d in draws.values() if not d.is_range)
+        if self.cases * points > MAX_ROWS:
+            raise InvalidScenarioError(f'{self.cases} cases at {points} grid points are '
+                                       f'{self.cases * points} rows, more than {MAX_ROWS}')
         if self.area not in AREAS:
             raise InvalidScenarioError(f'area must be one of {AREAS}, got {self.area!r}')
         if self.endpoints not in ENDPOINTS:

@@ -29,6 +29,9 @@ from uav_comm_planner.tools.study.methods import BASELINES, METHODS, Outcome
 if TYPE_CHECKING:
     import pyarrow
 
+#: A stored study design larger than this is refused before it is read.
+MAX_DESCRIPTION_BYTES = 1024 * 1024
+
 
 # ---------------------------------------------------------------------------------------------
 # Rows: one scenario, every method.
@@ -270,12 +273,15 @@ def table_for(path: str | os.PathLike, design: StudyDesign) -> StudyTable:
 
 def saved_design(path: str | os.PathLike) -> StudyDesign | None:
     """The design stored with the table at ``path``, or None when there is no table."""
+    from uav_comm_planner.files import read_text_file
     probe = table_for(path, StudyDesign(cases=1))
     if not probe.exists():
         return None
     try:
-        return StudyDesign.from_dict(json.loads(probe.description.read_text(encoding='utf-8')))
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+        text = read_text_file(probe.description, max_bytes=MAX_DESCRIPTION_BYTES,
+                              what='study description', error=StudyError)
+        return StudyDesign.from_dict(json.loads(text))
+    except (OSError, ValueError, KeyError, TypeError, RecursionError) as exc:
         raise StudyError(f'{path} is not a study table of this package ({probe.description}: '
                          f'{exc})') from None
 

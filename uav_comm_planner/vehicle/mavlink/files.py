@@ -11,6 +11,7 @@ the rows a link uploads (:mod:`.upload`). A file that cannot be written is a
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -21,7 +22,7 @@ from pymavlink import mavutil, mavwp
 
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.errors import MissionExportError, MissionFileError
-from uav_comm_planner.files import write_with
+from uav_comm_planner.files import OutputFolder, read_text_file, write_with
 from uav_comm_planner.vehicle.flyable import VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
@@ -37,6 +38,11 @@ VEHICLE_TYPE_QUADROTOR = MAV.MAV_TYPE_QUADROTOR
 QGC_ALTITUDE_MODE_RELATIVE = 1
 #: QGroundControl's own default, for a mission that never moves (no speed to report).
 QGC_DEFAULT_HOVER_SPEED_MPS = 5.0
+#: A mission file larger than this is refused before it is read (a full 65 535-item
+#: .waypoints file is about 6 MB).
+MAX_MISSION_FILE_BYTES = 16 * 1024 * 1024
+#: MISSION_COUNT carries a uint16: no MAVLink mission holds more items.
+MAX_MISSION_ITEMS = 65535
 
 
 # Writing.
@@ -128,10 +134,11 @@ def check_mission_path(path: str | os.PathLike) -> None:
 
 
 def write_mission_file(items: Sequence[MissionItem], path: str | os.PathLike, home: Home, *,
-                       firmware: str = 'ardupilot') -> Path:
+                       firmware: str = 'ardupilot', folder: OutputFolder | None = None) -> Path:
     """Write mission ``items`` (:func:`~.items.build_mission_items`) as the file ``path``, its
     format from the extension, atomically (as :func:`export_mission`); return the path
-    written."""
+    written. With ``folder`` (opened once, :class:`~uav_comm_planner.files.OutputFolder`)
+    ``path`` is a bare name inside it, written relative to the folder's descriptor."""
     check_mission_path(path)
     check_home(home)
     target = Path(path)
@@ -141,13 +148,15 @@ def write_mission_file(items: Sequence[MissionItem], path: str | os.PathLike, ho
     else:
         def writer(temporary: Path) -> None:
             write_waypoints(items, temporary)
-    _write_atomically(target, writer)
-    return target
+    if folder is not None:
+        return _write_atomically(folder.path / target, lambda: folder.write_with(
+            str(path), writer))
+    return _write_atomically(target, lambda: write_with(target, writer))
 
 
-def _write_atomically(target: Path, writer: Callable[[Path], None]) -> None:
+def _write_atomically(target: Path, write: Callable[[], Path]) -> Path:
     try:
-        write_with(target, writer)
+        return write()
     except MissionExportError:
         raise
     except (OSError, ValueError, TypeError, mavwp.MAVWPError) as exc:
@@ -162,16 +171,36 @@ def _number(value: object) -> float:
     return math.nan if value is None else float(value)
 
 
+def _mission_text(target: Path) -> str:
+    """The text of a mission file, read safely (a regular file, without blocking, within
+    :data:`MAX_MISSION_FILE_BYTES`) or a :class:`MissionFileError`."""
+    return read_text_file(target, max_bytes=MAX_MISSION_FILE_BYTES, what='mission file',
+                          error=MissionFileError)
+
+
+def _check_item_count(target: Path, count: int) -> None:
+    if count > MAX_MISSION_ITEMS:
+        raise MissionFileError(f'{str(target)!r} holds {count} items, more than a MAVLink '
+                               f'mission carries ({MAX_MISSION_ITEMS})')
+
+
 def read_plan(path: str | os.PathLike) -> list[MissionItem]:
     """The rows of a QGroundControl .plan file: its planned home position, then its simple
     items; raises MissionFileError for a bad file or a complex item (survey, corridor...)."""
     target = Path(path)
+    text = _mission_text(target)
     try:
-        mission = json.loads(target.read_text(encoding='utf-8'))['mission']
+        mission = json.loads(text)['mission']
         latitude, longitude, altitude = (float(v) for v in mission['plannedHomePosition'])
+        entries = mission['items']
+        if not isinstance(entries, list):
+            raise TypeError(f'items is {type(entries).__name__}, not a list')
+        _check_item_count(target, len(entries) + 1)
         items = [MissionItem(NAV_WAYPOINT, FRAME_GLOBAL, x=latitude, y=longitude, z=altitude,
                              current=True)]
-        for entry in mission['items']:
+        for entry in entries:
+            if not isinstance(entry, dict):
+                raise TypeError(f'item {len(items)} is {type(entry).__name__}, not an object')
             if entry.get('type') != 'SimpleItem':
                 raise MissionFileError(f'{str(target)!r}: item {len(items)} is a '
                                        f'{entry.get("type")}; only simple items are uploaded')
@@ -181,9 +210,9 @@ def read_plan(path: str | os.PathLike) -> list[MissionItem]:
             items.append(MissionItem(int(entry['command']), int(entry['frame']),
                                      (p[0], p[1], p[2], p[3]), p[4], p[5], p[6],
                                      autocontinue=bool(entry.get('autoContinue', True))))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise MissionFileError(f'{str(target)!r}: cannot read it: {exc}') from None
-    except (ValueError, KeyError, TypeError) as exc:
+    except RecursionError:
+        raise MissionFileError(f'{str(target)!r} is nested too deeply') from None
+    except (ValueError, KeyError, TypeError, OverflowError) as exc:
         raise MissionFileError(f'{str(target)!r} is not a QGroundControl .plan mission: '
                                f'{exc}') from None
     return items
@@ -192,27 +221,32 @@ def read_plan(path: str | os.PathLike) -> list[MissionItem]:
 def read_mission_file(path: str | os.PathLike) -> list[MissionItem]:
     """The rows of a ``.waypoints`` or ``.plan`` mission, home first."""
     target = Path(path)
-    if not target.is_file():
-        raise MissionFileError(f'{str(target)!r}: no such mission file')
     if target.suffix.lower() == '.plan':
         return read_plan(target)
     return read_waypoints(target)
 
 
 def read_waypoints(path: str | os.PathLike) -> list[MissionItem]:
-    """The rows of a QGC WPL 110 file, home first; raises MissionFileError for a bad file."""
+    """The rows of a QGC WPL 110 (or 100) file, home first; raises MissionFileError for a bad
+    file. The text is read safely once, then parsed by mavwp's own line reader."""
     target = Path(path)
     if target.suffix.lower() != '.waypoints':
         raise MissionFileError(f'{str(target)!r}: a mission is a .waypoints (QGC WPL 110) or a '
                                f'.plan (QGroundControl) file')
-    if not target.is_file():
-        raise MissionFileError(f'{str(target)!r}: no such mission file')
+    lines = _mission_text(target).splitlines(keepends=True)
+    version = lines[0].strip() if lines else ''
+    readers = {'QGC WPL 110': '_read_waypoints_v110', 'QGC WPL 100': '_read_waypoints_v100'}
+    if version not in readers:
+        raise MissionFileError(f'{str(target)!r} is not a QGC WPL 110 mission: its first line '
+                               f'is {version[:40]!r}')
+    _check_item_count(target, sum(1 for line in lines[1:]
+                                  if line.strip() and not line.startswith('#')))
     loader = mavwp.MAVWPLoader()
     try:
-        loader.load(str(target))
+        getattr(loader, readers[version])(io.StringIO(''.join(lines[1:])))
+        items = [from_message(loader.wp(i)) for i in range(loader.count())]
     except Exception as exc:  # noqa: B902 - mavwp raises bare Exceptions for a bad file
         raise MissionFileError(f'{str(target)!r} is not a QGC WPL 110 mission: {exc}') from None
-    items = [from_message(loader.wp(i)) for i in range(loader.count())]
     if not items:
         raise MissionFileError(f'{str(target)!r} holds no mission item')
     return items

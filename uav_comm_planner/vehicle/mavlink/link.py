@@ -16,16 +16,23 @@ stores). Rows become messages and messages rows in :mod:`.items`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
+import socket
 import time
-from typing import Sequence
+from typing import Callable, Sequence
 
 from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.mavlink.items import (from_message, item_int_message,
                                                     mismatches, MISSION_TYPE, MissionItem)
+from uav_comm_planner.vehicle.mavlink.urls import parse_link_url
 
 MAV = mavutil.mavlink
+#: MISSION_COUNT carries a uint16.
+MAX_ITEMS = 65535
+#: How often a connect that waits for the heartbeat asks whether to stop, seconds.
+HEARTBEAT_POLL_S = 0.2
 #: Refusals an autopilot gives while busy (parameters or a previous transfer still loading).
 TRANSIENT_RESULTS = (MAV.MAV_MISSION_NO_SPACE, MAV.MAV_MISSION_DENIED,
                      MAV.MAV_MISSION_OPERATION_CANCELLED)
@@ -33,12 +40,46 @@ TRANSIENT_RESULTS = (MAV.MAV_MISSION_NO_SPACE, MAV.MAV_MISSION_DENIED,
 
 @dataclass(frozen=True)
 class LinkSettings:
-    """How patient the link is: per-message timeout, retries of a silent step, busy retries."""
+    """How patient the link is: per-message timeout, retries of a silent step, busy retries,
+    and ``deadline_s``, the most one upload and its read-back may take in all (a vehicle that
+    trickles answers, or loops, cannot hold the link past it)."""
 
     timeout_s: float = 2.0
     retries: int = 5
     busy_retries: int = 5
     busy_pause_s: float = 1.0
+    deadline_s: float = 300.0
+
+    def __post_init__(self) -> None:
+        for name in ('timeout_s', 'busy_pause_s', 'deadline_s'):
+            value = getattr(self, name)
+            least_ok = 0.0 if name == 'busy_pause_s' else math.ulp(0.0)
+            if (isinstance(value, bool) or not isinstance(value, (int, float))
+                    or not math.isfinite(value) or value < least_ok):
+                raise VehicleLinkError(f'link setting {name} must be a positive number of '
+                                       f'seconds, got {value!r}')
+        for name in ('retries', 'busy_retries'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 1000:
+                raise VehicleLinkError(f'link setting {name} must be an integer in 0..1000, '
+                                       f'got {value!r}')
+
+
+class Deadline:
+    """The end of a transfer on the monotonic clock; :meth:`left` raises past it."""
+
+    def __init__(self, seconds: float, what: str) -> None:
+        self.seconds = seconds
+        self.what = what
+        self._end = time.monotonic() + seconds
+
+    def left(self, most_s: float = math.inf) -> float:
+        """Seconds left, at most ``most_s``; raises VehicleLinkError when none are left."""
+        left = self._end - time.monotonic()
+        if left <= 0:
+            raise VehicleLinkError(f'{self.what} did not finish within its deadline of '
+                                   f'{self.seconds:g} s')
+        return min(left, most_s)
 
 
 def result_name(result: int) -> str:
@@ -47,17 +88,59 @@ def result_name(result: int) -> str:
     return entry.name if entry is not None else f'MAV_MISSION_RESULT {result}'
 
 
-def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255):
+class _TimedTcp(mavutil.mavtcp):
+    """pymavlink's TCP link, its connect bounded by a timeout (pymavlink's own blocks for as
+    long as the kernel retries, minutes for a host that never answers)."""
+
+    def __init__(self, device: str, timeout_s: float, **options) -> None:
+        self._connect_timeout_s = timeout_s
+        super().__init__(device, **options)
+
+    def do_connect(self) -> None:
+        self.port = socket.create_connection(self.destination_addr,
+                                             timeout=self._connect_timeout_s)
+        self.port.setblocking(False)
+        mavutil.set_close_on_exec(self.port.fileno())
+        self.port.setsockopt(socket.SOL_TCP, socket.TCP_NODELAY, 1)
+
+
+def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255,
+            should_stop: Callable[[], bool] | None = None):
     """Open ``url`` and wait for the vehicle's heartbeat; return the pymavlink connection.
 
-    The connection's ``target_system`` and ``target_component`` are the vehicle's. Raises
+    The URL is checked first (:func:`~.urls.parse_link_url`: only live links, never a file to
+    replay); ``timeout_s`` bounds the whole of it, the TCP connect and the heartbeat together.
+    ``should_stop`` is asked every HEARTBEAT_POLL_S while the heartbeat is awaited, so that
+    a link being stopped never waits out the timeout. The connection's ``target_system`` and
+    ``target_component`` are the vehicle's. Raises
+    :class:`~uav_comm_planner.errors.InvalidLinkUrlError` for a URL it does not open and
     :class:`VehicleLinkError` when the URL cannot be opened or no heartbeat comes in time.
     """
+    parsed = parse_link_url(url)
+    if not (math.isfinite(timeout_s) and timeout_s > 0):
+        raise VehicleLinkError(f'the connect timeout must be a positive number of seconds, got '
+                               f'{timeout_s!r}')
+    deadline = time.monotonic() + timeout_s
     try:
-        link = mavutil.mavlink_connection(url, source_system=source_system, autoreconnect=False)
+        if parsed.scheme == 'tcp':
+            link = _TimedTcp(f'{parsed.host}:{parsed.port}', timeout_s,
+                             source_system=source_system, autoreconnect=False, retries=0)
+        else:
+            link = mavutil.mavlink_connection(str(parsed), source_system=source_system,
+                                              autoreconnect=False)
     except (OSError, ValueError) as exc:
         raise VehicleLinkError(f'cannot open {url!r}: {exc}') from exc
-    heartbeat = link.wait_heartbeat(timeout=timeout_s)
+    heartbeat = None
+    try:
+        while heartbeat is None and (left := deadline - time.monotonic()) > 0:
+            if should_stop is not None and should_stop():
+                link.close()
+                raise VehicleLinkError(f'connecting to {url!r} was stopped')
+            heartbeat = link.wait_heartbeat(timeout=min(left, HEARTBEAT_POLL_S))
+    except (OSError, ConnectionError) as exc:
+        link.close()
+        raise VehicleLinkError(f'link to {url!r} lost while waiting for the heartbeat: '
+                               f'{exc}') from exc
     if heartbeat is None:
         link.close()
         raise VehicleLinkError(f'no heartbeat from {url!r} within {timeout_s:g} s: is the '
@@ -65,8 +148,11 @@ def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255):
     return link
 
 
-def _receive(link, types: Sequence[str], timeout_s: float):
-    """The next message of one of ``types`` addressed to us, or None after ``timeout_s``."""
+def _receive(link, types: Sequence[str], timeout_s: float, total: Deadline | None = None):
+    """The next message of one of ``types`` addressed to us, or None after ``timeout_s``
+    (cut to what is left of ``total``, which raises once it has passed)."""
+    if total is not None:
+        timeout_s = total.left(timeout_s)
     deadline = time.monotonic() + timeout_s
     while (left := deadline - time.monotonic()) > 0:
         try:
@@ -92,37 +178,47 @@ def _send(link, message) -> None:
 
 
 def upload_mission(link, items: Sequence[MissionItem],
-                   settings: LinkSettings = LinkSettings()) -> None:
+                   settings: LinkSettings = LinkSettings(), *,
+                   total: Deadline | None = None) -> None:
     """Upload ``items`` (row 0 is home) and wait for MAV_MISSION_ACCEPTED.
 
     Raises :class:`VehicleLinkError` on a refusal, with the MAV_MISSION_RESULT's name and the
-    item it concerns, or when the vehicle stays silent through every retry.
+    item it concerns, when the vehicle stays silent through every retry, asks for items out of
+    range or over and over (a loop), or when ``total`` (by default ``settings.deadline_s``)
+    passes.
     """
     if not items:
         raise VehicleLinkError('an empty mission cannot be uploaded')
+    if len(items) > MAX_ITEMS:
+        raise VehicleLinkError(f'a mission of {len(items)} items is more than MAVLink carries '
+                               f'({MAX_ITEMS})')
+    total = total or Deadline(settings.deadline_s, 'the mission upload')
     for attempt in range(settings.busy_retries + 1):
-        result, seq = _upload_once(link, items, settings)
+        result, seq = _upload_once(link, items, settings, total)
         if result == MAV.MAV_MISSION_ACCEPTED:
             return
         if result not in TRANSIENT_RESULTS or attempt == settings.busy_retries:
             where = f' at item {seq}' if seq is not None else ''
             raise VehicleLinkError(f'the vehicle refused the mission{where}: '
                                    f'{result_name(result)}')
-        time.sleep(settings.busy_pause_s)
+        time.sleep(total.left(settings.busy_pause_s))
 
 
-def _upload_once(link, items: Sequence[MissionItem],
-                 settings: LinkSettings) -> tuple[int, int | None]:
+def _upload_once(link, items: Sequence[MissionItem], settings: LinkSettings,
+                 total: Deadline) -> tuple[int, int | None]:
     """One transfer: the vehicle's final MAV_MISSION_RESULT and the last item it asked for."""
     count = link.mav.mission_count_encode(link.target_system, link.target_component,
                                           len(items), MISSION_TYPE)
     last_sent = count
     requested: int | None = None
     silent = 0
+    # Each item may be asked for again when our answer was lost, up to `retries` times.
+    most_requests = len(items) * (settings.retries + 1)
+    requests = 0
     _send(link, count)
     while True:
         message = _receive(link, ('MISSION_REQUEST_INT', 'MISSION_REQUEST', 'MISSION_ACK'),
-                           settings.timeout_s)
+                           settings.timeout_s, total)
         if message is None:
             silent += 1
             if silent > settings.retries:
@@ -139,35 +235,51 @@ def _upload_once(link, items: Sequence[MissionItem],
         if not 0 <= requested < len(items):
             raise VehicleLinkError(f'the vehicle asked for item {requested} of a '
                                    f'{len(items)}-item mission')
+        requests += 1
+        if requests > most_requests:
+            raise VehicleLinkError(f'the vehicle keeps asking for items ({requests} requests '
+                                   f'for a {len(items)}-item mission, the last for item '
+                                   f'{requested}): it loops')
         last_sent = item_int_message(items[requested], requested, link.mav,
                                      link.target_system, link.target_component)
         _send(link, last_sent)
 
 
-def download_mission(link, settings: LinkSettings = LinkSettings()) -> list[MissionItem]:
-    """Read the vehicle's mission, row 0 (home) first."""
+def download_mission(link, settings: LinkSettings = LinkSettings(), *,
+                     expected: int | None = None,
+                     total: Deadline | None = None) -> list[MissionItem]:
+    """Read the vehicle's mission, row 0 (home) first; with ``expected``, a vehicle that
+    reports another item count is refused before any item is asked for."""
+    total = total or Deadline(settings.deadline_s, 'the mission read-back')
     request_list = link.mav.mission_request_list_encode(link.target_system,
                                                         link.target_component, MISSION_TYPE)
-    count = _ask(link, request_list, ('MISSION_COUNT',), settings, 'the mission count').count
+    count = _ask(link, request_list, ('MISSION_COUNT',), settings, 'the mission count',
+                 total=total).count
+    if expected is not None and count != expected:
+        raise VehicleLinkError(f'the vehicle does not hold the mission uploaded: it reports '
+                               f'{count} items, {expected} were uploaded')
     items = []
     for seq in range(count):
         request = link.mav.mission_request_int_encode(link.target_system,
                                                       link.target_component, seq, MISSION_TYPE)
         message = _ask(link, request, ('MISSION_ITEM_INT',), settings, f'item {seq}',
-                       seq=seq)
-        items.append(from_message(message))
+                       seq=seq, total=total)
+        try:
+            items.append(from_message(message))
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise VehicleLinkError(f'the vehicle sent item {seq} out of range: {exc}') from None
     _send(link, link.mav.mission_ack_encode(link.target_system, link.target_component,
                                             MAV.MAV_MISSION_ACCEPTED, MISSION_TYPE))
     return items
 
 
 def _ask(link, request, types: Sequence[str], settings: LinkSettings, what: str, *,
-         seq: int | None = None):
+         seq: int | None = None, total: Deadline | None = None):
     for _ in range(settings.retries + 1):
         _send(link, request)
         deadline = time.monotonic() + settings.timeout_s
         while (left := deadline - time.monotonic()) > 0:
-            message = _receive(link, (*types, 'MISSION_ACK'), left)
+            message = _receive(link, (*types, 'MISSION_ACK'), left, total)
             if message is None:
                 break
             if message.get_type() == 'MISSION_ACK':
@@ -182,8 +294,10 @@ def _ask(link, request, types: Sequence[str], settings: LinkSettings, what: str,
 def upload_and_verify(link, items: Sequence[MissionItem],
                       settings: LinkSettings = LinkSettings()) -> None:
     """Upload, read back, and raise :class:`VehicleLinkError` unless the vehicle holds it."""
-    upload_mission(link, items, settings)
-    wrong = mismatches(items, download_mission(link, settings))
+    total = Deadline(settings.deadline_s, 'the mission upload and its read-back')
+    upload_mission(link, items, settings, total=total)
+    wrong = mismatches(items, download_mission(link, settings, expected=len(items),
+                                               total=total))
     if wrong:
         raise VehicleLinkError('the vehicle does not hold the mission uploaded: '
                                + '; '.join(wrong[:3]))

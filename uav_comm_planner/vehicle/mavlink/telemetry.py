@@ -35,6 +35,8 @@ MAV = mavutil.mavlink
 TELEMETRY_RATE_HZ = 10.0
 #: Pause before connecting again after a lost or refused link, seconds (wall clock).
 RECONNECT_PAUSE_S = 1.0
+#: The pause doubles after each failure in a row, up to this many seconds.
+MAX_RECONNECT_PAUSE_S = 30.0
 #: How long MISSION_SET_CURRENT waits for MISSION_CURRENT to confirm, per try (wall clock).
 SET_CURRENT_TIMEOUT_S = 1.0
 SET_CURRENT_TRIES = 5
@@ -133,25 +135,33 @@ class VehicleBridge:
 
     def _run(self) -> None:
         refused = ''
+        failures = 0
         while not self._stop.is_set():
+            # Backoff: a vehicle that stays away is asked less and less often.
+            pause_s = min(RECONNECT_PAUSE_S * 2 ** min(failures, 16), MAX_RECONNECT_PAUSE_S)
             try:
-                link = connect(self.url, timeout_s=self._connect_timeout_s)
+                link = connect(self.url, timeout_s=self._connect_timeout_s,
+                               should_stop=self._stop.is_set)
             except VehicleLinkError as exc:
                 if str(exc) != refused:            # said once, not at every retry
                     refused = str(exc)
                     self._on_event(LinkEvent('error', f'{exc}; retrying'))
-                self._stop.wait(RECONNECT_PAUSE_S)
+                failures += 1
+                self._stop.wait(pause_s)
                 continue
             refused = ''
             try:
                 self._on_event(LinkEvent('connected', f'vehicle link up on {self.url}'))
+                failures = 0
                 self._serve(link)
             except VehicleLinkError as exc:
                 self._on_event(LinkEvent('error', f'vehicle link: {exc}'))
-                self._stop.wait(RECONNECT_PAUSE_S)
+                failures += 1
+                self._stop.wait(pause_s)
             except (OSError, ConnectionError) as exc:
                 self._on_event(LinkEvent('error', f'vehicle link lost: {exc}'))
-                self._stop.wait(RECONNECT_PAUSE_S)
+                failures += 1
+                self._stop.wait(pause_s)
             finally:
                 link.close()
 

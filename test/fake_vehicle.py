@@ -1,0 +1,180 @@
+"""A small MAVLink peer on 127.0.0.1 that plays a vehicle, well or badly, for the link's tests
+and the fuzz target (``test/fuzz/fuzz_vehicle.py``).
+
+It listens on a free TCP port (``url``), takes one connection at a time and, by ``behaviour``:
+
+- ``good``: heartbeats, the mission protocol done right, the mission read back as stored;
+- ``mute``: accepts the connection and never sends a byte (no heartbeat);
+- ``silent``: heartbeats, never answers a mission message;
+- ``loop``: asks for item 0 again after every item it receives;
+- ``out_of_range``: asks for an item past the end of the mission;
+- ``wrong_ack``: answers the mission count with a refusal drawn from ``seed``;
+- ``wrong_count``: stores the mission, reports one item more on read-back;
+- ``wrong_item``: stores the mission, reads its last item back moved by a degree (home, the
+  only item of a one-item mission, as another command);
+- ``slow``: the mission protocol done right, each answer ``delay_s`` late;
+- ``garbage``: heartbeats among seeded random bytes and random MAVLink messages, answering
+  mission messages with random seqs, counts and results.
+"""
+
+from __future__ import annotations
+
+import random
+import socket
+import threading
+import time
+
+# MAVLink 2, as ArduPilot speaks it: the link under test switches to it on the first packet.
+from pymavlink.dialects.v20 import ardupilotmega as MAV
+
+BEHAVIOURS = ('good', 'mute', 'silent', 'loop', 'out_of_range', 'wrong_ack', 'wrong_count',
+              'wrong_item', 'slow', 'garbage')
+HEARTBEAT_S = 0.1
+
+
+class FakeVehicle:
+    """A vehicle on ``url`` (module docstring); :meth:`close` stops it and joins its thread."""
+
+    def __init__(self, behaviour: str = 'good', *, seed: int = 0, delay_s: float = 0.3) -> None:
+        if behaviour not in BEHAVIOURS:
+            raise ValueError(f'unknown behaviour {behaviour!r}')
+        self.behaviour = behaviour
+        self.delay_s = delay_s
+        self.random = random.Random(seed)
+        self.stored: list = []
+        self.received = 0
+        self._stop = threading.Event()
+        self._server = socket.create_server(('127.0.0.1', 0))
+        self._server.settimeout(0.05)
+        self.port = self._server.getsockname()[1]
+        self._thread = threading.Thread(target=self._run, name='fake-vehicle', daemon=True)
+        self._thread.start()
+
+    def reset(self, behaviour: str, *, seed: int = 0) -> None:
+        """Play ``behaviour`` with a fresh ``seed`` and no mission from the next connection
+        on (one vehicle serves many fuzz cases)."""
+        if behaviour not in BEHAVIOURS:
+            raise ValueError(f'unknown behaviour {behaviour!r}')
+        self.behaviour = behaviour
+        self.random = random.Random(seed)
+        self.stored = []
+
+    @property
+    def url(self) -> str:
+        return f'tcp:127.0.0.1:{self.port}'
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(5.0)
+        self._server.close()
+
+    def __enter__(self) -> FakeVehicle:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                connection, _ = self._server.accept()
+            except (socket.timeout, OSError):
+                continue
+            with connection:
+                connection.settimeout(0.02)
+                try:
+                    self._serve(connection)
+                except OSError:
+                    pass
+
+    def _serve(self, connection: socket.socket) -> None:
+        mav = MAV.MAVLink(None, srcSystem=1, srcComponent=1)
+        mav.robust_parsing = True
+        self._mav, self._connection = mav, connection
+        self._expected = 0
+        next_beat = 0.0
+        while not self._stop.is_set():
+            now = time.monotonic()
+            if self.behaviour != 'mute' and now >= next_beat:
+                self._send(mav.heartbeat_encode(MAV.MAV_TYPE_QUADROTOR,
+                                                MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 0))
+                next_beat = now + HEARTBEAT_S
+                if self.behaviour == 'garbage':
+                    self._garbage()
+            try:
+                data = connection.recv(4096)
+            except socket.timeout:
+                continue
+            if not data:
+                return
+            for message in mav.parse_buffer(data) or []:
+                self.received += 1
+                self._answer(message)
+
+    def _send(self, message) -> None:
+        self._connection.sendall(message.pack(self._mav))
+
+    def _garbage(self) -> None:
+        draw = self.random
+        self._connection.sendall(bytes(draw.randrange(256) for _ in range(draw.randrange(64))))
+        mav = self._mav
+        choices = [
+            lambda: mav.mission_request_int_encode(255, 0, draw.randrange(70000) % 65536, 0),
+            lambda: mav.mission_ack_encode(255, 0, draw.randrange(256), 0),
+            lambda: mav.mission_count_encode(255, 0, draw.randrange(65536), 0),
+            lambda: mav.mission_item_int_encode(
+                255, 0, draw.randrange(65536), draw.randrange(256), draw.randrange(65536), 0,
+                1, *(draw.uniform(-1e38, 1e38) for _ in range(4)),
+                draw.randrange(-2**31, 2**31), draw.randrange(-2**31, 2**31),
+                draw.uniform(-1e38, 1e38), 0),
+            lambda: mav.global_position_int_encode(
+                draw.randrange(2**32), draw.randrange(-2**31, 2**31),
+                draw.randrange(-2**31, 2**31), 0, draw.randrange(-2**31, 2**31), 0, 0, 0, 0),
+        ]
+        self._send(draw.choice(choices)())
+
+    def _answer(self, message) -> None:
+        kind = message.get_type()
+        behaviour = self.behaviour
+        if behaviour in ('mute', 'silent'):
+            return
+        if behaviour == 'slow':
+            time.sleep(self.delay_s)
+        if behaviour == 'garbage':
+            if kind.startswith('MISSION'):
+                self._garbage()
+            return
+        mav = self._mav
+        if kind == 'MISSION_COUNT':
+            if behaviour == 'wrong_ack':
+                refusals = [r for r in MAV.enums['MAV_MISSION_RESULT'] if r != 0]
+                self._send(mav.mission_ack_encode(255, 0, self.random.choice(refusals), 0))
+                return
+            self.stored = [None] * message.count
+            first = message.count + 3 if behaviour == 'out_of_range' else 0
+            self._send(mav.mission_request_int_encode(255, 0, first, 0))
+        elif kind == 'MISSION_ITEM_INT':
+            if 0 <= message.seq < len(self.stored):
+                self.stored[message.seq] = message
+            following = 0 if behaviour == 'loop' else message.seq + 1
+            if following < len(self.stored):
+                self._send(mav.mission_request_int_encode(255, 0, following, 0))
+            else:
+                self._send(mav.mission_ack_encode(255, 0, MAV.MAV_MISSION_ACCEPTED, 0))
+        elif kind == 'MISSION_REQUEST_LIST':
+            extra = 1 if behaviour == 'wrong_count' else 0
+            self._send(mav.mission_count_encode(255, 0, len(self.stored) + extra, 0))
+        elif kind == 'MISSION_REQUEST_INT' and 0 <= message.seq < len(self.stored):
+            item = self.stored[message.seq]
+            if item is None:
+                return
+            x, command = item.x, item.command
+            if behaviour == 'wrong_item' and message.seq == len(self.stored) - 1:
+                # Home (row 0) is compared by its command alone, the others by place too.
+                if message.seq == 0:
+                    command = MAV.MAV_CMD_NAV_TAKEOFF
+                else:
+                    x += 10_000_000
+            self._send(mav.mission_item_int_encode(
+                255, 0, item.seq, item.frame, command, item.current, item.autocontinue,
+                item.param1, item.param2, item.param3, item.param4, x, item.y, item.z, 0))
