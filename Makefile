@@ -14,6 +14,8 @@ MODE_STAMP := $(VENV)/.mode-$(if $(wildcard $(EDITABLE)),editable,normal)
 # compatible ranges that users install within).
 CONSTRAINTS := constraints.txt
 EXTRAS := ros,plots,study,test
+# The lock pins every extra, those `make install` leaves out (serial) too.
+LOCK_EXTRAS := $(EXTRAS),serial
 SOURCES := setup.py setup.cfg package.xml $(CONSTRAINTS) $(wildcard config/*.yaml launch/*.py rviz/*.rviz) \
            $(wildcard uav_comm_planner/*.py uav_comm_planner/*/*.py) resource/uav_comm_planner
 
@@ -83,7 +85,7 @@ test-latest:
 # keeping those already pinned where they still fit); then run `make test` before committing it.
 lock: $(STAMP)
 	$(BIN)/python -m pip install --quiet 'uv>=0.9,<1'
-	$(BIN)/uv pip compile setup.py $(foreach e,$(subst $(comma), ,$(EXTRAS)),--extra $(e)) \
+	$(BIN)/uv pip compile setup.py $(foreach e,$(subst $(comma), ,$(LOCK_EXTRAS)),--extra $(e)) \
 		--python-version 3.11 --output-file $(CONSTRAINTS)
 
 # Seeded fuzzing of the API, the command line and mission export, then of the vehicle link

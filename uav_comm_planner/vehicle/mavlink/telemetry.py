@@ -181,6 +181,8 @@ class VehicleBridge:
                 continue
             if message.get_type() == 'GLOBAL_POSITION_INT':
                 latest_time_s = message.time_boot_ms / 1000.0
+                if message.lat == 0 and message.lon == 0:
+                    continue            # no position yet: autopilots send 0, 0 before a fix
                 east, north, up = global_position_enu(message.lat, message.lon,
                                                       message.relative_alt, self.home)
                 self._on_event(Position(latest_time_s, float(east), float(north), float(up)))
