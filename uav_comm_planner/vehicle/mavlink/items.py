@@ -65,6 +65,10 @@ PARAM_RELATIVE_TOLERANCE = 1e-6
 #: Parameters (0-based) an autopilot does not store for a command: ArduCopter keeps no yaw
 #: for NAV_LAND and reports its param4 as 1.
 UNSTORED_PARAMS = {MAV.MAV_CMD_NAV_LAND: (3,)}
+#: A global frame and its _INT twin mean the same; PX4 stores the twin.
+INT_FRAMES = {MAV.MAV_FRAME_GLOBAL_INT: MAV.MAV_FRAME_GLOBAL,
+              MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+              MAV.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT: MAV.MAV_FRAME_GLOBAL_TERRAIN_ALT}
 
 MISSION_ENDS = ('land', 'rtl')
 #: The mission index of q0, after home (0) and the takeoff (1): the plan's clock starts when
@@ -232,13 +236,15 @@ def from_message(message: MAV.MAVLink_message) -> MissionItem:
         current=bool(message.current), autocontinue=bool(message.autocontinue))
 
 
-def mismatches(sent: Sequence[MissionItem], stored: Sequence[MissionItem]) -> list[str]:
+def mismatches(sent: Sequence[MissionItem], stored: Sequence[MissionItem], *,
+               home_row: bool = True) -> list[str]:
     """What differs between a mission and its read-back, one line per item; empty if same.
 
-    Compared in the fields the autopilot stores: row 0 (home, which the autopilot replaces
-    with its own) by command only; DO commands without their frame (ArduPilot reports them in
-    frame 0); coordinates to 1e-7 degree (MISSION_ITEM_INT's resolution), the rest to
-    float32's.
+    Compared in the fields the autopilot stores: row 0, when it is home (``home_row``:
+    ArduPilot; PX4's missions have none), by command only, since the autopilot replaces it
+    with its own; DO commands without their frame (ArduPilot reports them in frame 0); a
+    frame and its _INT twin as the same (PX4 reads frame 3 back as 6); coordinates to 1e-7
+    degree (MISSION_ITEM_INT's resolution), the rest to float32's.
     """
     if len(sent) != len(stored):
         return [f'the vehicle holds {len(stored)} items, the mission has {len(sent)}']
@@ -246,7 +252,7 @@ def mismatches(sent: Sequence[MissionItem], stored: Sequence[MissionItem]) -> li
     for seq, (a, b) in enumerate(zip(sent, stored)):
         if a.command != b.command:
             lines.append(f'item {seq}: command {b.command}, expected {a.command}')
-        elif seq > 0 and not _same_item(a, b):
+        elif (seq > 0 or not home_row) and not _same_item(a, b):
             lines.append(f'item {seq}: holds {_describe(b)}, expected {_describe(a)}')
     return lines
 
@@ -256,7 +262,7 @@ def _same_item(a: MissionItem, b: MissionItem) -> bool:
         positional = False
     else:
         positional = True
-        if a.frame != b.frame:
+        if INT_FRAMES.get(a.frame, a.frame) != INT_FRAMES.get(b.frame, b.frame):
             return False
     unstored = UNSTORED_PARAMS.get(a.command, ())
     close = all(_same_param(p, q) for index, (p, q) in enumerate(zip(a.params, b.params))

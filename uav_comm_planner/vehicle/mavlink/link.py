@@ -136,6 +136,9 @@ def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255,
             if should_stop is not None and should_stop():
                 link.close()
                 raise VehicleLinkError(f'connecting to {url!r} was stopped')
+            # A ground station's heartbeat first: PX4 answers on UDP only once it has heard
+            # a sender (udpout:), and an ArduPilot vehicle takes it as any ground station's.
+            link.mav.heartbeat_send(MAV.MAV_TYPE_GCS, MAV.MAV_AUTOPILOT_INVALID, 0, 0, 0)
             heartbeat = link.wait_heartbeat(timeout=min(left, HEARTBEAT_POLL_S))
     except (OSError, ConnectionError) as exc:
         link.close()
@@ -145,7 +148,20 @@ def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255,
         link.close()
         raise VehicleLinkError(f'no heartbeat from {url!r} within {timeout_s:g} s: is the '
                                f'vehicle on that link?')
+    link.vehicle_autopilot = heartbeat.autopilot
     return link
+
+
+def has_home_row(link) -> bool:
+    """Whether the vehicle's missions start with a home row (ArduPilot) or with their first
+    real item (PX4), from the autopilot type of its heartbeat."""
+    return getattr(link, 'vehicle_autopilot', None) != MAV.MAV_AUTOPILOT_PX4
+
+
+def for_vehicle(link, items: Sequence[MissionItem]) -> Sequence[MissionItem]:
+    """``items`` (row 0 is home, as the mission files hold them) as ``link``'s vehicle takes
+    them: without the home row for PX4."""
+    return items if has_home_row(link) else items[1:]
 
 
 def _receive(link, types: Sequence[str], timeout_s: float, total: Deadline | None = None):
@@ -293,11 +309,13 @@ def _ask(link, request, types: Sequence[str], settings: LinkSettings, what: str,
 
 def upload_and_verify(link, items: Sequence[MissionItem],
                       settings: LinkSettings = LinkSettings()) -> None:
-    """Upload, read back, and raise :class:`VehicleLinkError` unless the vehicle holds it."""
+    """Upload ``items`` (row 0 is home; PX4 gets them without it, :func:`for_vehicle`), read
+    them back, and raise :class:`VehicleLinkError` unless the vehicle holds them."""
     total = Deadline(settings.deadline_s, 'the mission upload and its read-back')
+    items = for_vehicle(link, items)
     upload_mission(link, items, settings, total=total)
     wrong = mismatches(items, download_mission(link, settings, expected=len(items),
-                                               total=total))
+                                               total=total), home_row=has_home_row(link))
     if wrong:
         raise VehicleLinkError('the vehicle does not hold the mission uploaded: '
                                + '; '.join(wrong[:3]))

@@ -28,7 +28,8 @@ from pymavlink import mavutil
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.mavlink.items import DEGREES_E7, MissionItem
-from uav_comm_planner.vehicle.mavlink.link import connect, LinkSettings, upload_and_verify
+from uav_comm_planner.vehicle.mavlink.link import (connect, has_home_row, LinkSettings,
+                                                   upload_and_verify)
 
 MAV = mavutil.mavlink
 #: Telemetry rate asked of the autopilot (per second of autopilot time).
@@ -194,8 +195,10 @@ class VehicleBridge:
             upload_and_verify(link, job.items, self._settings)
             note = ''
             if job.current_seq is not None:
-                set_current(link, job.current_seq)
-                note = f'; current item {job.current_seq}'
+                # Sequence numbers count the home row, which a PX4 mission has not.
+                current = job.current_seq - (0 if has_home_row(link) else 1)
+                set_current(link, current)
+                note = f'; current item {current}'
         except VehicleLinkError as exc:
             self._on_event(LinkEvent('error', f'mission upload failed: {exc}', job.tag))
             if 'link lost' in str(exc):
