@@ -65,13 +65,3 @@ def solve_checked(problem: cp.Problem, step: str, solver: str,
         failures.append(f'returned status {problem.status!r} with an optimality gap of '
                         f'{certificate.gap:.3g} (at most {certificate.tolerance:.3g} accepted)')
     raise SolverError(f'{step}: {solver} ' + '; then '.join(failures))
-
-
-def solve_to_optimality(problem: cp.Problem, step: str, solver: str, **options) -> None:
-    """Solve ``problem`` with ``solver``; raise :class:`SolverError` unless it is optimal.
-
-    ``step`` names the sub-problem in the message ('power step', 'trajectory step'). For
-    problems without a certificate of their own.
-    """
-    solve_checked(problem, step, solver, [options],
-                  lambda: Certificate(0.0 if problem.status == cp.OPTIMAL else 1.0, 0.0))
