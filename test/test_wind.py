@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import InfeasibleHorizonError, paper_scenario, plan, SolverSettings
-from uav_comm_planner.core.feasibility import (legs_of, project_onto_speed_limit,
-                                               within_speed_limit)
+from uav_comm_planner.core.feasibility import project_onto_speed_limit, within_speed_limit
 from uav_comm_planner.core.initial import hover_and_fly, straight_line
+from uav_comm_planner.core.model import legs
 
 FAST = SolverSettings(compute_baselines=False)
 
@@ -30,12 +30,12 @@ def windy(case: str = 'I', speed: float = 6.0, from_deg: float = 90.0, **changes
 
 
 def assert_within_both_discs(q, scenario, slack=1e-7):
-    legs = legs_of(q, scenario)
-    ground = np.linalg.norm(legs, axis=1) / scenario.slot_s
+    steps = legs(q, scenario)
+    ground = np.linalg.norm(steps, axis=1) / scenario.slot_s
     # The air's velocity, written from the weather report's convention independently.
     theta = math.radians(scenario.wind_from_deg)
     wind = -scenario.wind_speed_mps * np.array([math.sin(theta), math.cos(theta)])
-    air = np.linalg.norm(legs / scenario.slot_s - wind, axis=1)
+    air = np.linalg.norm(steps / scenario.slot_s - wind, axis=1)
     assert ground.max() <= scenario.max_speed_mps * (1 + slack)
     assert air.max() <= scenario.airspeed_mps * (1 + slack)
 

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from uav_comm_planner.core import initial
-from uav_comm_planner.core.model import flown_path
+from uav_comm_planner.core.model import legs
 from uav_comm_planner.core.scenario import Scenario
 
 #: The share by which a leg may exceed V delta and still count as within the limit: the
@@ -32,11 +32,6 @@ def limit_discs(scenario: Scenario) -> list[tuple[np.ndarray, float]]:
     return discs
 
 
-def legs_of(q: np.ndarray, scenario: Scenario) -> np.ndarray:
-    """The M + 1 legs q[1] - q0, ..., qF - q[M]: (M + 1, 2) metres."""
-    return np.diff(flown_path(q, scenario), axis=0)
-
-
 def within_speed_limit(q: np.ndarray | None, scenario: Scenario, *,
                        slack: float = LEG_SLACK) -> bool:
     """Whether q (M, 2) metres is a finite path of ``scenario``'s M slots whose every leg, with
@@ -46,8 +41,8 @@ def within_speed_limit(q: np.ndarray | None, scenario: Scenario, *,
     q = np.asarray(q, dtype=float)
     if q.shape != (scenario.num_slots, 2) or not np.all(np.isfinite(q)):
         return False
-    legs = legs_of(q, scenario)
-    return all(float(np.linalg.norm(legs - centre, axis=1).max()) <= radius * (1 + slack)
+    steps = legs(q, scenario)
+    return all(float(np.linalg.norm(steps - centre, axis=1).max()) <= radius * (1 + slack)
                for centre, radius in limit_discs(scenario))
 
 
@@ -65,12 +60,12 @@ def project_onto_speed_limit(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     returned when every leg is within the limits.
     """
     q = np.asarray(q, dtype=float).reshape(-1, 2)
-    legs = legs_of(q, scenario)
+    steps = legs(q, scenario)
     straight_leg = (np.asarray(scenario.goal_m, float) - np.asarray(scenario.start_m, float)) \
         / (scenario.num_slots + 1)
     lam = 0.0
     for centre, radius in limit_discs(scenario):
-        longest = float(np.linalg.norm(legs - centre, axis=1).max())
+        longest = float(np.linalg.norm(steps - centre, axis=1).max())
         if longest <= radius:
             continue
         straight = float(np.linalg.norm(straight_leg - centre))
@@ -84,5 +79,5 @@ def project_onto_speed_limit(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     return (1.0 - lam) * q + lam * initial.straight_line(scenario)
 
 
-__all__ = ['LEG_SLACK', 'legs_of', 'limit_discs', 'project_onto_speed_limit',
+__all__ = ['LEG_SLACK', 'limit_discs', 'project_onto_speed_limit',
            'within_speed_limit']

@@ -81,9 +81,14 @@ def flown_path(q: np.ndarray, scenario: Scenario) -> np.ndarray:
                       scenario.goal_m])
 
 
+def legs(q: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """q[1] - q0, q[m] - q[m-1], qF - q[M]: the M + 1 legs, (M + 1, 2) metres."""
+    return np.diff(flown_path(q, scenario), axis=0)
+
+
 def leg_lengths(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     """||q[1] - q0||, ||q[m] - q[m-1]||, ||qF - q[M]||: (M + 1,) metres."""
-    return np.linalg.norm(np.diff(flown_path(q, scenario), axis=0), axis=1)
+    return np.linalg.norm(legs(q, scenario), axis=1)
 
 
 def speeds(q: np.ndarray, scenario: Scenario) -> np.ndarray:
