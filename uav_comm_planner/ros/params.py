@@ -398,9 +398,10 @@ def config_from_parameters(values: Mapping[str, Any],
     given = {spec.field: chosen[VehicleLimits][spec.field] for spec in parameter_specs()
              if spec.owner is VehicleLimits and spec.name in explicit}
     vehicle = vehicle_limits(given, node.vehicle_params_file, firmware=node.mission_firmware)
-    if node.vehicle_aware and chosen[Scenario]['wind_speed_mps'] > 0:
+    if node.vehicle_aware:
         # A plan for the vehicle in wind keeps the vehicle's airspeed.
-        chosen[Scenario]['max_airspeed_mps'] = vehicle.airspeed_mps
+        chosen[Scenario]['max_airspeed_mps'] = vehicle.airspeed_for_wind_mps(
+            chosen[Scenario]['wind_speed_mps'])
     scenario = Scenario(**chosen[Scenario])
     settings.check(scenario)
     if node.vehicle_aware:

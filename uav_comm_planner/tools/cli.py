@@ -196,8 +196,9 @@ def _scenario(args: argparse.Namespace, vehicle=None) -> Scenario:
             changes[field] = getattr(args, name)
     if args.wind is not None:
         changes['wind_speed_mps'], changes['wind_from_deg'] = args.wind
-        if vehicle is not None and args.wind[0] > 0:
-            changes['max_airspeed_mps'] = vehicle.airspeed_mps
+        airspeed = None if vehicle is None else vehicle.airspeed_for_wind_mps(args.wind[0])
+        if airspeed is not None:
+            changes['max_airspeed_mps'] = airspeed
     return base.replace(**changes) if changes else base
 
 

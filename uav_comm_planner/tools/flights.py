@@ -54,9 +54,10 @@ def wind_case(speed_mps: float, from_deg: float, *, told: bool = True) -> Flight
     SIM_WIND_TURB 2 m/s), planned for it (``told``) or for still air."""
     scenario = paper_scenario('I', max_speed_mps=10.0, horizon_s=WIND_HORIZON_S,
                               num_slots=WIND_SLOTS)
-    if told and speed_mps > 0:
-        scenario = scenario.replace(wind_speed_mps=speed_mps, wind_from_deg=from_deg,
-                                    max_airspeed_mps=VehicleLimits().airspeed_mps)
+    if told:
+        scenario = scenario.replace(
+            wind_speed_mps=speed_mps, wind_from_deg=from_deg,
+            max_airspeed_mps=VehicleLimits().airspeed_for_wind_mps(speed_mps))
     name = f'case I, wind {speed_mps:g} from {from_deg:g}' + ('' if told else ', not told')
     return FlightCase(name, scenario, VehicleLimits(),
                       {'SIM_WIND_SPD': speed_mps, 'SIM_WIND_DIR': from_deg,

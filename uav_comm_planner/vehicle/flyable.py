@@ -357,8 +357,9 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
 
 def in_wind(scenario: Scenario, limits: VehicleLimits) -> Scenario:
     """``scenario`` with the vehicle's airspeed when it is planned for a wind and gives none."""
-    if scenario.wind_speed_mps > 0.0 and scenario.max_airspeed_mps is None:
-        return scenario.replace(max_airspeed_mps=limits.airspeed_mps)
+    airspeed = limits.airspeed_for_wind_mps(scenario.wind_speed_mps)
+    if airspeed is not None and scenario.max_airspeed_mps is None:
+        return scenario.replace(max_airspeed_mps=airspeed)
     return scenario
 
 

@@ -110,6 +110,11 @@ class VehicleLimits:
             else self.max_speed_mps
         return top - self.gust_margin_mps
 
+    def airspeed_for_wind_mps(self, wind_speed_mps: float) -> float | None:
+        """The airspeed a plan for this vehicle keeps in a wind of ``wind_speed_mps``
+        (:attr:`airspeed_mps`), or None in still air, where the ground speed alone limits it."""
+        return self.airspeed_mps if wind_speed_mps > 0.0 else None
+
     @property
     def cruise_speed_mps(self) -> float:
         """The fastest the vehicle flies a waypoint leg: min(max_speed, airframe_speed)."""
