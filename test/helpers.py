@@ -8,6 +8,7 @@ from typing import Callable
 
 from geometry_msgs.msg import PoseArray, PoseStamped
 from nav_msgs.msg import Path
+import numpy as np
 import pytest
 from rcl_interfaces.msg import Log
 from rcl_interfaces.srv import SetParameters, SetParametersAtomically
@@ -38,6 +39,17 @@ def random_scenario(seed: int, nodes: int = 6, slots: int = 60, *, side_m: float
     ``seed`` is an integer or a generator to draw from.
     The core's generator (:func:`uav_comm_planner.core.drops.random_scenario`)."""
     return drops.random_scenario(nodes, slots, seed, side_m=side_m, **changes)
+
+
+def waterfilling_multipliers(allocation, a: np.ndarray) -> tuple[np.ndarray, float]:
+    """The Lagrange multipliers of a water-filling answer for SNR per watt ``a`` (N, M):
+    p = (mu_n - 1/a)^+ is the inner maximiser of the dual at lambda_n = M ln2 nu mu_n, so
+    lambda is mu over the served nodes (read from their active slots), normalised, and
+    nu = 1 / (M ln 2 sum mu)."""
+    served = allocation.p.sum(axis=1) > 0
+    mu = np.where(served, np.where(allocation.p > 0, allocation.p + 1.0 / a, 0.0).max(axis=1),
+                  0.0)
+    return mu / mu.sum(), 1.0 / (a.shape[1] * np.log(2.0) * mu.sum())
 
 
 DEADLINE_S = 30.0

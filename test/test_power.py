@@ -1,6 +1,7 @@
 """The exact water-filling power step against the conic (cvxpy + Clarabel) power step."""
 
 import cvxpy as cp
+from helpers import waterfilling_multipliers
 import numpy as np
 import pytest
 
@@ -127,17 +128,6 @@ def test_closed_form_levels_are_newtons_when_every_slot_is_active_and_absent_oth
             assert np.any(newton[:, None] <= 1.0 / a * (1 + 1e-9))
         seen[closed is None] += 1
     assert seen[True] > 30 and seen[False] > 30
-
-
-def waterfilling_multipliers(allocation, a, offsets=None):
-    """The Lagrange multipliers of a water-filling answer: p = (mu_n - 1/a)^+ is the inner
-    maximiser of the dual at lambda_n = M ln2 nu mu_n, so lambda is mu over the served nodes,
-    normalised, and nu = 1 / (M ln 2 sum mu)."""
-    m = a.shape[1]
-    served = allocation.p.sum(axis=1) > 0
-    mu = np.where(served, np.where(allocation.p > 0, allocation.p + 1.0 / a, 0.0).max(axis=1),
-                  0.0)
-    return mu / mu.sum(), 1.0 / (m * np.log(2.0) * mu.sum())
 
 
 @pytest.mark.parametrize('a, budget', list(letter_cases()) + list(random_cases()))

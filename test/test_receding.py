@@ -10,6 +10,7 @@ from __future__ import annotations
 import itertools
 import math
 
+from helpers import waterfilling_multipliers
 import numpy as np
 import pytest
 
@@ -229,10 +230,8 @@ def test_the_case_that_stopped_short_of_the_tight_gap_is_certified():
     assert conic.efficiency == pytest.approx(exact.efficiency, rel=1e-9)
     # The same answer from the certificate alone: the dual bound at the water-filling's own
     # multipliers (served nodes only) is its value.
-    served = exact.p.sum(axis=1) > 0
-    mu = np.where(served, np.where(exact.p > 0, exact.p + 1.0 / a, 0.0).max(axis=1), 0.0)
-    bound = power_dual_bound(a, budget, mu / mu.sum(), 1.0 / (a.shape[1] * np.log(2) * mu.sum()),
-                             offsets=offsets)
+    weights, nu = waterfilling_multipliers(exact, a)
+    bound = power_dual_bound(a, budget, weights, nu, offsets=offsets)
     assert bound == pytest.approx(exact.efficiency, rel=1e-9)
 
 
