@@ -1,0 +1,287 @@
+"""Where the UAV may fly: an operating area it stays inside and keep-out zones it stays out of.
+
+All in the planning frame (east-north metres, like :class:`~uav_comm_planner.core.scenario.
+Scenario`). An :class:`OperatingArea` is a simple polygon the whole flight stays inside; a
+:class:`KeepOutCircle` and a :class:`KeepOutPolygon` are places it must not enter. A
+:class:`Zones` holds them with the clearance ``margin_m`` every point of the flight keeps from
+their edges. Polygons are given as their vertices in order (either orientation; stored
+counter-clockwise), without repeating the first vertex.
+
+This module holds the geometry only: validation, and the exact distance of a point or a
+segment to each zone, which the planner's constraints and the tests that check its plans use.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Union
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from uav_comm_planner.errors import InvalidScenarioError
+
+#: Vertices a polygon zone may have at most (a fence vertex is one MAVLink item).
+MAX_POLYGON_VERTICES = 1000
+
+
+def _finite_points(name: str, vertices: ArrayLike) -> np.ndarray:
+    try:
+        points = np.array(vertices, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidScenarioError(f'{name} must be a list of (x, y) vertices in metres, '
+                                   f'got {vertices!r}') from None
+    if points.ndim != 2 or points.shape[1] != 2 or not 3 <= len(points) <= MAX_POLYGON_VERTICES:
+        raise InvalidScenarioError(
+            f'{name} must have 3 to {MAX_POLYGON_VERTICES} (x, y) vertices, got shape '
+            f'{points.shape}')
+    if not np.isfinite(points).all():
+        raise InvalidScenarioError(f'{name} has a vertex that is not finite')
+    return points
+
+
+def _segments_cross(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> bool:
+    """Whether the closed segments ab and cd share a point."""
+    def orient(p, q, r):
+        return float((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]))
+
+    def on(p, q, r):  # r on segment pq, given collinear
+        return min(p[0], q[0]) <= r[0] <= max(p[0], q[0]) and \
+            min(p[1], q[1]) <= r[1] <= max(p[1], q[1])
+
+    o1, o2, o3, o4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
+    if o1 * o2 < 0 and o3 * o4 < 0:
+        return True
+    return (o1 == 0 and on(a, b, c)) or (o2 == 0 and on(a, b, d)) or \
+        (o3 == 0 and on(c, d, a)) or (o4 == 0 and on(c, d, b))
+
+
+def _simple_polygon(name: str, vertices: ArrayLike) -> np.ndarray:
+    """The vertices, counter-clockwise, of a simple polygon with a positive area."""
+    points = _finite_points(name, vertices)
+    count = len(points)
+    for i in range(count):
+        for j in range(i + 2, count):
+            if i == 0 and j == count - 1:
+                continue  # neighbours through the closing edge
+            if _segments_cross(points[i], points[(i + 1) % count],
+                               points[j], points[(j + 1) % count]):
+                raise InvalidScenarioError(
+                    f'{name} crosses itself: edges {i + 1} and {j + 1} meet; give the '
+                    f'vertices in order around the boundary')
+    area = 0.5 * float(np.sum(points[:, 0] * np.roll(points[:, 1], -1)
+                              - np.roll(points[:, 0], -1) * points[:, 1]))
+    scale = float(np.ptp(points, axis=0).max())
+    if abs(area) <= 1e-12 * max(scale, 1.0) ** 2:
+        raise InvalidScenarioError(f'{name} has no area: its vertices are collinear or repeated')
+    if area < 0:
+        points = points[::-1].copy()
+    return points
+
+
+def _point_segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance of each of ``points`` (K, 2) to the segment ab."""
+    ab = b - a
+    length2 = float(ab @ ab)
+    t = np.zeros(len(points)) if length2 == 0 else np.clip((points - a) @ ab / length2, 0, 1)
+    return np.linalg.norm(points - (a + t[:, None] * ab), axis=1)
+
+
+def _inside_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Even-odd rule: whether each of ``points`` (K, 2) lies strictly inside the polygon."""
+    x, y = points[:, 0][:, None], points[:, 1][:, None]
+    x0, y0 = vertices[:, 0], vertices[:, 1]
+    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
+    straddles = (y0 > y) != (y1 > y)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        crossing = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+    return (np.count_nonzero(straddles & (x < crossing), axis=1) % 2) == 1
+
+
+def _boundary_distance(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    edges = zip(vertices, np.roll(vertices, -1, axis=0))
+    return np.min([_point_segment_distance(points, a, b) for a, b in edges], axis=0)
+
+
+def _polygon_signed_distance(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Distance to the polygon's boundary, negative inside it."""
+    distance = _boundary_distance(points, vertices)
+    return np.where(_inside_polygon(points, vertices), -distance, distance)
+
+
+#: Points a segment that meets a polygon's boundary is sampled at for its deepest point.
+SEGMENT_SAMPLES = 257
+
+
+def _segment_polygon_distance(a: np.ndarray, b: np.ndarray, vertices: np.ndarray) -> float:
+    """Signed distance of segment ab to a polygon: the least distance when they are apart,
+    minus the depth of the segment's deepest point when any part of it is inside (0 when it
+    only touches the boundary)."""
+    count = len(vertices)
+    meets = any(_segments_cross(a, b, vertices[i], vertices[(i + 1) % count])
+                for i in range(count))
+    if not meets:
+        ends = _polygon_signed_distance(np.array([a, b]), vertices)
+        if (ends < 0).any():  # wholly inside
+            t = np.linspace(0.0, 1.0, SEGMENT_SAMPLES)[:, None]
+            return float(_polygon_signed_distance(a + t * (b - a), vertices).min())
+        # Apart: the nearest points are a vertex of one and a point of the other.
+        return float(min(_point_segment_distance(vertices, a, b).min(), ends.min()))
+    t = np.linspace(0.0, 1.0, SEGMENT_SAMPLES)[:, None]
+    return float(min(_polygon_signed_distance(a + t * (b - a), vertices).min(), 0.0))
+
+
+@dataclass(frozen=True)
+class KeepOutCircle:
+    """A disc the flight must not enter: centre (east, north) metres and radius metres."""
+
+    center_m: tuple[float, float]
+    radius_m: float
+
+    def __post_init__(self) -> None:
+        center = _finite_points('a keep-out circle\'s centre', [self.center_m] * 3)[0]
+        if not (math.isfinite(self.radius_m) and self.radius_m > 0):
+            raise InvalidScenarioError(
+                f'a keep-out circle\'s radius must be positive and finite, got {self.radius_m!r}')
+        object.__setattr__(self, 'center_m', (float(center[0]), float(center[1])))
+        object.__setattr__(self, 'radius_m', float(self.radius_m))
+
+    def clearance(self, points: ArrayLike) -> np.ndarray:
+        """Distance of each point (K, 2) outside the circle; negative inside."""
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        return np.linalg.norm(points - np.array(self.center_m), axis=1) - self.radius_m
+
+    def segment_clearance(self, a: ArrayLike, b: ArrayLike) -> float:
+        """The least clearance along the segment ab."""
+        centre = np.array([self.center_m])
+        distance = _point_segment_distance(centre, np.asarray(a, float), np.asarray(b, float))
+        return float(distance[0]) - self.radius_m
+
+
+@dataclass(frozen=True)
+class KeepOutPolygon:
+    """A simple polygon the flight must not enter (vertices east-north metres, stored CCW)."""
+
+    vertices_m: np.ndarray
+
+    def __post_init__(self) -> None:
+        vertices = _simple_polygon('a keep-out polygon', self.vertices_m)
+        vertices.setflags(write=False)
+        object.__setattr__(self, 'vertices_m', vertices)
+
+    @property
+    def convex(self) -> bool:
+        return _is_convex(self.vertices_m)
+
+    def clearance(self, points: ArrayLike) -> np.ndarray:
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        return _polygon_signed_distance(points, self.vertices_m)
+
+    def segment_clearance(self, a: ArrayLike, b: ArrayLike) -> float:
+        return _segment_polygon_distance(np.asarray(a, float), np.asarray(b, float),
+                                         self.vertices_m)
+
+
+@dataclass(frozen=True)
+class OperatingArea:
+    """A simple polygon the whole flight stays inside (vertices east-north metres, CCW)."""
+
+    vertices_m: np.ndarray
+
+    def __post_init__(self) -> None:
+        vertices = _simple_polygon('the operating area', self.vertices_m)
+        vertices.setflags(write=False)
+        object.__setattr__(self, 'vertices_m', vertices)
+
+    @property
+    def convex(self) -> bool:
+        return _is_convex(self.vertices_m)
+
+    def clearance(self, points: ArrayLike) -> np.ndarray:
+        """Distance of each point inside the area from its boundary; negative outside."""
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        return -_polygon_signed_distance(points, self.vertices_m)
+
+    def segment_clearance(self, a: ArrayLike, b: ArrayLike) -> float:
+        """The least clearance inside the area along the segment ab; negative where it leaves."""
+        return -_segment_polygon_distance_outside(np.asarray(a, float), np.asarray(b, float),
+                                                  self.vertices_m)
+
+
+def _segment_polygon_distance_outside(a: np.ndarray, b: np.ndarray,
+                                      vertices: np.ndarray) -> float:
+    """How far the segment ab gets from being wholly inside the polygon: minus its least
+    distance to the boundary when it is inside, the depth of its farthest point outside when
+    any part of it is outside (0 when it only touches)."""
+    count = len(vertices)
+    meets = any(_segments_cross(a, b, vertices[i], vertices[(i + 1) % count])
+                for i in range(count))
+    ends = _polygon_signed_distance(np.array([a, b]), vertices)
+    if not meets and (ends < 0).all():
+        inside = min(float(_point_segment_distance(vertices, a, b).min()), -float(ends.max()))
+        return -inside
+    t = np.linspace(0.0, 1.0, SEGMENT_SAMPLES)[:, None]
+    return float(max(_polygon_signed_distance(a + t * (b - a), vertices).max(), 0.0))
+
+
+def _is_convex(vertices: np.ndarray) -> bool:
+    edges = np.roll(vertices, -1, axis=0) - vertices
+    turns = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
+    return bool((turns >= -1e-12 * float(np.abs(edges).max()) ** 2).all())
+
+
+KeepOut = Union[KeepOutCircle, KeepOutPolygon]
+
+
+@dataclass(frozen=True)
+class Zones:
+    """The operating area (None: anywhere) and the keep-out zones, with the clearance
+    ``margin_m`` the flight keeps from every edge."""
+
+    area: OperatingArea | None = None
+    keep_out: tuple[KeepOut, ...] = ()
+    margin_m: float = 5.0
+
+    def __post_init__(self) -> None:
+        keep_out = tuple(self.keep_out)
+        for zone in keep_out:
+            if not isinstance(zone, (KeepOutCircle, KeepOutPolygon)):
+                raise InvalidScenarioError(
+                    f'a keep-out zone must be a KeepOutCircle or KeepOutPolygon, got '
+                    f'{type(zone).__name__}')
+        if self.area is not None and not isinstance(self.area, OperatingArea):
+            raise InvalidScenarioError(
+                f'the operating area must be an OperatingArea, got {type(self.area).__name__}')
+        if not (math.isfinite(self.margin_m) and self.margin_m >= 0):
+            raise InvalidScenarioError(
+                f'the zone margin must be >= 0 and finite, got {self.margin_m!r} m')
+        object.__setattr__(self, 'keep_out', keep_out)
+        object.__setattr__(self, 'margin_m', float(self.margin_m))
+
+    @property
+    def empty(self) -> bool:
+        return self.area is None and not self.keep_out
+
+    def clearance(self, points: ArrayLike) -> np.ndarray:
+        """Each point's least clearance from every zone (inf with no zones); a point keeps
+        the margin where this is >= margin_m."""
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        least = np.full(len(points), np.inf)
+        for zone in (*((self.area,) if self.area is not None else ()), *self.keep_out):
+            least = np.minimum(least, zone.clearance(points))
+        return least
+
+    def path_clearance(self, path: ArrayLike) -> float:
+        """The least clearance along the polyline ``path`` (K, 2), segments included."""
+        path = np.atleast_2d(np.asarray(path, dtype=float))
+        zones = (*((self.area,) if self.area is not None else ()), *self.keep_out)
+        least = float(np.min(self.clearance(path))) if len(path) else math.inf
+        for a, b in zip(path[:-1], path[1:]):
+            for zone in zones:
+                least = min(least, zone.segment_clearance(a, b))
+        return least
+
+
+__all__ = ['KeepOut', 'KeepOutCircle', 'KeepOutPolygon', 'MAX_POLYGON_VERTICES',
+           'OperatingArea', 'Zones']
