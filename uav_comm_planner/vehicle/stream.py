@@ -1,0 +1,128 @@
+"""The streamed trajectory: the plan as position, velocity and acceleration targets in time.
+
+A waypoint mission leaves the timing between waypoints to the autopilot; a streamed
+trajectory (ArduCopter GUIDED, PX4 OFFBOARD) gives the vehicle where to be at every instant,
+so it keeps the plan's time by construction while the airframe can fly it. The reference here
+passes through the plan's slot points (q0, q[1..M], qF; for a vehicle-aware plan the points
+its stated throughput is computed at) exactly at their slot times, and between them is the
+least-acceleration C1 piecewise cubic within the vehicle's speed, acceleration and jerk (and,
+in wind, the plan's airspeed): :mod:`uav_comm_planner.core.reference`. When the jerk bound
+cannot be kept with the points given, the reference keeps the others and says so
+(``jerk_limited`` False). Times are seconds from the start of the plan's clock (the vehicle
+at q0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Sequence
+
+import numpy as np
+
+from uav_comm_planner.core.model import flown_path
+from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.reference import (hermite_state, MotionBounds, PIECES_PER_SLOT,
+                                             smooth_motion)
+from uav_comm_planner.errors import InfeasibleHorizonError
+from uav_comm_planner.vehicle.limits import VehicleLimits
+
+#: Samples per second of :meth:`StreamReference.track`.
+TRACK_RATE_HZ = 10.0
+#: The reference may be this much faster than the vehicle's cruise speed (share of it): a
+#: smooth curve through points that the cruise speed joins along a polyline is a little longer
+#: than the polyline (measured: 0.5 % over the cruise on the letter's case I at 10 m/s).
+STREAM_SPEED_MARGIN = 0.05
+
+
+@dataclass(frozen=True)
+class StreamReference:
+    """A timed reference: knot ``positions`` and ``velocities`` (K', 2) every ``knot_s``
+    seconds, of which every ``pieces``-th is a plan point (slot ``slot_s``); ``bounds`` it
+    keeps; ``jerk_limited`` whether the jerk bound is among them."""
+
+    positions: np.ndarray
+    velocities: np.ndarray
+    slot_s: float
+    pieces: int
+    bounds: MotionBounds
+    jerk_limited: bool
+
+    @property
+    def knot_s(self) -> float:
+        return self.slot_s / self.pieces
+
+    @property
+    def points(self) -> np.ndarray:
+        """The plan's points (M + 2, 2): q0, q[1..M], qF."""
+        return self.positions[::self.pieces]
+
+    @property
+    def duration_s(self) -> float:
+        """From q0 to qF, seconds: (M + 1) delta."""
+        return (len(self.positions) - 1) * self.knot_s
+
+    def state(self, t_s: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position (m), velocity (m/s), acceleration (m/s/s) at ``t_s`` seconds after q0,
+        each (len(t), 2); at rest at q0 before 0 and at qF after :attr:`duration_s`."""
+        return hermite_state(self.positions, self.velocities, self.knot_s, t_s)
+
+    def track(self, rate_hz: float = TRACK_RATE_HZ) -> np.ndarray:
+        """The reference's line, sampled (K, 2) from q0 to qF."""
+        count = max(int(math.ceil(self.duration_s * rate_hz)), 1) + 1
+        return self.state(np.linspace(0.0, self.duration_s, count))[0]
+
+
+def stream_bounds(result: PlanResult, limits: VehicleLimits, *,
+                  jerk: bool = True) -> MotionBounds:
+    """What the reference of ``result`` keeps: the vehicle's cruise speed (or the plan's own
+    speed limit when faster) with :data:`STREAM_SPEED_MARGIN`, its acceleration and jerk, and
+    in wind the plan's airspeed disc with the vehicle's gust margin (the airspeed the airframe
+    holds)."""
+    scenario = result.scenario
+    speed = max(limits.cruise_speed_mps, scenario.max_speed_mps) * (1 + STREAM_SPEED_MARGIN)
+    airspeed = (scenario.airspeed_mps + limits.gust_margin_mps if scenario.airspeed_limited
+                else None)
+    return MotionBounds(speed_mps=speed, accel_mpss=limits.max_accel_mpss,
+                        jerk_mpsss=limits.max_jerk_mpsss if jerk else math.inf,
+                        wind_mps=tuple(float(w) for w in scenario.wind_mps),
+                        airspeed_mps=airspeed)
+
+
+def stream_reference(result: PlanResult, limits: VehicleLimits = VehicleLimits()
+                     ) -> StreamReference:
+    """The reference that flies ``result`` (module docstring). Raises
+    :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when no motion within the
+    vehicle's speed and acceleration passes the plan's points at their times."""
+    scenario = result.scenario
+    points = flown_path(np.asarray(result.trajectory, dtype=float), scenario)
+    try:
+        bounds = stream_bounds(result, limits)
+        positions, velocities = smooth_motion(points, scenario.slot_s, bounds)
+    except InfeasibleHorizonError:
+        bounds = stream_bounds(result, limits, jerk=False)
+        positions, velocities = smooth_motion(points, scenario.slot_s, bounds)
+    return StreamReference(positions, velocities, scenario.slot_s, PIECES_PER_SLOT, bounds,
+                           math.isfinite(bounds.jerk_mpsss))
+
+
+def resume_item(waypoints: Sequence[tuple[int, np.ndarray]], reference: StreamReference,
+                elapsed_s: float) -> int:
+    """The mission item to go on from in AUTO when the stream stops ``elapsed_s`` after q0:
+    the first waypoint (sequence number, east-north position) that the reference reaches
+    after ``elapsed_s``, taking the waypoints in mission order; the last one when all are
+    behind."""
+    times = np.linspace(0.0, reference.duration_s,
+                        max(int(reference.duration_s * TRACK_RATE_HZ), 1) + 1)
+    line = reference.state(times)[0]
+    earliest = 0
+    for seq, position in waypoints:
+        distance = np.linalg.norm(line[earliest:] - np.asarray(position, dtype=float), axis=1)
+        earliest += int(np.argmin(distance))
+        if times[earliest] > elapsed_s:
+            return seq
+    return waypoints[-1][0]
+
+
+__all__ = ['STREAM_SPEED_MARGIN', 'StreamReference', 'TRACK_RATE_HZ', 'resume_item',
+           'stream_bounds', 'stream_reference']
