@@ -133,8 +133,13 @@ class MissionFlight:
         self._request_rest(source, time_s, (x_m, y_m))
 
     def start_clock(self, time_s: float, why: str) -> None:
+        """Start the plan's clock at ``time_s``; with ``flight_mode`` stream and a link, the
+        vehicle then flies the plan as streamed targets from that autopilot time on."""
         self.progress.start_clock(time_s)
         self._node.get_logger().info(f'mission clock started: {why}')
+        node = self._node
+        if node.config.node.flight_mode == 'stream' and node.vehicle.linked:
+            node.vehicle.start_stream(self.progress.current.result, time_s, node.config.node)
 
     def running(self, time_s: float) -> bool:
         """Whether a mission is in flight that a replan should continue."""

@@ -75,9 +75,9 @@ TOPIC_UAV_POSE = 'uav_pose'
 SOURCE_VEHICLE = 'vehicle'
 #: Name of the vehicle link's errors on planner_status.
 SOURCE_VEHICLE_LINK = 'vehicle link'
-#: Parameters that remake the vehicle link when they change.
+#: Parameters that remake the vehicle link when they change (a stream running falls back).
 LINK_PARAMETERS = frozenset({'mavlink_url', 'home_latitude_deg', 'home_longitude_deg',
-                             'home_altitude_m'})
+                             'home_altitude_m', 'flight_mode'})
 
 #: Volatile so that both volatile and transient-local publishers can send node sets.
 GROUND_NODES_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -221,8 +221,8 @@ class PlannerNode(Node):
     # Planning.
 
     def submit(self, reason: str, in_flight: InFlight | None = None) -> None:
-        """Plan the whole mission (or, ``in_flight``, its rest) with the current parameters."""
-        config = self.config
+        """Plan the whole mission (or, ``in_flight``, its rest): parameters, measured wind."""
+        config = self.vehicle.wind.config(self.config)
         output = config.node
         mission = MissionRequest(
             config.scenario, config.settings, config.vehicle, vehicle_aware=output.vehicle_aware,
@@ -264,7 +264,7 @@ class PlannerNode(Node):
         self._publisher.publish(outcome)
         self.stats.plans_published += 1
         if self.vehicle.linked:
-            self.vehicle.upload(outcome)
+            self.vehicle.fly(outcome, self.config.vehicle)
         if outcome.mission_error:
             self.report_error(f'mission export failed, the plan is kept: '
                               f'{outcome.mission_error}')

@@ -33,11 +33,15 @@ from uav_comm_planner.vehicle.flyable import check_speed
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.files import MISSION_FORMATS
+from uav_comm_planner.vehicle.mavlink.guided import STREAM_FALLBACKS
 from uav_comm_planner.vehicle.mavlink.items import MISSION_ENDS
 from uav_comm_planner.vehicle.mavlink.urls import parse_link_url
 
+#: How a plan is flown with a link: a waypoint mission in AUTO, or streamed targets in GUIDED.
+FLIGHT_MODES = ('mission', 'stream')
 #: Node settings that take one of a few names, and the names.
-CHOICES = {'mission_end': MISSION_ENDS, 'mission_firmware': tuple(FIRMWARES)}
+CHOICES = {'mission_end': MISSION_ENDS, 'mission_firmware': tuple(FIRMWARES),
+           'flight_mode': FLIGHT_MODES, 'stream_fallback': STREAM_FALLBACKS}
 
 ParameterValue = typing.Union[bool, int, float, str, list]
 
@@ -59,7 +63,12 @@ class NodeSettings:
     ``mavlink_url`` (empty: no vehicle link) is where every new plan is uploaded and the
     vehicle's telemetry read. A pose replans the rest of the mission only when the UAV is off
     the plan by more than ``replan_distance_m`` or ``replan_delay_s``, and at most once every
-    ``replan_interval_s`` (mission clock seconds).
+    ``replan_interval_s`` (mission clock seconds). ``flight_mode`` 'stream' flies each plan
+    with a link as position, velocity and acceleration targets in GUIDED (the mission uploaded
+    too); when the stream stops the vehicle goes on in AUTO or holds (``stream_fallback``).
+    The autopilot's wind estimate is smoothed with the time constant ``wind_time_constant_s``
+    and replaces ``wind_speed_mps`` / ``wind_from_deg`` in every plan; it replans when it is
+    farther than ``wind_replan_mps`` from the wind of the plan in force.
     """
 
     frame_id: str = 'map'
@@ -76,6 +85,10 @@ class NodeSettings:
     replan_interval_s: float = 10.0
     vehicle_aware: bool = True
     vehicle_params_file: str = ''
+    flight_mode: str = 'mission'
+    stream_fallback: str = 'auto'
+    wind_time_constant_s: float = 10.0
+    wind_replan_mps: float = 1.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.vehicle_aware, bool):
@@ -88,7 +101,8 @@ class NodeSettings:
                                            f'{getattr(self, name)!r}')
         if not self.frame_id.strip():
             raise InvalidScenarioError('frame_id must not be empty, e.g. "map"')
-        for name in ('replan_distance_m', 'replan_delay_s', 'replan_interval_s'):
+        for name in ('replan_distance_m', 'replan_delay_s', 'replan_interval_s',
+                     'wind_time_constant_s', 'wind_replan_mps'):
             value = getattr(self, name)
             if (isinstance(value, bool) or not isinstance(value, (int, float))
                     or not math.isfinite(value) or value <= 0):
@@ -203,6 +217,15 @@ DESCRIPTIONS = {
     'vehicle_params_file': 'ground-station parameter file (NAME,VALUE lines) whose WPNAV_* / '
                            'MPC_* values replace the defaults of the vehicle_* parameters not '
                            'set explicitly; empty: none',
+    'flight_mode': 'with mavlink_url, how each plan is flown: mission (uploaded, flown in AUTO) '
+                   'or stream (uploaded too, then flown as position, velocity and acceleration '
+                   'targets in GUIDED, timed on the autopilot clock)',
+    'stream_fallback': 'when the stream stops (plan ended, node stopped, link lost): auto (go '
+                       'on with the uploaded mission from the item ahead) or hold (BRAKE)',
+    'wind_time_constant_s': 'time constant of the smoothing of the autopilot\'s wind estimate '
+                            '(autopilot s)',
+    'wind_replan_mps': 'replan when the smoothed wind estimate is farther than this from the '
+                       'wind of the plan in force (m/s)',
     'vehicle_max_speed_mps': 'waypoint speed of the vehicle (WPNAV_SPEED / 100, MPC_XY_CRUISE; '
                              'm/s)',
     'vehicle_max_accel_mpss': 'waypoint acceleration (WPNAV_ACCEL / 100, MPC_ACC_HOR; m/s/s)',
@@ -219,7 +242,8 @@ DESCRIPTIONS = {
 OUTPUT_ONLY = frozenset({
     'frame_id', 'mission_file', 'home_latitude_deg', 'home_longitude_deg', 'home_altitude_m',
     'mission_end', 'mission_firmware', 'mavlink_url', 'replan_distance_m', 'replan_delay_s',
-    'replan_interval_s'})
+    'replan_interval_s', 'flight_mode', 'stream_fallback', 'wind_time_constant_s',
+    'wind_replan_mps'})
 
 #: Inclusive (low, high) limits shown to tools; the dataclasses check the exact domain.
 RANGES = {
@@ -245,6 +269,8 @@ RANGES = {
     'replan_distance_m': (0.0, 1.0e6),
     'replan_delay_s': (0.0, 1.0e6),
     'replan_interval_s': (0.0, 1.0e6),
+    'wind_time_constant_s': (0.0, 1.0e6),
+    'wind_replan_mps': (0.0, 100.0),
 }
 #: Parameters that only the node's start-up (overrides, a parameter file) may set: the
 #: limits on the work a plan may take and where mission files go.

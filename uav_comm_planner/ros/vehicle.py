@@ -1,5 +1,6 @@
 """The vehicle side of the node: the MAVLink link's events on the executor, the vehicle's
-pose on ``vehicle_pose`` (advertised only while a link runs), and every plan uploaded.
+pose on ``vehicle_pose`` (advertised only while a link runs), every plan uploaded, the
+autopilot's wind estimates, and the streamed trajectory (:mod:`.stream`) started and stopped.
 
 A :class:`VehicleAdapter` takes the node (as tf2_ros's TransformListener does): with
 ``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge`,
@@ -12,17 +13,25 @@ from __future__ import annotations
 from typing import Callable
 
 from geometry_msgs.msg import PoseStamped
+import numpy as np
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.ros.handoff import ExecutorHandoff
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.ros.planning import PlanOutcome
-from uav_comm_planner.vehicle.mavlink.items import Q0_SEQ
+from uav_comm_planner.ros.wind import WindTracker
+from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
+from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, StreamJob, TargetStream
+from uav_comm_planner.vehicle.mavlink.items import MissionItem, NAV_WAYPOINT, Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.telemetry import (Event, LinkEvent,
                                                         MissionProgressReport, Position,
-                                                        VehicleBridge)
+                                                        TELEMETRY_RATE_HZ, VehicleBridge, Wind)
+from uav_comm_planner.vehicle.stream import resume_item, stream_reference, StreamReference
 
 TOPIC_VEHICLE_POSE = 'vehicle_pose'
 #: Link events kept for the executor at most (the oldest go first).
@@ -35,6 +44,8 @@ VEHICLE_POSE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
 PositionCallback = Callable[[float, float, float, float], None]
 #: report(message, is_error): a line for the node's log.
 Reporter = Callable[[str, bool], None]
+#: Telemetry (and so target) rate with flight_mode stream, per second of autopilot time.
+STREAM_TELEMETRY_RATE_HZ = 20.0
 
 
 class VehicleAdapter:
@@ -52,6 +63,14 @@ class VehicleAdapter:
     def __init__(self, node: Node, on_position: PositionCallback, report: Reporter, *,
                  frame_id: Callable[[], str]) -> None:
         self._node = node
+        #: The autopilot's wind estimate, smoothed and published (:mod:`.wind`).
+        self.wind = WindTracker(node)
+        #: The streamed trajectory on the link's thread (None without a link).
+        self.stream: TargetStream | None = None
+        #: Stream events seen: 'started', 'stopped' messages, in order (for tests).
+        self.stream_events: list[str] = []
+        self._stream_reported = 0
+        self._prepared: tuple[PlanResult, StreamReference, tuple] | None = None
         self._on_position = on_position
         self._report = report
         self._frame_id = frame_id
@@ -88,7 +107,11 @@ class VehicleAdapter:
         if output.mavlink_url:
             self._pose = self._node.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE,
                                                      VEHICLE_POSE_QOS)
-            self._bridge = VehicleBridge(output.mavlink_url, output.home, self._events.put)
+            self.stream = TargetStream(output.home, self._events.put)
+            rate = (STREAM_TELEMETRY_RATE_HZ if output.flight_mode == 'stream'
+                    else TELEMETRY_RATE_HZ)
+            self._bridge = VehicleBridge(output.mavlink_url, output.home, self._events.put,
+                                         rate_hz=rate, stream=self.stream)
             self._report(f'vehicle link: connecting to {output.mavlink_url}', False)
 
     def upload(self, outcome: PlanOutcome) -> None:
@@ -104,11 +127,68 @@ class VehicleAdapter:
         self._bridge.upload(plan.items, current_seq=Q0_SEQ if in_flight else None,
                             tag=outcome.request.start_ns)
 
+    def fly(self, outcome: PlanOutcome, limits: VehicleLimits) -> None:
+        """A new plan in force: upload it; with ``flight_mode`` stream, make its reference too.
+        A stream running stops: the new plan starts from its own q0, which the vehicle flies to
+        in AUTO (a replan in flight from its q0 item) as a mission's."""
+        if outcome.request.output.flight_mode == 'stream':
+            self.prepare_stream(outcome, limits)
+        if self.stream is not None and self.stream.active:
+            self.stop_stream('a new plan is in force',
+                             resume_seq=Q0_SEQ if outcome.receding is not None else None)
+        self.upload(outcome)
+
+    def prepare_stream(self, outcome: PlanOutcome, limits: VehicleLimits) -> None:
+        """Make the streamed reference of ``outcome``'s plan now (it is streamed once the
+        plan's clock starts); a plan that cannot be streamed is said once, and its uploaded
+        mission is what the vehicle flies."""
+        result = outcome.result
+        try:
+            reference = stream_reference(result, limits)
+        except PlannerError as exc:
+            self._report(f'stream: this plan cannot be streamed, its mission is flown in AUTO: '
+                         f'{exc}', True)
+            return
+        items = outcome.plan.items or ()
+        home = outcome.request.output.home
+        waypoints = [(seq, _enu(item, home)) for seq, item in enumerate(items)
+                     if seq >= Q0_SEQ and item.command == NAV_WAYPOINT]
+        self._prepared = (result, reference, tuple(waypoints))
+
+    def start_stream(self, result: PlanResult, t0_s: float, output: NodeSettings) -> bool:
+        """Stream the prepared reference of ``result`` from autopilot time ``t0_s``; False
+        when there is none (no link, or the plan could not be streamed)."""
+        if self.stream is None or self._prepared is None or self._prepared[0] is not result:
+            return False
+        _, reference, waypoints = self._prepared
+        if waypoints:
+            def resume(elapsed_s: float) -> int:
+                return resume_item(waypoints, reference, elapsed_s)
+        else:
+            def resume(elapsed_s: float) -> int:
+                return Q0_SEQ
+        self.stream.start(StreamJob(reference, t0_s, result.scenario.altitude_m,
+                                    output.stream_fallback, resume))
+        return True
+
+    def stop_stream(self, reason: str, *, resume_seq: int | None = None) -> None:
+        """End the stream (with its fallback, or in AUTO from ``resume_seq``) at the link's
+        next position report."""
+        if self.stream is not None:
+            self.stream.stop(reason, resume_seq=resume_seq)
+
     def stop(self) -> None:
-        """End the link and withdraw ``vehicle_pose``."""
+        """End the link (a stream running falls back first, said on the log) and withdraw
+        ``vehicle_pose``."""
         if self._bridge is not None:
             self._bridge.stop()
             self._bridge = None
+        if self.stream is not None:
+            # Events the executor will not drain any more: said here.
+            for event in self.stream.events[self._stream_reported:]:
+                self._report(event.message, event.kind == 'error')
+        self.stream = None
+        self._stream_reported = 0
         if self._pose is not None:
             self._node.destroy_publisher(self._pose)
             self._pose = None
@@ -125,6 +205,12 @@ class VehicleAdapter:
                 self.mission_item = event.seq
             elif isinstance(event, LinkEvent):
                 self._on_link_event(event)
+            elif isinstance(event, Wind):
+                self.wind.add(event.time_s, event.east_mps, event.north_mps)
+            elif isinstance(event, StreamEvent):
+                self._stream_reported += 1
+                self.stream_events.append(event.message)
+                self._report(event.message, event.kind == 'error')
 
     def _on_link_event(self, event: LinkEvent) -> None:
         if event.kind == 'error':
@@ -156,6 +242,12 @@ class VehicleAdapter:
         message.pose.position.z = event.up_m
         message.pose.orientation.w = 1.0
         self._pose.publish(message)
+
+
+def _enu(item: MissionItem, home: Home) -> np.ndarray:
+    east, north, _ = geodetic_to_enu(np.array([item.x]), np.array([item.y]), home.altitude_m,
+                                     home)
+    return np.array([float(east[0]), float(north[0])])
 
 
 __all__ = ['TOPIC_VEHICLE_POSE', 'VEHICLE_POSE_QOS', 'VehicleAdapter']

@@ -17,6 +17,7 @@ Times are the autopilot's (``time_boot_ms`` / 1000, seconds), never the wall clo
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 import threading
 import time
 from typing import Callable, Sequence
@@ -27,6 +28,7 @@ from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
+from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, TargetStream
 from uav_comm_planner.vehicle.mavlink.items import DEGREES_E7, MissionItem
 from uav_comm_planner.vehicle.mavlink.link import (connect, has_home_row, LinkSettings,
                                                    upload_and_verify)
@@ -41,6 +43,8 @@ MAX_RECONNECT_PAUSE_S = 30.0
 #: How long MISSION_SET_CURRENT waits for MISSION_CURRENT to confirm, per try (wall clock).
 SET_CURRENT_TIMEOUT_S = 1.0
 SET_CURRENT_TRIES = 5
+#: Wind estimates asked of the autopilot (per second of autopilot time).
+WIND_RATE_HZ = 2.0
 
 
 @dataclass(frozen=True)
@@ -71,7 +75,18 @@ class LinkEvent:
     tag: object = None
 
 
-Event = Position | MissionProgressReport | LinkEvent
+@dataclass(frozen=True)
+class Wind:
+    """The autopilot's wind estimate at ``time_s``: the air's velocity east and north, m/s
+    (where the air moves to; ArduPilot's WIND gives where it comes from, PX4's WIND_COV the
+    velocity north-east-down)."""
+
+    time_s: float
+    east_mps: float
+    north_mps: float
+
+
+Event = Position | MissionProgressReport | LinkEvent | Wind | StreamEvent
 
 
 @dataclass(frozen=True)
@@ -91,6 +106,33 @@ def request_telemetry(link, rate_hz: float = TELEMETRY_RATE_HZ) -> None:
                                    1e6 / rate_hz, 0, 0, 0, 0, 0)
 
 
+#: The wind estimates asked for: ArduPilot's WIND (168), PX4's WIND_COV (231).
+WIND_MESSAGE_IDS = (168, MAV.MAVLINK_MSG_ID_WIND_COV)
+
+
+def request_wind(link, rate_hz: float) -> None:
+    """Ask for the autopilot's wind estimate at ``rate_hz`` (one of the two messages is
+    refused by each autopilot; that refusal is harmless)."""
+    for message_id in WIND_MESSAGE_IDS:
+        link.mav.command_long_send(link.target_system, link.target_component,
+                                   MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id,
+                                   1e6 / rate_hz, 0, 0, 0, 0, 0)
+
+
+def wind_of(message, time_s: float) -> Wind | None:
+    """A WIND or WIND_COV message as the air's east-north velocity, None when it holds no
+    estimate (NaN)."""
+    if message.get_type() == 'WIND':
+        towards = math.radians(message.direction + 180.0)
+        east = message.speed * math.sin(towards)
+        north = message.speed * math.cos(towards)
+    else:
+        east, north = message.wind_y, message.wind_x
+    if not (math.isfinite(east) and math.isfinite(north)):
+        return None
+    return Wind(time_s, float(east), float(north))
+
+
 def global_position_enu(latitude_e7: ArrayLike, longitude_e7: ArrayLike,
                         relative_alt_mm: ArrayLike,
                         home: Home) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -108,13 +150,15 @@ class VehicleBridge:
 
     def __init__(self, url: str, home: Home, on_event: Callable[[Event], None], *,
                  settings: LinkSettings = LinkSettings(), rate_hz: float = TELEMETRY_RATE_HZ,
-                 connect_timeout_s: float = 30.0) -> None:
+                 connect_timeout_s: float = 30.0, stream: TargetStream | None = None) -> None:
         self.url = url
         self.home = home
         self._on_event = on_event
         self._settings = settings
         self._rate_hz = rate_hz
         self._connect_timeout_s = connect_timeout_s
+        #: The streamed trajectory, run on this thread at every position (None: no stream).
+        self.stream = stream
         self._lock = threading.Lock()
         self._waiting: _Upload | None = None
         self._stop = threading.Event()
@@ -168,6 +212,7 @@ class VehicleBridge:
 
     def _serve(self, link) -> None:
         request_telemetry(link, self._rate_hz)
+        request_wind(link, WIND_RATE_HZ)
         latest_time_s = 0.0
         while not self._stop.is_set():
             with self._lock:
@@ -176,19 +221,34 @@ class VehicleBridge:
                 self._upload(link, job)
                 request_telemetry(link, self._rate_hz)
                 continue
-            message = link.recv_match(type=['GLOBAL_POSITION_INT', 'MISSION_CURRENT'],
+            message = link.recv_match(type=['GLOBAL_POSITION_INT', 'MISSION_CURRENT',
+                                            'HEARTBEAT', 'WIND', 'WIND_COV'],
                                       blocking=True, timeout=0.05)
             if message is None:
                 continue
-            if message.get_type() == 'GLOBAL_POSITION_INT':
+            kind = message.get_type()
+            if kind in ('WIND', 'WIND_COV'):
+                wind = wind_of(message, latest_time_s)
+                if wind is not None:
+                    self._on_event(wind)
+                continue
+            if kind == 'HEARTBEAT':
+                if self.stream is not None and message.get_srcSystem() == link.target_system:
+                    self.stream.on_heartbeat(message)
+                continue
+            if kind == 'GLOBAL_POSITION_INT':
                 latest_time_s = message.time_boot_ms / 1000.0
                 if message.lat == 0 and message.lon == 0:
                     continue            # no position yet: autopilots send 0, 0 before a fix
                 east, north, up = global_position_enu(message.lat, message.lon,
                                                       message.relative_alt, self.home)
                 self._on_event(Position(latest_time_s, float(east), float(north), float(up)))
+                if self.stream is not None:
+                    self.stream.tick(link, latest_time_s)
             else:
                 self._on_event(MissionProgressReport(latest_time_s, int(message.seq)))
+        if self.stream is not None:
+            self.stream.close(link)
 
     def _upload(self, link, job: _Upload) -> None:
         try:
@@ -221,5 +281,5 @@ def set_current(link, seq: int) -> None:
                            f'{SET_CURRENT_TRIES} tries of {SET_CURRENT_TIMEOUT_S:g} s')
 
 
-__all__ = ['LinkEvent', 'MissionProgressReport', 'Position', 'VehicleBridge',
-           'global_position_enu', 'request_telemetry', 'set_current']
+__all__ = ['LinkEvent', 'MissionProgressReport', 'Position', 'VehicleBridge', 'Wind',
+           'global_position_enu', 'request_telemetry', 'request_wind', 'set_current', 'wind_of']

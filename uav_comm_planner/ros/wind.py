@@ -1,0 +1,98 @@
+"""The wind measured in flight, as the node uses it: published, planned for, replanned on.
+
+A :class:`WindTracker` takes the node (as tf2_ros's TransformListener does). It smooths the
+autopilot's wind estimates (:class:`~uav_comm_planner.mission.wind.WindEstimate`, time constant
+``wind_time_constant_s`` of autopilot time), publishes the smoothed wind on ``wind_estimate``
+(geometry_msgs/Vector3Stamped in ``frame_id``: x east, y north, z 0, m/s, the velocity of the
+air, i.e. the direction it blows *towards*), and gives every plan the measured wind in place of
+the ``wind_speed_mps`` / ``wind_from_deg`` parameters, which hold only until the autopilot
+reports one. When the estimate moves farther than ``wind_replan_mps`` from the wind of the plan
+in force, it asks the node for a replan (the rest of the mission in flight, the whole mission
+before its clock runs), at most once every ``replan_interval_s`` of autopilot time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+import math
+from typing import Protocol
+
+from geometry_msgs.msg import Vector3Stamped
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.mission.wind import WindEstimate
+from uav_comm_planner.ros.params import PlannerConfig
+
+TOPIC_WIND = 'wind_estimate'
+#: Reliable and kept for late subscribers: the latest estimate is what matters.
+WIND_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Why a wind replan is asked (the request's name on planner_status).
+REASON = 'wind estimate'
+
+
+class WindHost(Protocol):
+    """What :class:`WindTracker` asks of its node (the planner node provides it)."""
+
+    config: PlannerConfig
+    current_plan: object
+    flight: object
+
+    def get_logger(self): ...
+
+    def get_clock(self): ...
+
+    def create_publisher(self, *args, **kwargs): ...
+
+
+class WindTracker:
+    """The node's wind estimate (module docstring)."""
+
+    def __init__(self, node: WindHost) -> None:
+        self._node = node
+        self.estimate = WindEstimate(node.config.node.wind_time_constant_s)
+        self._publisher = node.create_publisher(Vector3Stamped, TOPIC_WIND, WIND_QOS)
+        self._last_replan_s = -math.inf
+        #: Replans the wind asked for.
+        self.replans = 0
+
+    def config(self, config: PlannerConfig) -> PlannerConfig:
+        """``config`` with the measured wind in its scenario (as it is before any
+        measurement, and when the scenario cannot take the wind measured: said on the log)."""
+        try:
+            return replace(config, scenario=self.estimate.for_scenario(config.scenario))
+        except InvalidScenarioError as exc:
+            self._node.get_logger().error(f'{REASON}: not planned for, the plan keeps '
+                                          f'wind_speed_mps and wind_from_deg: {exc}')
+            return config
+
+    def add(self, time_s: float, east_mps: float, north_mps: float) -> None:
+        """An estimate from the autopilot at ``time_s``: smooth, publish, replan if due."""
+        output = self._node.config.node
+        if self.estimate.time_constant_s != output.wind_time_constant_s:
+            self.estimate.time_constant_s = output.wind_time_constant_s
+        self.estimate.add(time_s, east_mps, north_mps)
+        velocity = self.estimate.velocity_mps
+        if velocity is None:
+            return
+        message = Vector3Stamped()
+        message.header.frame_id = output.frame_id
+        message.header.stamp = self._node.get_clock().now().to_msg()
+        message.vector.x, message.vector.y = float(velocity[0]), float(velocity[1])
+        self._publisher.publish(message)
+        plan = self._node.current_plan
+        if plan is None or time_s - self._last_replan_s < output.replan_interval_s:
+            return
+        if self.estimate.differs_from(plan.request.scenario, output.wind_replan_mps):
+            self._last_replan_s = time_s
+            self.replans += 1
+            self._node.get_logger().info(
+                f'{REASON}: {self.estimate.speed_mps:.1f} m/s from '
+                f'{self.estimate.from_deg:.0f} degrees, the plan in force was made for '
+                f'{plan.request.scenario.wind_speed_mps:g} m/s from '
+                f'{plan.request.scenario.wind_from_deg:g} degrees; replanning')
+            self._node.flight.request_update(REASON)
+
+
+__all__ = ['TOPIC_WIND', 'WIND_QOS', 'WindTracker']

@@ -1,0 +1,242 @@
+"""The streamed trajectory on the link: position, velocity and acceleration targets in GUIDED.
+
+A :class:`TargetStream` lives on the vehicle link's thread (the
+:class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge` calls :meth:`TargetStream.tick`
+with the autopilot time of every position it receives, and :meth:`TargetStream.on_heartbeat`
+with every heartbeat); the node's thread only hands it work (:meth:`TargetStream.start`,
+:meth:`TargetStream.stop`). It switches ArduCopter to GUIDED and sends, for autopilot time t,
+the reference's state at t - t0 (t0: the autopilot time the plan's clock started) as
+SET_POSITION_TARGET_GLOBAL_INT (latitude, longitude through the planning frame's home, the
+plan's altitude above home, velocity and acceleration north-east-down), one per position
+report, so at the telemetry rate in autopilot time whatever the simulator's speed-up.
+
+ArduCopter follows such targets with its position controller (the position target, the
+velocity and acceleration as feed-forward: ``ModeGuided::set_destination_posvelaccel``); when
+no target comes for GUID_TIMEOUT (3 s by default) it zeroes the velocity and acceleration and
+holds the last position. When the stream stops (the plan ends, the node asks, or a gap in the
+targets longer than :data:`STREAM_GAP_S` of autopilot time, as after a lost link) the vehicle
+is put back in AUTO at the mission item ahead of the reference (``fallback`` 'auto') or held
+in BRAKE ('hold'), once, with one :class:`StreamEvent`. A pilot who takes the vehicle out of
+GUIDED ends the stream, and the node leaves the vehicle alone.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+import threading
+import time
+from typing import Callable
+
+import numpy as np
+from pymavlink import mavutil
+
+from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, Home
+from uav_comm_planner.vehicle.stream import StreamReference
+
+MAV = mavutil.mavlink
+#: ArduCopter's flight modes (HEARTBEAT custom_mode).
+COPTER_MODES = {'AUTO': 3, 'GUIDED': 4, 'BRAKE': 17}
+#: What the vehicle does when the stream stops.
+STREAM_FALLBACKS = ('auto', 'hold')
+#: Targets further apart than this in autopilot time are a broken stream (ArduCopter's
+#: GUID_TIMEOUT default: it holds position then).
+STREAM_GAP_S = 3.0
+#: The stream ends this long after qF (autopilot seconds): the vehicle settles at qF first.
+SETTLE_S = 2.0
+#: A mode change is asked again after this long without the heartbeat showing it (autopilot s).
+MODE_RETRY_S = 0.5
+#: A fallback's mode is asked at most this many times more.
+MODE_TRIES = 10
+#: How long a fallback waits for the heartbeat to show its mode when the link is closing
+#: (wall clock).
+CLOSING_WAIT_S = 2.0
+#: SET_POSITION_TARGET type_mask: position, velocity and acceleration used; force, yaw and yaw
+#: rate ignored.
+POS_VEL_ACCEL_MASK = (MAV.POSITION_TARGET_TYPEMASK_FORCE_SET
+                      | MAV.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+                      | MAV.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
+
+
+@dataclass(frozen=True)
+class StreamEvent:
+    """What the stream did: ``kind`` 'started', 'stopped' (with the fallback applied) or
+    'error'; ``message`` one line for the log."""
+
+    kind: str
+    message: str
+
+
+@dataclass(frozen=True)
+class StreamJob:
+    """A reference to stream from autopilot time ``t0_s`` at ``altitude_m`` above home;
+    ``resume_item(elapsed_s)`` gives the mission item AUTO goes on from (ArduPilot numbering,
+    home is 0)."""
+
+    reference: StreamReference
+    t0_s: float
+    altitude_m: float
+    fallback: str
+    resume_item: Callable[[float], int]
+
+
+class TargetStream:
+    """Streams a :class:`StreamJob` on the link's thread (module docstring); ``on_event``
+    receives every :class:`StreamEvent` (quick and thread-safe)."""
+
+    def __init__(self, home: Home, on_event: Callable[[StreamEvent], None]) -> None:
+        self.home = home
+        self._on_event = on_event
+        self._lock = threading.Lock()
+        self._job: StreamJob | None = None
+        self._stop_reason: str | None = None
+        self._mode: int | None = None
+        self._guided_seen = False
+        self._mode_asked_s = -float('inf')
+        self._last_sent_s: float | None = None
+        self._pending_mode: str | None = None
+        self._pending_tries = 0
+        #: Targets sent since the stream started (for tests and diagnostics).
+        self.targets_sent = 0
+        #: Every event given to ``on_event``, in order.
+        self.events: list[StreamEvent] = []
+
+    @property
+    def active(self) -> bool:
+        with self._lock:
+            return self._job is not None
+
+    def start(self, job: StreamJob) -> None:
+        """Stream ``job`` from now on (replacing the reference streamed, if any)."""
+        with self._lock:
+            first = self._job is None
+            self._job = job
+            self._stop_reason = None
+            if first:
+                self._guided_seen = False
+                self._last_sent_s = None
+                self._mode_asked_s = -float('inf')
+
+    def stop(self, reason: str, *, resume_seq: int | None = None) -> None:
+        """End the stream at the next tick with the job's fallback, saying ``reason``; with
+        ``resume_seq``, in AUTO from that mission item whatever the fallback (a replan in
+        flight, uploaded to be flown from its q0 item)."""
+        with self._lock:
+            if self._job is not None:
+                self._stop_reason = reason
+                if resume_seq is not None:
+                    self._job = replace(self._job, fallback='auto',
+                                        resume_item=lambda elapsed_s: resume_seq)
+
+    def on_heartbeat(self, message) -> None:
+        """The vehicle's HEARTBEAT: its flight mode."""
+        if message.base_mode & MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            self._mode = int(message.custom_mode)
+
+    def tick(self, link, time_s: float) -> None:
+        """Link thread, at every position report (autopilot time ``time_s``): one target, a
+        mode change, or the fallback."""
+        with self._lock:
+            job, reason = self._job, self._stop_reason
+        if job is None:
+            self._confirm_fallback(link, time_s)
+            return
+        elapsed = time_s - job.t0_s
+        if reason is None and elapsed > job.reference.duration_s + SETTLE_S:
+            reason = 'the plan reached qF'
+        if reason is None and self._last_sent_s is not None \
+                and time_s - self._last_sent_s > STREAM_GAP_S:
+            reason = (f'no target reached the vehicle for {time_s - self._last_sent_s:.1f} s '
+                      f'(the link was down)')
+        if reason is None and self._guided_seen and self._mode != COPTER_MODES['GUIDED']:
+            self._end(f'stream stopped: the vehicle left GUIDED (mode {self._mode}); it is '
+                      f'left as it is')
+            return
+        if reason is not None:
+            self._fall_back(link, job, elapsed, reason)
+            return
+        if self._mode == COPTER_MODES['GUIDED']:
+            if not self._guided_seen:
+                self._guided_seen = True
+                self._emit(StreamEvent('started', f'streaming the plan in GUIDED from '
+                                                  f'{elapsed:.1f} s after q0'))
+        elif time_s - self._mode_asked_s >= MODE_RETRY_S:
+            set_mode(link, 'GUIDED')
+            self._mode_asked_s = time_s
+        self._send(link, job, elapsed)
+        self._last_sent_s = time_s
+
+    def _confirm_fallback(self, link, time_s: float) -> None:
+        """Ask the fallback's mode again until the heartbeat shows it (a few times)."""
+        if self._pending_mode is None:
+            return
+        if self._mode == COPTER_MODES[self._pending_mode] or self._pending_tries >= MODE_TRIES:
+            self._pending_mode = None
+            return
+        if time_s - self._mode_asked_s >= MODE_RETRY_S:
+            set_mode(link, self._pending_mode)
+            self._mode_asked_s = time_s
+            self._pending_tries += 1
+
+    def close(self, link) -> None:
+        """Link thread, before the link closes: a stream still running falls back now, and the
+        heartbeat is awaited (at most CLOSING_WAIT_S) so that the mode is set before the link
+        goes."""
+        with self._lock:
+            job, reason = self._job, self._stop_reason
+        if job is None:
+            return
+        mode = self._fall_back(link, job, None, reason or 'the vehicle link is closing')
+        deadline = time.monotonic() + CLOSING_WAIT_S
+        while self._mode != mode and (left := deadline - time.monotonic()) > 0:
+            message = link.recv_match(type='HEARTBEAT', blocking=True, timeout=left)
+            if message is not None and message.get_srcSystem() == link.target_system:
+                self.on_heartbeat(message)
+
+    def _send(self, link, job: StreamJob, elapsed_s: float) -> None:
+        position, velocity, accel = (value[0] for value in job.reference.state(elapsed_s))
+        latitude, longitude, _ = enu_to_geodetic(np.array([position[0]]),
+                                                 np.array([position[1]]), 0.0, self.home)
+        # East-north to north-east-down.
+        link.mav.set_position_target_global_int_send(
+            0, link.target_system, link.target_component,
+            MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, POS_VEL_ACCEL_MASK,
+            int(round(float(latitude[0]) * 1e7)), int(round(float(longitude[0]) * 1e7)),
+            float(job.altitude_m), float(velocity[1]), float(velocity[0]), 0.0,
+            float(accel[1]), float(accel[0]), 0.0, 0.0, 0.0)
+        self.targets_sent += 1
+
+    def _fall_back(self, link, job: StreamJob, elapsed_s: float | None, reason: str) -> int:
+        """Put the vehicle in AUTO at the item ahead, or in BRAKE; returns the mode asked."""
+        if job.fallback == 'auto':
+            seq = job.resume_item(elapsed_s if elapsed_s is not None
+                                  else job.reference.duration_s)
+            link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
+            name, what = 'AUTO', f'back in AUTO from mission item {seq}'
+        else:
+            name, what = 'BRAKE', 'held in BRAKE'
+        set_mode(link, name)
+        self._pending_mode, self._pending_tries = name, 0
+        self._mode_asked_s = -float('inf') if elapsed_s is None else job.t0_s + elapsed_s
+        self._end(f'stream stopped ({reason}): the vehicle is {what}')
+        return COPTER_MODES[name]
+
+    def _end(self, message: str) -> None:
+        with self._lock:
+            self._job = None
+            self._stop_reason = None
+        self._guided_seen = False
+        self._emit(StreamEvent('stopped', message))
+
+    def _emit(self, event: StreamEvent) -> None:
+        self.events.append(event)
+        self._on_event(event)
+
+
+def set_mode(link, mode: str) -> None:
+    """Ask ArduCopter for flight mode ``mode`` (a name of :data:`COPTER_MODES`)."""
+    link.mav.set_mode_send(link.target_system, MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                           COPTER_MODES[mode])
+
+
+__all__ = ['COPTER_MODES', 'STREAM_FALLBACKS', 'STREAM_GAP_S', 'StreamEvent', 'StreamJob',
+           'TargetStream', 'set_mode']
