@@ -87,8 +87,8 @@ class NodeSettings:
     vehicle_params_file: str = ''
     flight_mode: str = 'mission'
     stream_fallback: str = 'auto'
-    wind_time_constant_s: float = 10.0
-    wind_replan_mps: float = 1.0
+    wind_time_constant_s: float = 20.0
+    wind_replan_mps: float = 1.5
 
     def __post_init__(self) -> None:
         if not isinstance(self.vehicle_aware, bool):

@@ -7,8 +7,10 @@ autopilot's wind estimates (:class:`~uav_comm_planner.mission.wind.WindEstimate`
 air, i.e. the direction it blows *towards*), and gives every plan the measured wind in place of
 the ``wind_speed_mps`` / ``wind_from_deg`` parameters, which hold only until the autopilot
 reports one. When the estimate moves farther than ``wind_replan_mps`` from the wind of the plan
-in force, it asks the node for a replan (the rest of the mission in flight, the whole mission
-before its clock runs), at most once every ``replan_interval_s`` of autopilot time.
+in force, it asks the node for a replan of the rest of the mission in flight; before the
+mission's clock runs (nothing flies the plan yet, a replan costs nothing) already when it moves
+farther than :data:`PREFLIGHT_RESOLUTION_MPS`, so that the plan the mission starts with is made
+for the wind as measured; at most once every ``replan_interval_s`` of autopilot time.
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ WIND_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Why a wind replan is asked (the request's name on planner_status).
 REASON = 'wind estimate'
+#: Before the mission clock runs, the plan follows the estimate to within this (m/s).
+PREFLIGHT_RESOLUTION_MPS = 0.5
 
 
 class WindHost(Protocol):
@@ -38,6 +42,7 @@ class WindHost(Protocol):
     config: PlannerConfig
     current_plan: object
     flight: object
+    progress: object
 
     def get_logger(self): ...
 
@@ -61,7 +66,12 @@ class WindTracker:
         """``config`` with the measured wind in its scenario (as it is before any
         measurement, and when the scenario cannot take the wind measured: said on the log)."""
         try:
-            return replace(config, scenario=self.estimate.for_scenario(config.scenario))
+            scenario = self.estimate.for_scenario(config.scenario)
+            if self.estimate.known and config.node.vehicle_aware:
+                # A plan for the vehicle in wind keeps the vehicle's airspeed.
+                scenario = scenario.replace(max_airspeed_mps=config.vehicle.airspeed_for_wind_mps(
+                    scenario.wind_speed_mps))
+            return replace(config, scenario=scenario)
         except InvalidScenarioError as exc:
             self._node.get_logger().error(f'{REASON}: not planned for, the plan keeps '
                                           f'wind_speed_mps and wind_from_deg: {exc}')
@@ -84,7 +94,9 @@ class WindTracker:
         plan = self._node.current_plan
         if plan is None or time_s - self._last_replan_s < output.replan_interval_s:
             return
-        if self.estimate.differs_from(plan.request.scenario, output.wind_replan_mps):
+        threshold = (output.wind_replan_mps if self._node.progress.started
+                     else min(output.wind_replan_mps, PREFLIGHT_RESOLUTION_MPS))
+        if self.estimate.differs_from(plan.request.scenario, threshold):
             self._last_replan_s = time_s
             self.replans += 1
             self._node.get_logger().info(
@@ -95,4 +107,4 @@ class WindTracker:
             self._node.flight.request_update(REASON)
 
 
-__all__ = ['TOPIC_WIND', 'WIND_QOS', 'WindTracker']
+__all__ = ['PREFLIGHT_RESOLUTION_MPS', 'TOPIC_WIND', 'WIND_QOS', 'WindTracker']

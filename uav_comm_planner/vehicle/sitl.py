@@ -118,17 +118,19 @@ START_ATTEMPTS = 3
 
 
 def start_sitl(folder: Path, home: Home, *, speedup: int = SPEEDUP,
-               binary: str | os.PathLike | None = None, timeout_s: float = 60.0) -> Sitl:
-    """Start ArduCopter in ``folder`` (wiped parameters, ArduPilot's copter defaults) and
-    return once its MAVLink port listens; a start that fails (a port taken meanwhile) is
-    tried again on another instance."""
+               binary: str | os.PathLike | None = None, timeout_s: float = 60.0,
+               instances: tuple[int, int] = (10, 59)) -> Sitl:
+    """Start ArduCopter in ``folder`` (wiped parameters, ArduPilot's copter defaults) on an
+    instance number within ``instances`` (first, last) and return once its MAVLink port
+    listens; a start that fails (a port taken meanwhile) is tried again on another
+    instance."""
     binary = sitl_binary(binary)
     if binary is None:
         raise VehicleLinkError(why_not_runnable())
     defaults = binary.parent / 'copter.parm'
     log_path = folder / 'sitl.log'
     for attempt in range(START_ATTEMPTS):
-        instance = free_instance()
+        instance = free_instance(*instances)
         command = [str(binary), '--model', '+', '--speedup', str(speedup), '-w',
                    f'-I{instance}',
                    '--home', f'{home.latitude_deg},{home.longitude_deg},{home.altitude_m},0']

@@ -17,7 +17,8 @@ holds the last position. When the stream stops (the plan ends, the node asks, or
 targets longer than :data:`STREAM_GAP_S` of autopilot time, as after a lost link) the vehicle
 is put back in AUTO at the mission item ahead of the reference (``fallback`` 'auto') or held
 in BRAKE ('hold'), once, with one :class:`StreamEvent`. A pilot who takes the vehicle out of
-GUIDED ends the stream, and the node leaves the vehicle alone.
+GUIDED ends the stream, and the node leaves the vehicle alone. Only ArduCopter is streamed to:
+a PX4 vehicle (OFFBOARD, not built) is refused once and flies the uploaded mission.
 """
 
 from __future__ import annotations
@@ -50,11 +51,12 @@ MODE_TRIES = 10
 #: How long a fallback waits for the heartbeat to show its mode when the link is closing
 #: (wall clock).
 CLOSING_WAIT_S = 2.0
-#: SET_POSITION_TARGET type_mask: position, velocity and acceleration used; force, yaw and yaw
-#: rate ignored.
-POS_VEL_ACCEL_MASK = (MAV.POSITION_TARGET_TYPEMASK_FORCE_SET
-                      | MAV.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+#: SET_POSITION_TARGET type_mask: position, velocity and acceleration used (the force bit clear:
+#: the last three are an acceleration), yaw and yaw rate ignored.
+POS_VEL_ACCEL_MASK = (MAV.POSITION_TARGET_TYPEMASK_YAW_IGNORE
                       | MAV.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
+#: Heartbeats in this long after a stream starts may show a mode asked before (autopilot s).
+MODE_SETTLE_S = 1.5
 
 
 @dataclass(frozen=True)
@@ -95,6 +97,7 @@ class TargetStream:
         self._last_sent_s: float | None = None
         self._pending_mode: str | None = None
         self._pending_tries = 0
+        self._started_s: float | None = None
         #: Targets sent since the stream started (for tests and diagnostics).
         self.targets_sent = 0
         #: Every event given to ``on_event``, in order.
@@ -115,6 +118,8 @@ class TargetStream:
                 self._guided_seen = False
                 self._last_sent_s = None
                 self._mode_asked_s = -float('inf')
+                self._pending_mode = None
+                self._started_s: float | None = None
 
     def stop(self, reason: str, *, resume_seq: int | None = None) -> None:
         """End the stream at the next tick with the job's fallback, saying ``reason``; with
@@ -140,6 +145,10 @@ class TargetStream:
         if job is None:
             self._confirm_fallback(link, time_s)
             return
+        if getattr(link, 'vehicle_autopilot', None) == MAV.MAV_AUTOPILOT_PX4:
+            self._end('stream refused: streaming to PX4 (OFFBOARD) is not built; the vehicle '
+                      'flies the uploaded mission', kind='error')
+            return
         elapsed = time_s - job.t0_s
         if reason is None and elapsed > job.reference.duration_s + SETTLE_S:
             reason = 'the plan reached qF'
@@ -154,12 +163,15 @@ class TargetStream:
         if reason is not None:
             self._fall_back(link, job, elapsed, reason)
             return
-        if self._mode == COPTER_MODES['GUIDED']:
+        if self._started_s is None:
+            self._started_s = time_s
+        settled = time_s - self._started_s >= MODE_SETTLE_S
+        if self._mode == COPTER_MODES['GUIDED'] and settled:
             if not self._guided_seen:
                 self._guided_seen = True
                 self._emit(StreamEvent('started', f'streaming the plan in GUIDED from '
                                                   f'{elapsed:.1f} s after q0'))
-        elif time_s - self._mode_asked_s >= MODE_RETRY_S:
+        elif self._mode != COPTER_MODES['GUIDED'] and time_s - self._mode_asked_s >= MODE_RETRY_S:
             set_mode(link, 'GUIDED')
             self._mode_asked_s = time_s
         self._send(link, job, elapsed)
@@ -220,12 +232,12 @@ class TargetStream:
         self._end(f'stream stopped ({reason}): the vehicle is {what}')
         return COPTER_MODES[name]
 
-    def _end(self, message: str) -> None:
+    def _end(self, message: str, *, kind: str = 'stopped') -> None:
         with self._lock:
             self._job = None
             self._stop_reason = None
         self._guided_seen = False
-        self._emit(StreamEvent('stopped', message))
+        self._emit(StreamEvent(kind, message))
 
     def _emit(self, event: StreamEvent) -> None:
         self.events.append(event)

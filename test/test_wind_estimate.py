@@ -1,0 +1,158 @@
+"""The wind measured in flight: WIND and WIND_COV decoded into the air's velocity, the
+exponential smoothing against its closed form, the scenario's terms, and the target stream's
+messages and fallbacks against a recording link (no vehicle needed)."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+from pymavlink import mavutil
+import pytest
+
+from uav_comm_planner import paper_scenario
+from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.mission.wind import WindEstimate
+from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
+from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.mavlink.guided import (COPTER_MODES, STREAM_GAP_S, StreamJob,
+                                                     TargetStream)
+from uav_comm_planner.vehicle.mavlink.telemetry import wind_of
+from uav_comm_planner.vehicle.stream import stream_reference
+
+MAV = mavutil.mavlink
+HOME = Home(-35.363262, 149.165237, 584.0)
+
+
+def message(kind: str, **fields):
+    return SimpleNamespace(get_type=lambda: kind, **fields)
+
+
+def test_ardupilots_wind_comes_from_its_direction_and_px4s_is_the_airs_velocity():
+    # SIM_WIND_DIR 90 (from the east) was reported as direction 90 by ArduCopter SITL.
+    wind = wind_of(message('WIND', direction=90.0, speed=6.0, speed_z=0.0), 12.5)
+    assert (wind.time_s, wind.east_mps, wind.north_mps) == pytest.approx((12.5, -6.0, 0.0))
+    wind = wind_of(message('WIND', direction=-180.0, speed=2.0, speed_z=0.0), 0.0)
+    assert (wind.east_mps, wind.north_mps) == pytest.approx((0.0, 2.0))   # from the south
+    wind = wind_of(message('WIND_COV', wind_x=3.0, wind_y=-4.0), 1.0)       # north, east
+    assert (wind.east_mps, wind.north_mps) == pytest.approx((-4.0, 3.0))
+    assert wind_of(message('WIND_COV', wind_x=math.nan, wind_y=0.0), 1.0) is None
+
+
+def test_the_smoothing_is_the_exponential_filter_and_gives_the_scenarios_terms():
+    estimate = WindEstimate(time_constant_s=10.0)
+    assert not estimate.known and estimate.speed_mps == 0.0
+    estimate.add(0.0, 0.0, 0.0)
+    steps = np.arange(1, 301) * 0.5                 # 2 Hz for 150 s of a steady east wind
+    for t in steps:
+        estimate.add(t, -6.0, 0.0)
+    # The same first-order filter in closed form at 2 Hz: w(t) = -6 (1 - exp(-t / tau)).
+    assert estimate.velocity_mps[0] == pytest.approx(-6.0 * (1 - math.exp(-150.0 / 10.0)),
+                                                     rel=1e-9)
+    assert estimate.from_deg == pytest.approx(90.0)
+    scenario = paper_scenario('I', max_speed_mps=10.0, horizon_s=600.0, num_slots=100)
+    windy = estimate.for_scenario(scenario)
+    assert windy.wind_speed_mps == pytest.approx(6.0, abs=1e-3)
+    np.testing.assert_allclose(windy.wind_mps, estimate.velocity_mps, atol=1e-2)
+    assert estimate.differs_from(scenario, 1.0) and not estimate.differs_from(windy, 0.1)
+    with pytest.raises(InvalidScenarioError, match='time constant'):
+        WindEstimate(0.0)
+
+
+class RecordingLink:
+    """What a TargetStream sends, recorded: targets, mode changes, current items."""
+
+    target_system = 1
+    target_component = 1
+
+    def __init__(self) -> None:
+        self.targets, self.modes, self.currents = [], [], []
+        self.mav = SimpleNamespace(
+            set_position_target_global_int_send=lambda *a: self.targets.append(a),
+            set_mode_send=lambda system, flags, mode: self.modes.append(mode),
+            mission_set_current_send=lambda system, component, seq: self.currents.append(seq))
+
+
+def heartbeat(mode: str):
+    return SimpleNamespace(base_mode=MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                           custom_mode=COPTER_MODES[mode])
+
+
+@pytest.fixture(scope='module')
+def reference():
+    scenario = paper_scenario('I', ground_nodes_m=((200.0, 150.0), (500.0, -100.0)),
+                              goal_m=(700.0, 0.0), max_speed_mps=10.0, horizon_s=120.0,
+                              num_slots=30)
+    vehicle = plan_for_vehicle(scenario, VehicleLimits())
+    return stream_reference(vehicle.flown, vehicle.limits)
+
+
+def test_targets_are_the_reference_at_the_autopilot_time_and_the_plan_end_falls_back(
+        reference):
+    events = []
+    stream = TargetStream(HOME, events.append)
+    link = RecordingLink()
+    t0 = 100.0
+    stream.start(StreamJob(reference, t0, 100.0, 'auto', lambda elapsed_s: 7))
+    stream.tick(link, t0)
+    assert link.modes == [COPTER_MODES['GUIDED']]
+    stream.on_heartbeat(heartbeat('GUIDED'))
+    stream.tick(link, t0 + 0.01)
+    assert link.modes == [COPTER_MODES['GUIDED']]          # not asked again once it holds
+    for t in t0 + np.arange(1, int((reference.duration_s + 1.0) / 0.05)) * 0.05:
+        stream.tick(link, float(t))
+    assert [event.kind for event in events] == ['started']
+    # Target k is the reference at its autopilot time, north-east-down.
+    target = link.targets[101]          # (after the ticks at t0 and t0 + 0.01)
+    elapsed = 100 * 0.05
+    position, velocity, accel = (v[0] for v in reference.state(elapsed))
+    east, north, _ = geodetic_to_enu(np.array([target[5] / 1e7]), np.array([target[6] / 1e7]),
+                                     HOME.altitude_m, HOME)
+    assert (float(east[0]), float(north[0])) == pytest.approx(tuple(position), abs=0.02)
+    assert target[7] == 100.0
+    assert target[8:10] == pytest.approx((velocity[1], velocity[0]))
+    assert target[11:13] == pytest.approx((accel[1], accel[0]))
+    # At the plan's end (and a settling time) the vehicle goes on in AUTO, once.
+    for t in t0 + reference.duration_s + 1.0 + np.arange(0, 6, 0.05):
+        stream.tick(link, float(t))
+    assert [event.kind for event in events] == ['started', 'stopped']
+    assert 'reached qF' in events[-1].message and 'item 7' in events[-1].message
+    assert link.currents == [7] and link.modes[-1] == COPTER_MODES['AUTO']
+    assert not stream.active
+
+
+def test_a_gap_in_the_targets_holds_and_a_pilot_taking_over_ends_the_stream(reference):
+    events = []
+    stream = TargetStream(HOME, events.append)
+    link = RecordingLink()
+    stream.start(StreamJob(reference, 0.0, 100.0, 'hold', lambda elapsed_s: 3))
+    stream.on_heartbeat(heartbeat('GUIDED'))
+    stream.tick(link, 1.0)
+    stream.tick(link, 1.0 + STREAM_GAP_S + 0.5)          # the link was down meanwhile
+    assert 'link was down' in events[-1].message and 'BRAKE' in events[-1].message
+    assert link.modes[-1] == COPTER_MODES['BRAKE'] and link.currents == []
+
+    events.clear()
+    stream.start(StreamJob(reference, 10.0, 100.0, 'auto', lambda elapsed_s: 3))
+    stream.on_heartbeat(heartbeat('GUIDED'))
+    stream.tick(link, 10.0)
+    stream.tick(link, 12.0)
+    assert events[-1].kind == 'started'
+    modes = len(link.modes)
+    stream.on_heartbeat(heartbeat('AUTO'))                # someone else switched it
+    stream.tick(link, 12.1)
+    assert 'left GUIDED' in events[-1].message and len(link.modes) == modes
+    assert not stream.active
+
+
+def test_a_px4_vehicle_is_not_streamed_to_and_keeps_its_mission(reference):
+    events = []
+    stream = TargetStream(HOME, events.append)
+    link = RecordingLink()
+    link.vehicle_autopilot = MAV.MAV_AUTOPILOT_PX4
+    stream.start(StreamJob(reference, 0.0, 100.0, 'auto', lambda elapsed_s: 3))
+    stream.tick(link, 0.0)
+    assert [event.kind for event in events] == ['error'] and 'PX4' in events[0].message
+    assert link.targets == link.modes == link.currents == [] and not stream.active
