@@ -26,6 +26,7 @@ from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.evaluation import evaluate_flight, FlightReport
 from uav_comm_planner.vehicle.flyable import VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
+from uav_comm_planner.vehicle.mavlink.guided import set_mode
 from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT, Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.link import connect, upload_and_verify
 from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu, request_telemetry
@@ -36,7 +37,6 @@ SPEEDUP = 20
 BASE_PORT = 5760
 #: Commands ArduCopter refuses while its EKF and GPS settle are retried for this long.
 READY_TIMEOUT_S = 180.0
-COPTER_MODES = {'GUIDED': 4, 'AUTO': 3}
 
 
 def sitl_binary(path: str | os.PathLike | None = None) -> Path | None:
@@ -179,11 +179,6 @@ def _command(link, command: int, *params: float, timeout_s: float = 3.0) -> int:
         if ack is not None and ack.command == command:
             return ack.result
     return -1
-
-
-def set_mode(link, mode: str) -> None:
-    link.mav.set_mode_send(link.target_system, MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
-                           COPTER_MODES[mode])
 
 
 def take_off(link, altitude_m: float) -> None:
