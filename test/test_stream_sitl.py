@@ -13,13 +13,14 @@ from __future__ import annotations
 import threading
 import time
 
+from geometry_msgs.msg import Vector3Stamped
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
 from uav_comm_planner.ros.node import PlannerNode
-from uav_comm_planner.ros.wind import PREFLIGHT_RESOLUTION_MPS
+from uav_comm_planner.ros.wind import PREFLIGHT_RESOLUTION_MPS, TOPIC_WIND, WIND_QOS
 from uav_comm_planner.vehicle.evaluation import evaluate_flight
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.mavlink.guided import COPTER_MODES
@@ -63,7 +64,8 @@ class Flight:
                   'home_altitude_m': HOME.altitude_m, 'mavlink_url': url, **parameters}
         self.node = PlannerNode(context=ros_context, parameter_overrides=[
             Parameter(name, value=value) for name, value in values.items()])
-        self.logs: list[str] = []
+        self.winds: list[Vector3Stamped] = []
+        self.node.create_subscription(Vector3Stamped, TOPIC_WIND, self.winds.append, WIND_QOS)
         self.executor = SingleThreadedExecutor(context=ros_context)
         self.executor.add_node(self.node)
         self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
@@ -156,7 +158,11 @@ def test_the_streamed_plan_keeps_its_time_in_a_wind_the_planner_was_not_told(
               f'planned for {scenario.wind_speed_mps:g} m/s from {scenario.wind_from_deg:g} '
               f'(SIM_WIND 6 m/s from 90, turbulence 2)')
         assert scenario.wind_speed_mps > 4.0
-        reference = node.vehicle._prepared[1]
+        # Published as the air's velocity: a wind from the east moves the air west (x < 0).
+        last = flight.winds[-1].vector
+        print(f'wind_estimate: x {last.x:.2f}, y {last.y:.2f} m/s ({len(flight.winds)} messages)')
+        assert last.x < -4.0 and abs(last.y) < 1.5 and last.z == 0.0
+        reference = node.vehicle.stream_reference
         times, positions = flight.track()
         report = evaluate_flight(result, reference.track(), times, positions, segment.start_s)
         energy = float(np.asarray(result.power).sum())

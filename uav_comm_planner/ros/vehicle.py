@@ -127,6 +127,11 @@ class VehicleAdapter:
         self._bridge.upload(plan.items, current_seq=Q0_SEQ if in_flight else None,
                             tag=outcome.request.start_ns)
 
+    @property
+    def stream_reference(self) -> StreamReference | None:
+        """The reference made for the latest plan in stream mode (None: none)."""
+        return None if self._prepared is None else self._prepared[1]
+
     def fly(self, outcome: PlanOutcome, limits: VehicleLimits) -> None:
         """A new plan in force: upload it; with ``flight_mode`` stream, make its reference too.
         A stream running stops: the new plan starts from its own q0, which the vehicle flies to

@@ -91,6 +91,7 @@ class TargetStream:
         self._lock = threading.Lock()
         self._job: StreamJob | None = None
         self._stop_reason: str | None = None
+        self._fresh = False
         self._mode: int | None = None
         self._guided_seen = False
         self._mode_asked_s = -float('inf')
@@ -111,15 +112,9 @@ class TargetStream:
     def start(self, job: StreamJob) -> None:
         """Stream ``job`` from now on (replacing the reference streamed, if any)."""
         with self._lock:
-            first = self._job is None
+            self._fresh = self._fresh or self._job is None
             self._job = job
             self._stop_reason = None
-            if first:
-                self._guided_seen = False
-                self._last_sent_s = None
-                self._mode_asked_s = -float('inf')
-                self._pending_mode = None
-                self._started_s: float | None = None
 
     def stop(self, reason: str, *, resume_seq: int | None = None) -> None:
         """End the stream at the next tick with the job's fallback, saying ``reason``; with
@@ -141,7 +136,14 @@ class TargetStream:
         """Link thread, at every position report (autopilot time ``time_s``): one target, a
         mode change, or the fallback."""
         with self._lock:
-            job, reason = self._job, self._stop_reason
+            job, reason, fresh = self._job, self._stop_reason, self._fresh
+            self._fresh = False
+        if fresh:
+            # A new stream: what the link thread knew of the last one goes.
+            self._guided_seen = False
+            self._last_sent_s = self._started_s = None
+            self._mode_asked_s = -float('inf')
+            self._pending_mode = None
         if job is None:
             self._confirm_fallback(link, time_s)
             return
