@@ -156,3 +156,31 @@ def test_a_px4_vehicle_is_not_streamed_to_and_keeps_its_mission(reference):
     stream.tick(link, 0.0)
     assert [event.kind for event in events] == ['error'] and 'PX4' in events[0].message
     assert link.targets == link.modes == link.currents == [] and not stream.active
+
+
+def test_the_node_plans_for_the_wind_measured_publishes_it_and_keeps_its_parameter_else(
+        harness):
+    from geometry_msgs.msg import Vector3Stamped
+
+    from uav_comm_planner.ros.wind import TOPIC_WIND, WIND_QOS
+    h = harness()
+    winds = []
+    h.probe.create_subscription(Vector3Stamped, TOPIC_WIND, winds.append, WIND_QOS)
+    h.published(1)
+    assert h.node.current_plan.request.scenario.wind_speed_mps == 0.0   # the parameter's
+    tracker = h.node.vehicle.wind
+    tracker.add(0.0, -6.0, 0.0)                         # 6 m/s from the east
+    tracker.add(0.5, -6.0, 0.0)                         # the same: no second replan
+    h.published(2)
+    assert tracker.replans == 1
+    scenario = h.node.current_plan.request.scenario
+    assert (scenario.wind_speed_mps, scenario.wind_from_deg) == pytest.approx((6.0, 90.0),
+                                                                              abs=0.01)
+    assert h.node.current_plan.request.reason == 'wind estimate'
+    h.spin_until(lambda: winds and winds[-1].vector.x < -5.9, 'wind_estimate')
+    assert winds[-1].header.frame_id == 'map' and abs(winds[-1].vector.y) < 1e-9
+    # A wind the vehicle cannot fly in is said, and the plan keeps the parameter's wind.
+    tracker.add(1000.0, -150.0, 0.0)                    # (smoothed over 1000 s: all of it)
+    h.published(3)
+    assert h.node.current_plan.request.scenario.wind_speed_mps == 0.0
+    assert any('wind estimate: not planned for' in line for line in h.error_logs)
