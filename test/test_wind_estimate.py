@@ -36,6 +36,8 @@ def test_ardupilots_wind_comes_from_its_direction_and_px4s_is_the_airs_velocity(
     assert (wind.time_s, wind.east_mps, wind.north_mps) == pytest.approx((12.5, -6.0, 0.0))
     wind = wind_of(message('WIND', direction=-180.0, speed=2.0, speed_z=0.0), 0.0)
     assert (wind.east_mps, wind.north_mps) == pytest.approx((0.0, 2.0))   # from the south
+    # What ArduCopter sends without its drag model: no estimate (the parameter's wind holds).
+    assert wind_of(message('WIND', direction=-180.0, speed=0.0, speed_z=0.0), 3.0) is None
     wind = wind_of(message('WIND_COV', wind_x=3.0, wind_y=-4.0), 1.0)       # north, east
     assert (wind.east_mps, wind.north_mps) == pytest.approx((-4.0, 3.0))
     assert wind_of(message('WIND_COV', wind_x=math.nan, wind_y=0.0), 1.0) is None

@@ -120,15 +120,16 @@ def request_wind(link, rate_hz: float) -> None:
 
 
 def wind_of(message, time_s: float) -> Wind | None:
-    """A WIND or WIND_COV message as the air's east-north velocity, None when it holds no
-    estimate (NaN)."""
+    """A WIND or WIND_COV message as the air's east-north velocity; None when it holds no
+    estimate: NaN, or exactly 0 m/s, which is what an autopilot that does not estimate the wind
+    sends (ArduCopter without its drag model: speed 0, direction -180)."""
     if message.get_type() == 'WIND':
         towards = math.radians(message.direction + 180.0)
         east = message.speed * math.sin(towards)
         north = message.speed * math.cos(towards)
     else:
         east, north = message.wind_y, message.wind_x
-    if not (math.isfinite(east) and math.isfinite(north)):
+    if not (math.isfinite(east) and math.isfinite(north)) or east == north == 0.0:
         return None
     return Wind(time_s, float(east), float(north))
 
