@@ -16,6 +16,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
+from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import (ComputeBudgetError, InfeasibleHorizonError,
                                      InvalidScenarioError)
 
@@ -132,6 +133,10 @@ class Scenario:
     slot's ground velocity v must then also keep ||v - w|| <= V_air, the airspeed
     ``max_airspeed_mps`` (None: V). Without wind and with V_air >= V that adds nothing: the
     letter's problem exactly.
+
+    ``zones`` (:class:`~uav_comm_planner.core.zones.Zones`, None: none) are where the UAV may
+    fly: every slot point and every leg, q0 and qF included, keeps ``zones.margin_m`` inside
+    the operating area and out of every keep-out zone.
     """
 
     ground_nodes_m: tuple[Point, ...]
@@ -148,6 +153,7 @@ class Scenario:
     wind_speed_mps: float = 0.0
     wind_from_deg: float = 0.0
     max_airspeed_mps: float | None = None
+    zones: Zones | None = None
 
     def __post_init__(self) -> None:
         nodes = self.ground_nodes_m
@@ -176,6 +182,7 @@ class Scenario:
         _check_scales(self)
         self._check_duplicates()
         self._check_reachable()
+        self._check_zones()
 
     def _check_wind(self) -> None:
         speed = _real('wind_speed_mps', self.wind_speed_mps)
@@ -227,6 +234,24 @@ class Scenario:
                 f'at most {reach:.1f} m in {legs} legs ({fastest:.3g} m/s over the ground '
                 f'towards the goal, {limit}); raise horizon_s to {needed:.1f} s or more, or '
                 f'max_speed_mps, or move the goal')
+
+    def _check_zones(self) -> None:
+        """q0 and qF keep the zones' margin (a path between them may still be refused when
+        the plan is made: :mod:`uav_comm_planner.core.detour`)."""
+        if self.zones is None:
+            return
+        if not isinstance(self.zones, Zones):
+            raise InvalidScenarioError(
+                f'zones must be a Zones or None, got {type(self.zones).__name__}')
+        margin = self.zones.margin_m
+        for name, point in (('start_m', self.start_m), ('goal_m', self.goal_m)):
+            clearance = float(self.zones.clearance([point])[0])
+            if clearance < margin:
+                where = ('inside a keep-out zone or outside the operating area'
+                         if clearance < 0 else 'closer to a zone\'s edge than the margin')
+                raise InfeasibleHorizonError(
+                    f'{name} {point} is {where}: its clearance from the zones is '
+                    f'{clearance:.2f} m, the margin is {margin:g} m; move it or the zones')
 
     def fastest_ground_speed_mps(self, direction: Sequence[float]) -> float:
         """The fastest ground speed along the unit vector ``direction`` (east, north) that keeps

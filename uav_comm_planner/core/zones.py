@@ -159,7 +159,7 @@ class KeepOutCircle:
         return float(distance[0]) - self.radius_m
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class KeepOutPolygon:
     """A simple polygon the flight must not enter (vertices east-north metres, stored CCW)."""
 
@@ -169,6 +169,13 @@ class KeepOutPolygon:
         vertices = _simple_polygon('a keep-out polygon', self.vertices_m)
         vertices.setflags(write=False)
         object.__setattr__(self, 'vertices_m', vertices)
+
+    def __eq__(self, other: object) -> bool:
+        # By value, so that scenarios holding zones compare and hash as dataclasses do.
+        return type(other) is type(self) and np.array_equal(self.vertices_m, other.vertices_m)
+
+    def __hash__(self) -> int:
+        return hash((type(self).__name__, self.vertices_m.tobytes()))
 
     @property
     def convex(self) -> bool:
@@ -183,7 +190,7 @@ class KeepOutPolygon:
                                          self.vertices_m)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class OperatingArea:
     """A simple polygon the whole flight stays inside (vertices east-north metres, CCW)."""
 
@@ -193,6 +200,13 @@ class OperatingArea:
         vertices = _simple_polygon('the operating area', self.vertices_m)
         vertices.setflags(write=False)
         object.__setattr__(self, 'vertices_m', vertices)
+
+    def __eq__(self, other: object) -> bool:
+        # By value, so that scenarios holding zones compare and hash as dataclasses do.
+        return type(other) is type(self) and np.array_equal(self.vertices_m, other.vertices_m)
+
+    def __hash__(self) -> int:
+        return hash((type(self).__name__, self.vertices_m.tobytes()))
 
     @property
     def convex(self) -> bool:
@@ -281,6 +295,43 @@ class Zones:
             for zone in zones:
                 least = min(least, zone.segment_clearance(a, b))
         return least
+
+    def to_dict(self) -> dict:
+        """A JSON-ready form: {'area': [[x, y], ...] or None, 'keep_out': [{'center_m': [x,
+        y], 'radius_m': r} or {'vertices_m': [[x, y], ...]}, ...], 'margin_m': m}."""
+        def zone(item: KeepOut) -> dict:
+            if isinstance(item, KeepOutCircle):
+                return {'center_m': list(item.center_m), 'radius_m': item.radius_m}
+            return {'vertices_m': item.vertices_m.tolist()}
+        return {'area': None if self.area is None else self.area.vertices_m.tolist(),
+                'keep_out': [zone(item) for item in self.keep_out], 'margin_m': self.margin_m}
+
+    @classmethod
+    def from_dict(cls, data: object) -> 'Zones':
+        """The zones of :meth:`to_dict`'s form; InvalidScenarioError for anything else."""
+        if not isinstance(data, dict) or not set(data) <= {'area', 'keep_out', 'margin_m'}:
+            raise InvalidScenarioError(
+                f"zones must be a mapping of 'area', 'keep_out' and 'margin_m', got {data!r}")
+        items = data.get('keep_out', [])
+        if not isinstance(items, (list, tuple)):
+            raise InvalidScenarioError(f"zones' keep_out must be a list, got {items!r}")
+        keep_out = []
+        for item in items:
+            if isinstance(item, dict) and set(item) == {'center_m', 'radius_m'} \
+                    and isinstance(item['radius_m'], (int, float)):
+                keep_out.append(KeepOutCircle(item['center_m'], item['radius_m']))
+            elif isinstance(item, dict) and set(item) == {'vertices_m'}:
+                keep_out.append(KeepOutPolygon(item['vertices_m']))
+            else:
+                raise InvalidScenarioError(
+                    f"a keep-out zone is {{'center_m', 'radius_m'}} or {{'vertices_m'}}, got "
+                    f'{item!r}')
+        area = data.get('area')
+        margin = data.get('margin_m', 5.0)
+        if isinstance(margin, bool) or not isinstance(margin, (int, float)):
+            raise InvalidScenarioError(f'the zone margin must be a number, got {margin!r}')
+        return cls(area=None if area is None else OperatingArea(area),
+                   keep_out=tuple(keep_out), margin_m=margin)
 
 
 __all__ = ['KeepOut', 'KeepOutCircle', 'KeepOutPolygon', 'MAX_POLYGON_VERTICES',
