@@ -181,6 +181,12 @@ class KeepOutPolygon:
     def convex(self) -> bool:
         return _is_convex(self.vertices_m)
 
+    def convex_pieces(self) -> list[np.ndarray]:
+        """Convex polygons (CCW vertices) whose union is this one: itself when convex, else its
+        ear-clipping triangles joined while convex. A point's distance to the polygon is the
+        least of its distances to the pieces."""
+        return convex_pieces(self.vertices_m)
+
     def clearance(self, points: ArrayLike) -> np.ndarray:
         points = np.atleast_2d(np.asarray(points, dtype=float))
         return _polygon_signed_distance(points, self.vertices_m)
@@ -212,6 +218,21 @@ class OperatingArea:
     def convex(self) -> bool:
         return _is_convex(self.vertices_m)
 
+    def hull_and_pockets(self) -> tuple[np.ndarray, list[np.ndarray]]:
+        """The area's convex hull (CCW vertices) and its pockets, the polygons between the hull
+        and the area (none for a convex area): the area is the hull less the pockets, and its
+        boundary lies on the hull's edges and the pockets' boundaries, so a point in the hull
+        at least d from the hull's edges and at least d outside every pocket is in the area,
+        at least d from its boundary."""
+        vertices = self.vertices_m
+        hull = convex_hull(vertices)
+        pockets = []
+        for i, j in zip(hull, hull[1:] + [hull[0] + len(vertices)]):
+            if j - i > 1:
+                pockets.append(np.array([vertices[k % len(vertices)] for k in range(i, j + 1)]))
+        # The pocket runs i, i+1, ..., j along the area (clockwise about the pocket): reverse.
+        return vertices[hull], [pocket[::-1].copy() for pocket in pockets]
+
     def clearance(self, points: ArrayLike) -> np.ndarray:
         """Distance of each point inside the area from its boundary; negative outside."""
         points = np.atleast_2d(np.asarray(points, dtype=float))
@@ -237,6 +258,106 @@ def _segment_polygon_distance_outside(a: np.ndarray, b: np.ndarray,
         return -inside
     t = np.linspace(0.0, 1.0, SEGMENT_SAMPLES)[:, None]
     return float(max(_polygon_signed_distance(a + t * (b - a), vertices).max(), 0.0))
+
+
+def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
+
+
+def ear_triangles(vertices: np.ndarray) -> list[np.ndarray]:
+    """A simple polygon's vertices (V, 2), counter-clockwise, cut into V - 2 triangles (3, 2)
+    by ear clipping: a convex vertex whose triangle with its neighbours holds no other vertex
+    is cut off, until three are left. Every simple polygon has an ear (two, when V > 3)."""
+    points = [np.asarray(v, dtype=float) for v in vertices]
+    left = list(range(len(points)))
+    triangles = []
+    scale = float(np.ptp(np.asarray(vertices), axis=0).max()) ** 2
+    while len(left) > 3:
+        count = len(left)
+        for k in range(count):
+            corner = (left[k - 1], left[k], left[(k + 1) % count])
+            a, b, c = (points[v] for v in corner)
+            if _cross(a, b, c) <= 1e-14 * scale:
+                continue                      # reflex or flat: not an ear
+            others = np.array([points[v] for v in left if v not in corner])
+            inside = ((_cross_many(a, b, others) >= 0) & (_cross_many(b, c, others) >= 0)
+                      & (_cross_many(c, a, others) >= 0))
+            if not inside.any():
+                triangles.append(np.array([a, b, c]))
+                del left[k]
+                break
+        else:                                 # round-off on a near-degenerate polygon
+            k = max(range(count), key=lambda k: _cross(points[left[k - 1]], points[left[k]],
+                                                       points[left[(k + 1) % count]]))
+            triangles.append(np.array([points[left[k - 1]], points[left[k]],
+                                       points[left[(k + 1) % count]]]))
+            del left[k]
+    triangles.append(np.array([points[v] for v in left]))
+    return triangles
+
+
+def _cross_many(o: np.ndarray, a: np.ndarray, points: np.ndarray) -> np.ndarray:
+    return (a[0] - o[0]) * (points[:, 1] - o[1]) - (a[1] - o[1]) * (points[:, 0] - o[0])
+
+
+def convex_hull(vertices: np.ndarray) -> list[int]:
+    """Indices of the polygon's vertices on its convex hull (collinear ones included), in
+    the polygon's (CCW) order."""
+    order = sorted(range(len(vertices)), key=lambda i: (vertices[i][0], vertices[i][1]))
+    hull: list[int] = []
+    for sweep in (order, order[::-1]):
+        start = len(hull)
+        for i in sweep:
+            # Collinear points stay: a pocket then never has an edge along the hull's.
+            while len(hull) >= start + 2 and _cross(vertices[hull[-2]], vertices[hull[-1]],
+                                                    vertices[i]) < 0:
+                hull.pop()
+            hull.append(i)
+        hull.pop()
+    return sorted(set(hull))
+
+
+def merge_convex(pieces: list[np.ndarray]) -> list[np.ndarray]:
+    """Join pieces (convex CCW polygons sharing whole edges, as ear clipping leaves them) two
+    at a time while the union of two neighbours is still convex (Hertel and Mehlhorn): fewer
+    pieces, so fewer constraints, the same set."""
+    pieces = [np.asarray(piece, dtype=float) for piece in pieces]
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(pieces)):
+            for j in range(i + 1, len(pieces)):
+                union = _join(pieces[i], pieces[j])
+                if union is not None and _is_convex(union):
+                    pieces[i] = union
+                    del pieces[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return pieces
+
+
+def convex_pieces(vertices: np.ndarray) -> list[np.ndarray]:
+    """A simple CCW polygon (V, 2) as convex CCW polygons whose union it is: itself when convex,
+    else its ear-clipping triangles joined while convex."""
+    if _is_convex(vertices):
+        return [np.array(vertices, dtype=float)]
+    return merge_convex(ear_triangles(vertices))
+
+
+def _join(first: np.ndarray, second: np.ndarray) -> np.ndarray | None:
+    """The polygon of two CCW polygons that share an edge (a, b) in first, (b, a) in second."""
+    n, m = len(first), len(second)
+    for i in range(n):
+        a, b = first[i], first[(i + 1) % n]
+        for j in range(m):
+            if np.array_equal(second[j], b) and np.array_equal(second[(j + 1) % m], a):
+                # first from b round to a, then second from a round to b, each shared end once.
+                rest_of_first = [first[(i + 1 + k) % n] for k in range(n)]      # b ... a
+                rest_of_second = [second[(j + 2 + k) % m] for k in range(m - 2)]  # after a
+                return np.array(rest_of_first + rest_of_second)
+    return None
 
 
 def _is_convex(vertices: np.ndarray) -> bool:
