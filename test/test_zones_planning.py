@@ -6,9 +6,18 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
-from uav_comm_planner.core.scenario import paper_scenario
+from uav_comm_planner.core.detour import around_zones
+from uav_comm_planner.core.fast_trajectory import trajectory_step_clarabel
+from uav_comm_planner.core.feasibility import within_speed_limit
+from uav_comm_planner.core.model import flown_path, snr_per_watt
+from uav_comm_planner.core.optimizer import plan
+from uav_comm_planner.core.power import waterfilling_power
+from uav_comm_planner.core.scenario import paper_scenario, Scenario
+from uav_comm_planner.core.trajectory import trajectory_step_cvxpy
+from uav_comm_planner.core.zone_rows import _outward_edges, ZONE_CUSHION_M, zone_model
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, OperatingArea, Zones
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 from uav_comm_planner.mission.request import MissionRequest
@@ -57,3 +66,152 @@ def test_a_request_s_zones_replace_the_scenario_s():
             keep_out=(KeepOutCircle((0, 0), 10),))).planned_scenario
     with pytest.raises(InvalidScenarioError, match='zones must be a Zones'):
         MissionRequest(paper_scenario('I'), zones='fence.plan')
+
+
+# The restriction: rows that hold at the path they are built at and imply the zones.
+
+def star(rng: np.random.Generator, centre, size: float, points: int, dent: float) -> np.ndarray:
+    """A polygon round ``centre`` at sorted random angles, every other vertex pulled in by
+    ``dent`` (0: convex, on a circle)."""
+    angles = np.sort(rng.uniform(0.0, 2 * np.pi, points))
+    radii = size * np.where(np.arange(points) % 2, 1.0 - dent, 1.0)
+    return np.asarray(centre) + radii[:, None] * np.stack([np.cos(angles), np.sin(angles)], 1)
+
+
+def random_zones(rng: np.random.Generator, side: float) -> Zones:
+    """One to three keep-out zones (circles, convex and non-convex polygons) in the middle of
+    the side x side square, inside an area a little larger than it, with a notch half the
+    time, and a margin of 2 to 10 m."""
+    keep_out = []
+    for _ in range(int(rng.integers(1, 4))):
+        kind = rng.choice(['circle', 'convex', 'star'])
+        centre = rng.uniform(0.25 * side, 0.75 * side, 2)
+        size = float(rng.uniform(0.05, 0.15)) * side
+        if kind == 'circle':
+            keep_out.append(KeepOutCircle(tuple(centre), size))
+            continue
+        while True:
+            try:
+                keep_out.append(KeepOutPolygon(star(
+                    rng, centre, size, int(rng.integers(4, 9)),
+                    0.0 if kind == 'convex' else float(rng.uniform(0.3, 0.6)))))
+                break
+            except InvalidScenarioError:       # angles too close: collinear or crossing
+                continue
+    a, s = 0.15 * side, side
+    outline = [(-a, -a), (s + a, -a), (s + a, s + a), (-a, s + a)]
+    if rng.uniform() < 0.5:                    # a notch down from the top edge
+        outline[3:3] = [(0.6 * s, s + a), (0.5 * s, 0.8 * s), (0.4 * s, s + a)]
+    return Zones(area=OperatingArea(outline), keep_out=tuple(keep_out),
+                 margin_m=float(rng.uniform(2.0, 10.0)))
+
+
+def random_zoned_scenario(seed: int) -> Scenario:
+    """2 to 4 nodes in a 600-1500 m square flown corner to corner in 30 slots, with time for
+    a path two and a half times the diagonal, and random zones clear of q0 and qF."""
+    rng = np.random.default_rng(seed)
+    side = float(rng.uniform(600.0, 1500.0))
+    slot_s = 2.5 * np.sqrt(2.0) * side / (31 * 50.0)
+    while True:
+        try:
+            return Scenario(ground_nodes_m=rng.uniform(0, side, (int(rng.integers(2, 5)), 2)),
+                            start_m=(0.0, 0.0), goal_m=(side, side), num_slots=30,
+                            horizon_s=30 * slot_s, max_speed_mps=50.0,
+                            zones=random_zones(rng, side))
+        except InfeasibleHorizonError:             # q0 or qF in a zone: draw again
+            continue
+
+
+def clearance_of(q: np.ndarray, scenario: Scenario) -> float:
+    return scenario.zones.path_clearance(flown_path(q, scenario))
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_rows_hold_where_they_are_built_and_every_path_keeping_them_keeps_the_zones(seed):
+    scenario = random_zoned_scenario(seed)
+    zones, rng = scenario.zones, np.random.default_rng(100 + seed)
+    model = zone_model(zones)
+    path = flown_path(around_zones(scenario), scenario)
+    assert zones.path_clearance(path) >= zones.margin_m
+    for cushion in (0.0, ZONE_CUSHION_M):
+        rows = model.rows(path, cushion_m=cushion)
+        assert rows.normals.shape == (scenario.num_slots, model.rows_per_slot, 2)
+        assert rows.slack(path[1:-1]).min() >= -1e-9
+    # Random moves, each as far as the rows allow (up to its length): many end on a row's
+    # boundary, where the restriction is tightest.
+    x = path[1:-1]
+    on_boundary = 0
+    for _ in range(40):
+        d = rng.normal(0.0, float(rng.choice([0.01, 0.1, 0.3])) * scenario.goal_m[0], x.shape)
+        rate = np.einsum('mkj,mj->mk', rows.normals, d)
+        slack = rows.slack(x)
+        shrinking = rate < 0
+        t = min(1.0, float(np.min(slack[shrinking] / -rate[shrinking], initial=np.inf)))
+        on_boundary += t < 1.0
+        q = x + t * d
+        assert rows.slack(q).min() >= -1e-9
+        assert clearance_of(q, scenario) >= zones.margin_m - 1e-9
+    assert on_boundary >= 10
+
+
+@pytest.mark.parametrize('seed', range(8))
+def test_convex_pieces_and_pockets_give_the_polygons_distances(seed):
+    rng = np.random.default_rng(seed)
+    polygon = None
+    while polygon is None:
+        try:
+            polygon = KeepOutPolygon(star(rng, (0, 0), 100.0, int(rng.integers(5, 12)), 0.5))
+        except InvalidScenarioError:
+            continue
+    pieces = polygon.convex_pieces()
+    assert all(KeepOutPolygon(piece).convex for piece in pieces)
+    points = rng.uniform(-120, 120, (400, 2))
+    outside = polygon.clearance(points)
+    by_pieces = np.min([KeepOutPolygon(piece).clearance(points) for piece in pieces], axis=0)
+    np.testing.assert_allclose(np.maximum(by_pieces, 0), np.maximum(outside, 0), atol=1e-9)
+    assert ((by_pieces <= 0) == (outside <= 0)).all()
+    # An area is its hull less its pockets: inside it, the clearance is the least of the
+    # distance to the hull's edge lines and the distances to the pockets.
+    area = OperatingArea(polygon.vertices_m)
+    hull, pockets = area.hull_and_pockets()
+    inside = points[area.clearance(points) > 0]
+    normals, offsets = _outward_edges(hull)
+    to_hull = (offsets[None] - inside @ normals.T).min(axis=1)
+    to_pockets = np.min([KeepOutPolygon(p).clearance(inside) for p in pockets]
+                        or [np.full(len(inside), np.inf)], axis=0)
+    np.testing.assert_allclose(np.minimum(to_hull, to_pockets), area.clearance(inside),
+                               atol=1e-9)
+
+
+def test_the_fast_step_equals_the_cvxpy_step_with_zones():
+    scenario = paper_scenario('I', zones=letter_zones())
+    q = around_zones(scenario)
+    for _ in range(3):
+        p = waterfilling_power(snr_per_watt(q, scenario), scenario.power_budget_w).p
+        reference = trajectory_step_cvxpy(q, p, scenario)
+        fast = trajectory_step_clarabel(q, p, scenario)
+        assert fast.bound == pytest.approx(reference.bound, rel=1e-6)
+        np.testing.assert_allclose(fast.q, reference.q, atol=0.1)
+        for step in (fast, reference):
+            assert clearance_of(step.q, scenario) >= scenario.zones.margin_m
+        q = fast.q
+
+
+# Plans: every slot point and every leg out of every zone, the objective never lower.
+
+def check_plan(result, scenario: Scenario) -> None:
+    assert clearance_of(result.trajectory, scenario) >= scenario.zones.margin_m - 1e-6
+    values = [step.min_throughput for step in result.history]
+    assert all(b >= a for a, b in zip(values, values[1:]))
+    assert within_speed_limit(result.trajectory, scenario)
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_random_plans_keep_every_zone_on_both_paths(seed):
+    scenario = random_zoned_scenario(seed)
+    fast = plan(scenario)
+    check_plan(fast, scenario)
+    reference = plan(scenario, power_method='conic', trajectory_method='cvxpy')
+    check_plan(reference, scenario)
+    assert fast.min_throughput == pytest.approx(reference.min_throughput, rel=1e-4)
+    assert fast.min_throughput >= fast.baselines['straight'] * (1 - 1e-9)
