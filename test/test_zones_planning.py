@@ -9,13 +9,13 @@ import json
 import numpy as np
 import pytest
 
-from uav_comm_planner.core.detour import around_zones
+from uav_comm_planner.core.detour import around_zones, hover_start, path_length, shortest_path
 from uav_comm_planner.core.fast_trajectory import trajectory_step_clarabel
 from uav_comm_planner.core.feasibility import within_speed_limit
-from uav_comm_planner.core.model import flown_path, snr_per_watt
-from uav_comm_planner.core.optimizer import plan
+from uav_comm_planner.core.model import average_rates, flown_path, snr_per_watt
+from uav_comm_planner.core.optimizer import optimal_power, plan
 from uav_comm_planner.core.power import waterfilling_power
-from uav_comm_planner.core.scenario import paper_scenario, Scenario
+from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.core.trajectory import trajectory_step_cvxpy
 from uav_comm_planner.core.zone_rows import _outward_edges, ZONE_CUSHION_M, zone_model
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, OperatingArea, Zones
@@ -215,3 +215,98 @@ def test_random_plans_keep_every_zone_on_both_paths(seed):
     check_plan(reference, scenario)
     assert fast.min_throughput == pytest.approx(reference.min_throughput, rel=1e-4)
     assert fast.min_throughput >= fast.baselines['straight'] * (1 - 1e-9)
+
+
+# The letter's case I with a zone across its straight line, and a node inside it.
+
+def letter_across(**changes) -> Scenario:
+    """Case I with a disc across the straight line that also holds node 2 (1000, 200), and a
+    non-convex polygon near node 1, inside the letter's area grown by 100 m."""
+    zones = letter_zones(keep_out=(
+        KeepOutCircle((1000.0, 100.0), 150.0),
+        KeepOutPolygon([(300, 250), (420, 250), (420, 450), (380, 450), (380, 300),
+                        (300, 300)])))
+    return paper_scenario('I', zones=zones, **changes)
+
+
+@pytest.fixture(scope='module')
+def across():
+    scenario = letter_across()
+    return scenario, plan(scenario), plan(paper_scenario('I'))
+
+
+def test_the_letter_s_case_with_a_zone_across_its_line_beats_both_baselines_outside_it(across):
+    scenario, result, _ = across
+    check_plan(result, scenario)
+    straight, hover = around_zones(scenario), hover_start(scenario)
+    for baseline in (straight, hover):
+        assert clearance_of(baseline, scenario) >= scenario.zones.margin_m
+        assert within_speed_limit(baseline, scenario)
+    # The straight line crosses the disc; the baseline goes round it.
+    assert scenario.zones.path_clearance([scenario.start_m, scenario.goal_m]) < 0
+    rates = {name: float(average_rates(q, optimal_power(q, scenario), scenario).min())
+             for name, q in (('straight', straight), ('hover', hover))}
+    assert result.min_throughput > max(rates.values())
+    assert result.baselines['straight'] == pytest.approx(rates['straight'], rel=1e-12)
+    print(f'\ncase I with the zones: {result.min_throughput:.4f} bit/s; straight line round '
+          f'them {rates["straight"]:.4f}, hover-and-fly outside them {rates["hover"]:.4f}')
+
+
+def test_a_node_inside_a_zone_is_served_from_outside_it(across):
+    scenario, result, free = across
+    disc = scenario.zones.keep_out[0]
+    node = np.array(scenario.ground_nodes_m[1])
+    assert disc.clearance([node])[0] < 0                       # node 2 is inside the disc
+    nearest_allowed = disc.radius_m + scenario.zones.margin_m - np.linalg.norm(
+        node - np.array(disc.center_m))
+    path = flown_path(result.trajectory, scenario)
+    closest = min(_segment_distance(node, a, b) for a, b in zip(path[:-1], path[1:]))
+    assert closest >= nearest_allowed - 1e-6
+    assert closest <= nearest_allowed + 1.0                    # as near as the zone lets it
+    # Without the zone the UAV passes close over it (8 m); with it every node still gets a
+    # fair share.
+    free_path = flown_path(free.trajectory, paper_scenario('I'))
+    assert min(_segment_distance(node, a, b) for a, b in zip(free_path[:-1], free_path[1:])) \
+        < nearest_allowed / 4
+    assert result.rates.min() == pytest.approx(result.rates.max(), rel=1e-3)
+    assert result.min_throughput < free.min_throughput
+
+
+def _segment_distance(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    ab = b - a
+    t = 0.0 if not ab.any() else float(np.clip((point - a) @ ab / (ab @ ab), 0.0, 1.0))
+    return float(np.linalg.norm(point - (a + t * ab)))
+
+
+# Requests with no way round the zones are refused with the numbers.
+
+def test_a_goal_walled_off_is_refused():
+    # Two rooms joined by a corridor 8 m wide: with a margin of 5 m nothing passes.
+    area = OperatingArea([(-50, -50), (500, -50), (500, -4), (1500, -4), (1500, -50),
+                          (2050, -50), (2050, 50), (1500, 50), (1500, 4), (500, 4), (500, 50),
+                          (-50, 50)])
+    scenario = paper_scenario('I', zones=Zones(area=area, margin_m=5.0))
+    with pytest.raises(InfeasibleHorizonError, match='no path from q0 to qF keeps the margin '
+                                                     'of 5 m'):
+        plan(scenario)
+    # A margin of 3 m fits through.
+    narrower = scenario.replace(zones=Zones(area=area, margin_m=3.0))
+    check_plan(plan(narrower, SolverSettings(starts=('straight',))), narrower)
+
+
+def test_a_way_round_longer_than_the_horizon_is_refused_with_the_horizon_it_needs():
+    wall = KeepOutPolygon([(950, -2000), (1050, -2000), (1050, 450), (950, 450)])
+    zones = Zones(keep_out=(wall,))
+    short = paper_scenario('I', num_slots=20, horizon_s=20.0, zones=zones)
+    with pytest.raises(InfeasibleHorizonError, match=r'is (\d+\.\d) m .* needs (\d+) legs .* '
+                                                     r'has 21; raise horizon_s to') as error:
+        plan(short)
+    text = str(error.value)
+    length = float(text.split(' is ')[1].split(' m')[0])
+    corners = shortest_path(zones, short.start_m, short.goal_m)
+    assert length == pytest.approx(path_length(corners), abs=0.05)
+    assert length > 2 * np.hypot(1000.0, 455.0) - 1.0       # over the wall's top, at the margin
+    needed = float(text.split('raise horizon_s to ')[1].split(' s')[0])
+    check_plan(plan(short.replace(horizon_s=needed)), short.replace(horizon_s=needed))
+    with pytest.raises(InfeasibleHorizonError):
+        plan(short.replace(horizon_s=needed - 0.1))

@@ -238,8 +238,31 @@ def _too_long(scenario: Scenario, path: np.ndarray, needed: int) -> InfeasibleHo
         f'{scenario.zones.margin_m:g} m is {path_length(path):.1f} m with {len(path) - 2} '
         f'corners and needs {needed} legs of {scenario.slot_s:g} s at {scenario.max_speed_mps:g}'
         f' m/s, the horizon has {legs}; raise horizon_s to '
-        f'{needed * scenario.slot_s * scenario.num_slots / legs:.1f} s or more, or '
-        f'max_speed_mps, or move the zones')
+        f'{horizon_needed_s(path, scenario):.1f} s or more, or max_speed_mps, or move the zones')
+
+
+def horizon_needed_s(path: np.ndarray, scenario: Scenario) -> float:
+    """The shortest horizon T, rounded up to 0.1 s, in which M slots fly ``path`` with every
+    corner a slot point: sum_k ceil(L_k M / (g_k T)) <= M + 1 (bisection: the sum only falls
+    as T grows)."""
+    steps = np.diff(path, axis=0)
+    lengths = np.linalg.norm(steps, axis=1)
+    steps, lengths = steps[lengths > 0], lengths[lengths > 0]
+    fastest = np.array([scenario.fastest_ground_speed_mps(step / length)
+                        for step, length in zip(steps, lengths)])
+    m = scenario.num_slots
+
+    def fits(horizon_s: float) -> bool:
+        return int(np.ceil(lengths * m / (fastest * horizon_s * (1 - 1e-9))).sum()) <= m + 1
+
+    low = float((lengths / fastest).sum()) * m / (m + 1)
+    high = max(low, 1e-9) * 2.0
+    while not fits(high):
+        high *= 2.0
+    for _ in range(100):
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if fits(middle) else (middle, high)
+    return math.ceil(high * 10.0) / 10.0
 
 
 def around_zones(scenario: Scenario) -> np.ndarray:
