@@ -20,8 +20,10 @@ from uav_comm_planner.core.trajectory import trajectory_step_cvxpy
 from uav_comm_planner.core.zone_rows import _outward_edges, ZONE_CUSHION_M, zone_model
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, OperatingArea, Zones
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+from uav_comm_planner.mission.pipeline import plan_mission
 from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.tools.serialize import scenario_from_dict, scenario_to_dict
+from uav_comm_planner.vehicle.flyable import simplify, zone_check
 
 AREA = OperatingArea([(-100, -100), (2100, -100), (2100, 600), (-100, 600)])
 
@@ -310,3 +312,41 @@ def test_a_way_round_longer_than_the_horizon_is_refused_with_the_horizon_it_need
     check_plan(plan(short.replace(horizon_s=needed)), short.replace(horizon_s=needed))
     with pytest.raises(InfeasibleHorizonError):
         plan(short.replace(horizon_s=needed - 0.1))
+
+
+# The mission flown: its legs are not straightened across a zone.
+
+def test_simplifying_a_leg_never_cuts_a_zone():
+    disc = KeepOutCircle((0.0, 0.0), 100.0)
+    zones = Zones(keep_out=(disc,), margin_m=5.0)
+    # Plan points round the disc 2 degrees apart, each leg tangent to it at the margin.
+    angles = np.radians(np.arange(0.0, 181.0, 2.0))
+    points = 105.0 / np.cos(np.radians(1.0)) * np.stack([np.cos(angles), np.sin(angles)], 1)
+    assert zones.path_clearance(points) >= zones.margin_m - 1e-9
+    plain = simplify(points, 1.0)
+    assert zones.path_clearance(points[plain]) < zones.margin_m - 0.5   # chords cut inside
+    kept = simplify(points, 1.0, zone_check(zones))
+    assert zones.path_clearance(points[kept]) >= zones.margin_m - 1e-9
+    assert len(kept) == len(points)     # at exactly the margin no chord keeps it
+
+
+def multirotor_across() -> Scenario:
+    """:func:`letter_across` at a multirotor's 10 m/s: 400 s in 100 slots of 4 s."""
+    return letter_across(max_speed_mps=10.0, horizon_s=400.0, num_slots=100)
+
+
+def test_the_vehicle_s_mission_keeps_every_zone_through_the_pipeline():
+    zones = letter_across().zones
+    request = MissionRequest(multirotor_across().replace(zones=None), zones=zones)
+    mission = plan_mission(request)
+    scenario = mission.result.scenario
+    assert scenario.zones == zones
+    schedule = mission.vehicle_plan.schedule
+    assert len(schedule.legs) >= 2 and mission.items
+    flown = np.vstack([schedule.stops[0].position_m]
+                      + [leg.vertices[1:] for leg in schedule.legs])
+    assert zones.path_clearance(flown) >= zones.margin_m - 1e-6
+    for leg, stop in zip(schedule.legs, schedule.stops[1:]):
+        assert np.array_equal(leg.vertices[-1], stop.position_m)
+    check_plan(mission.vehicle_plan.ideal, mission.vehicle_plan.ideal.scenario)
+    assert mission.result.min_throughput > mission.vehicle_plan.ideal.baselines['straight']
