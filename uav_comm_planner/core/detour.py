@@ -28,7 +28,8 @@ from scipy.sparse.csgraph import dijkstra
 
 from uav_comm_planner.core import initial
 from uav_comm_planner.core.scenario import Scenario
-from uav_comm_planner.core.zones import KeepOutCircle, Zones
+from uav_comm_planner.core.zones import (closest_on_segments, inside_polygon, KeepOutCircle,
+                                         Zones)
 from uav_comm_planner.errors import InfeasibleHorizonError
 
 #: Sides of the polygon that stands for a keep-out circle (circumscribed, so it holds the
@@ -105,10 +106,7 @@ def _orient(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 def _point_segment(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distances of points to segments ab, broadcasting over leading axes."""
-    ab = b - a
-    length2 = np.einsum('...j,...j->...', ab, ab)
-    t = np.einsum('...j,...j->...', points - a, ab) / np.where(length2 > 0, length2, 1.0)
-    return np.linalg.norm(points - (a + np.clip(t, 0.0, 1.0)[..., None] * ab), axis=-1)
+    return np.linalg.norm(points - closest_on_segments(points, a, b), axis=-1)
 
 
 def _against_polygon(a: np.ndarray, b: np.ndarray,
@@ -123,17 +121,7 @@ def _against_polygon(a: np.ndarray, b: np.ndarray,
     distance = np.minimum.reduce([_point_segment(a2, c, d).min(axis=1),
                                   _point_segment(b2, c, d).min(axis=1),
                                   _point_segment(vertices[None], a2, b2).min(axis=1)])
-    return meets, _inside(a, vertices), distance
-
-
-def _inside(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
-    x, y = points[:, :1], points[:, 1:]
-    x0, y0 = vertices[:, 0], vertices[:, 1]
-    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
-    straddles = (y0 > y) != (y1 > y)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        crossing = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
-    return (np.count_nonzero(straddles & (x < crossing), axis=1) % 2) == 1
+    return meets, inside_polygon(a, vertices), distance
 
 
 def segments_clear(zones: Zones, a: np.ndarray, b: np.ndarray, *,
@@ -315,9 +303,11 @@ def outside_point(zones: Zones, point: np.ndarray) -> np.ndarray | None:
             away = _unit_or_east(point - centre)
             candidates.append((centre + (zone.radius_m + reach) * away)[None])
             continue
-        edge, inside_zone = _nearest_boundary(point, zone.vertices_m), zone.clearance(
-            [point])[0] < 0
-        direction = _unit_or_east(edge - point if inside_zone else point - edge)
+        # On the wrong side of the edge (in a keep-out polygon, out of the area): cross it;
+        # on the right side but too close: move away from it.
+        edge = _nearest_boundary(point, zone.vertices_m)
+        wrong_side = zone.clearance([point])[0] < 0
+        direction = _unit_or_east(edge - point if wrong_side else point - edge)
         candidates.append((edge + reach * direction)[None])
     candidates = np.vstack(candidates)
     candidates = candidates[zones.clearance(candidates) >= zones.margin_m]
@@ -332,10 +322,7 @@ def _unit_or_east(vector: np.ndarray) -> np.ndarray:
 
 
 def _nearest_boundary(point: np.ndarray, vertices: np.ndarray) -> np.ndarray:
-    starts, ends = vertices, np.roll(vertices, -1, axis=0)
-    ab = ends - starts
-    t = np.clip(np.einsum('vj,vj->v', point - starts, ab) / np.einsum('vj,vj->v', ab, ab), 0, 1)
-    closest = starts + t[:, None] * ab
+    closest = closest_on_segments(point[None], vertices, np.roll(vertices, -1, axis=0))
     return closest[int(np.argmin(np.linalg.norm(closest - point, axis=1)))]
 
 

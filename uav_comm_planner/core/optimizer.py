@@ -371,6 +371,12 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     (M, 2) metres by name (for example the rest of the previous plan; a name of
     ``settings.starts`` is replaced by the trajectory given); each should keep the speed
     limit, since Algorithm 1 only improves on its start (projected onto it otherwise).
+
+    With ``scenario.zones`` every slot point and every leg of every trajectory keeps out of
+    the zones by their margin: the starts go round them (:mod:`uav_comm_planner.core.detour`),
+    each SCA step adds their restriction (:mod:`uav_comm_planner.core.zone_rows`), and an extra
+    start that does not keep them is left out. A request with no way round the zones within
+    the horizon raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError`.
     """
     if settings is None:
         settings = SolverSettings()

@@ -34,7 +34,8 @@ import functools
 
 import numpy as np
 
-from uav_comm_planner.core.zones import convex_pieces, KeepOutCircle, Zones
+from uav_comm_planner.core.zones import (closest_on_segments, convex_pieces, KeepOutCircle,
+                                         Zones)
 
 #: The rows ask for this much more than the margin where the current path already has it, so
 #: that a conic solver's feasibility tolerance (about 1e-5 m here) never ends below the margin.
@@ -129,14 +130,6 @@ def _outward_edges(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return normals, np.einsum('ej,ej->e', normals, vertices[keep])
 
 
-def _closest_on_segments(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The closest point of each segment a[l] b[l] to points[l] (broadcasting)."""
-    ab = b - a
-    length2 = np.einsum('...j,...j->...', ab, ab)
-    t = np.einsum('...j,...j->...', points - a, ab) / np.where(length2 > 0, length2, 1.0)
-    return a + np.clip(t, 0.0, 1.0)[..., None] * ab
-
-
 def _unit(vectors: np.ndarray, fallback: np.ndarray) -> np.ndarray:
     """vectors (L, 2) normalised; ``fallback`` (L, 2) unit vectors where one is zero."""
     length = np.linalg.norm(vectors, axis=1)
@@ -161,7 +154,7 @@ def _circle_half_plane(a: np.ndarray, b: np.ndarray, centre: np.ndarray,
                        radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per leg ab (L, 2): the unit normal n from the centre to the leg's closest point, the
     disc's support n . c + r, and the leg's separation from the disc along n."""
-    closest = _closest_on_segments(centre[None, :], a, b)
+    closest = closest_on_segments(centre[None, :], a, b)
     n = _unit(closest - centre, _leg_fallback(a, b, centre))
     support = n @ centre + radius
     return n, support, _separation(n, a, b, support)
@@ -178,10 +171,10 @@ def _polygon_half_plane(a: np.ndarray, b: np.ndarray,
     starts, ends = vertices, np.roll(vertices, -1, axis=0)
     candidates_leg, candidates_piece = [], []
     for end in (a, b):                                   # an end of the leg and each edge
-        on_edge = _closest_on_segments(end[:, None, :], starts[None], ends[None])   # (L, V, 2)
+        on_edge = closest_on_segments(end[:, None, :], starts[None], ends[None])   # (L, V, 2)
         candidates_leg.append(np.broadcast_to(end[:, None, :], on_edge.shape))
         candidates_piece.append(on_edge)
-    on_leg = _closest_on_segments(vertices[None], a[:, None, :], b[:, None, :])    # (L, V, 2)
+    on_leg = closest_on_segments(vertices[None], a[:, None, :], b[:, None, :])    # (L, V, 2)
     candidates_leg.append(on_leg)
     candidates_piece.append(np.broadcast_to(vertices[None], on_leg.shape))
     leg_points = np.concatenate(candidates_leg, axis=1)

@@ -80,6 +80,14 @@ def _simple_polygon(name: str, vertices: ArrayLike) -> np.ndarray:
     return points
 
 
+def closest_on_segments(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The closest point of each segment a b to each point (arrays (..., 2), broadcasting)."""
+    ab = b - a
+    length2 = np.einsum('...j,...j->...', ab, ab)
+    t = np.einsum('...j,...j->...', points - a, ab) / np.where(length2 > 0, length2, 1.0)
+    return a + np.clip(t, 0.0, 1.0)[..., None] * ab
+
+
 def _point_segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distance of each of ``points`` (K, 2) to the segment ab."""
     ab = b - a
@@ -88,7 +96,7 @@ def _point_segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) ->
     return np.linalg.norm(points - (a + t[:, None] * ab), axis=1)
 
 
-def _inside_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+def inside_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """Even-odd rule: whether each of ``points`` (K, 2) lies strictly inside the polygon."""
     x, y = points[:, 0][:, None], points[:, 1][:, None]
     x0, y0 = vertices[:, 0], vertices[:, 1]
@@ -107,7 +115,7 @@ def _boundary_distance(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
 def _polygon_signed_distance(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """Distance to the polygon's boundary, negative inside it."""
     distance = _boundary_distance(points, vertices)
-    return np.where(_inside_polygon(points, vertices), -distance, distance)
+    return np.where(inside_polygon(points, vertices), -distance, distance)
 
 
 #: Points a segment that meets a polygon's boundary is sampled at for its deepest point.
