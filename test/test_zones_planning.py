@@ -15,6 +15,7 @@ from uav_comm_planner.core.feasibility import within_speed_limit
 from uav_comm_planner.core.model import average_rates, flown_path, snr_per_watt
 from uav_comm_planner.core.optimizer import optimal_power, plan
 from uav_comm_planner.core.power import waterfilling_power
+from uav_comm_planner.core.receding import FlownSlots, replan
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.core.trajectory import trajectory_step_cvxpy
 from uav_comm_planner.core.zone_rows import _outward_edges, ZONE_CUSHION_M, zone_model
@@ -110,16 +111,19 @@ def random_zones(rng: np.random.Generator, side: float) -> Zones:
 
 def random_zoned_scenario(seed: int) -> Scenario:
     """2 to 4 nodes in a 600-1500 m square flown corner to corner in 30 slots, with time for
-    a path two and a half times the diagonal, and random zones clear of q0 and qF."""
+    a path two and a half times the diagonal, and random zones clear of q0 and qF; odd seeds
+    in a wind of up to 15 m/s."""
     rng = np.random.default_rng(seed)
     side = float(rng.uniform(600.0, 1500.0))
     slot_s = 2.5 * np.sqrt(2.0) * side / (31 * 50.0)
+    wind = dict(wind_speed_mps=float(rng.uniform(0, 15)),
+                wind_from_deg=float(rng.uniform(0, 360))) if seed % 2 else {}
     while True:
         try:
             return Scenario(ground_nodes_m=rng.uniform(0, side, (int(rng.integers(2, 5)), 2)),
                             start_m=(0.0, 0.0), goal_m=(side, side), num_slots=30,
                             horizon_s=30 * slot_s, max_speed_mps=50.0,
-                            zones=random_zones(rng, side))
+                            zones=random_zones(rng, side), **wind)
         except InfeasibleHorizonError:             # q0 or qF in a zone: draw again
             continue
 
@@ -350,3 +354,25 @@ def test_the_vehicle_s_mission_keeps_every_zone_through_the_pipeline():
         assert np.array_equal(leg.vertices[-1], stop.position_m)
     check_plan(mission.vehicle_plan.ideal, mission.vehicle_plan.ideal.scenario)
     assert mission.result.min_throughput > mission.vehicle_plan.ideal.baselines['straight']
+
+
+@pytest.mark.parametrize('k, position, kept', [
+    (20, None, True),                 # 30 m south of the plan: the old rest still keeps out
+    (15, (370.0, 420.0), False)])     # west of the L's bar: the old rest's first leg cuts it
+def test_a_replan_in_flight_keeps_the_zones_and_leaves_out_a_rest_that_would_cut_them(
+        across, k, position, kept):
+    mission, first, _ = across
+    flown = FlownSlots(first.power[:, :k], first.trajectory[:k])
+    position = first.trajectory[k - 1] + np.array([0.0, -30.0]) if position is None \
+        else np.array(position)
+    assert mission.zones.clearance([position])[0] >= mission.zones.margin_m
+    receding = replan(mission, position, flown, previous_q=first.trajectory[k:])
+    rest = receding.result.scenario
+    assert rest.zones == mission.zones and rest.start_m == tuple(position)
+    check_plan(receding.result, rest)
+    # The rest of the old plan from the new position is one more start only if it keeps the
+    # zones (and the speed limits).
+    old_rest = first.trajectory[k:]
+    assert within_speed_limit(old_rest, rest)
+    assert (clearance_of(old_rest, rest) >= mission.zones.margin_m) == kept
+    assert ('previous' in receding.result.start_throughputs) == kept
