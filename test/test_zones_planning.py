@@ -376,3 +376,18 @@ def test_a_replan_in_flight_keeps_the_zones_and_leaves_out_a_rest_that_would_cut
     assert within_speed_limit(old_rest, rest)
     assert (clearance_of(old_rest, rest) >= mission.zones.margin_m) == kept
     assert ('previous' in receding.result.start_throughputs) == kept
+
+
+def test_a_many_sided_non_convex_zone_across_the_letter_s_line_is_kept_out():
+    rng = np.random.default_rng(7)
+    polygon = None
+    while polygon is None:
+        try:
+            polygon = KeepOutPolygon(star(rng, (1000.0, 100.0), 150.0, 16, 0.3))
+        except InvalidScenarioError:
+            continue
+    assert not polygon.convex and len(polygon.convex_pieces()) < 14    # triangles joined
+    scenario = paper_scenario('I', zones=Zones(area=AREA, keep_out=(polygon,)))
+    result = plan(scenario)
+    check_plan(result, scenario)
+    assert result.min_throughput > result.baselines['straight']

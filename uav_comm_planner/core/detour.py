@@ -38,6 +38,8 @@ CIRCLE_SIDES = 16
 #: The graph's corners stand this much beyond the margin, so that round-off never puts a
 #: corner-to-corner edge inside it.
 GRAPH_CLEARANCE_M = 0.05
+#: Segment-edge pairs tested at once (bounds the work arrays' memory).
+CHUNK_PAIRS = 500_000
 #: An arc of a circumscribed polygon turns at most this much per corner.
 MAX_ARC_STEP_RAD = math.pi / 8
 
@@ -132,6 +134,13 @@ def segments_clear(zones: Zones, a: np.ndarray, b: np.ndarray, *,
     tests use)."""
     a, b = np.atleast_2d(np.asarray(a, float)), np.atleast_2d(np.asarray(b, float))
     margin = zones.margin_m if margin_m is None else margin_m
+    edges = max([len(zone.vertices_m) for zone in (*zones.keep_out, zones.area)
+                 if zone is not None and not isinstance(zone, KeepOutCircle)], default=1)
+    chunk = max(1, CHUNK_PAIRS // edges)
+    if len(a) > chunk:
+        return np.concatenate([segments_clear(zones, a[i:i + chunk], b[i:i + chunk],
+                                              margin_m=margin)
+                               for i in range(0, len(a), chunk)])
     ok = np.ones(len(a), dtype=bool)
     for zone in zones.keep_out:
         if isinstance(zone, KeepOutCircle):

@@ -86,6 +86,14 @@ class ZoneModel:
                    radii=np.array([c.radius_m for c in circles], dtype=float),
                    polygons=tuple(polygons))
 
+    @functools.cached_property
+    def padded_polygons(self) -> np.ndarray:
+        """The polygon pieces as one array (P, V, 2), each padded to the most vertices V by
+        repeating its last vertex (an edge of length 0 changes no distance nor support)."""
+        most = max(len(piece) for piece in self.polygons)
+        return np.stack([np.vstack([piece, np.repeat(piece[-1:], most - len(piece), axis=0)])
+                         for piece in self.polygons])
+
     @property
     def num_pieces(self) -> int:
         return len(self.radii) + len(self.polygons)
@@ -108,13 +116,20 @@ class ZoneModel:
                                            (len(q),) + self.hull_normals.shape))
             offsets.append(-self.hull_offsets[None, :] + np.minimum(wanted, inside))
         a, b = path[:-1], path[1:]
-        separations = [_circle_half_plane(a, b, c, r) for c, r in zip(self.centres, self.radii)]
-        separations += [_polygon_half_plane(a, b, piece) for piece in self.polygons]
-        for n, support, separation in separations:          # per leg: (L, 2), (L,), (L,)
+        parts = []
+        if len(self.radii):
+            parts.append(_circle_half_planes(a, b, self.centres, self.radii))
+        if self.polygons:
+            parts.append(_polygon_half_planes(a, b, self.padded_polygons))
+        for n, support, separation in parts:      # per piece and leg: (P, L, 2), (P, L) twice
             offset = support + np.minimum(wanted, separation)
-            # Slot m ends leg m - 1 and starts leg m (legs counted from 0 at q0).
-            normals += [n[:-1, None, :], n[1:, None, :]]
-            offsets += [offset[:-1, None], offset[1:, None]]
+            # Slot m ends leg m - 1 and starts leg m (legs counted from 0 at q0): its rows
+            # are, piece by piece, the leg before it and the leg after it.
+            pieces = len(n)
+            normals.append(np.stack([n[:, :-1], n[:, 1:]], axis=2).transpose(1, 0, 2, 3)
+                           .reshape(len(q), 2 * pieces, 2))
+            offsets.append(np.stack([offset[:, :-1], offset[:, 1:]], axis=2).transpose(1, 0, 2)
+                           .reshape(len(q), 2 * pieces))
         if not normals:
             return ZoneRows(np.zeros((len(q), 0, 2)), np.zeros((len(q), 0)))
         return ZoneRows(np.concatenate(normals, axis=1), np.concatenate(offsets, axis=1))
@@ -131,60 +146,70 @@ def _outward_edges(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _unit(vectors: np.ndarray, fallback: np.ndarray) -> np.ndarray:
-    """vectors (L, 2) normalised; ``fallback`` (L, 2) unit vectors where one is zero."""
-    length = np.linalg.norm(vectors, axis=1)
+    """vectors (..., 2) normalised; ``fallback`` (..., 2) unit vectors where one is zero."""
+    length = np.linalg.norm(vectors, axis=-1)
     safe = length > 1e-12 * (1.0 + np.abs(vectors).max(initial=0.0))
-    unit = vectors / np.where(safe, length, 1.0)[:, None]
-    return np.where(safe[:, None], unit, fallback)
+    unit = vectors / np.where(safe, length, 1.0)[..., None]
+    return np.where(safe[..., None], unit, fallback)
 
 
-def _leg_fallback(a: np.ndarray, b: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """A direction for a leg that touches or enters a piece (only an infeasible path does):
-    away from the piece's centre through the leg's midpoint, or east."""
-    return _unit((a + b) / 2.0 - centre, np.tile([1.0, 0.0], (len(a), 1)))
+def _leg_fallback(a: np.ndarray, b: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """Directions (P, L, 2) for legs that touch or enter a piece (only an infeasible path's
+    do): away from the piece's centre (P, 2) through the leg's midpoint, or east."""
+    away = (a + b)[None] / 2.0 - centres[:, None, :]
+    return _unit(away, np.broadcast_to([1.0, 0.0], away.shape))
 
 
 def _separation(n: np.ndarray, a: np.ndarray, b: np.ndarray,
                 support: np.ndarray) -> np.ndarray:
-    """How far the half-plane n . x >= support keeps the leg ab: min over its ends."""
-    return np.minimum(np.einsum('lj,lj->l', n, a), np.einsum('lj,lj->l', n, b)) - support
+    """How far the half-planes n . x >= support (P, L) keep the legs ab: min over the ends."""
+    return np.minimum(np.einsum('plj,lj->pl', n, a), np.einsum('plj,lj->pl', n, b)) - support
 
 
-def _circle_half_plane(a: np.ndarray, b: np.ndarray, centre: np.ndarray,
-                       radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per leg ab (L, 2): the unit normal n from the centre to the leg's closest point, the
-    disc's support n . c + r, and the leg's separation from the disc along n."""
-    closest = closest_on_segments(centre[None, :], a, b)
-    n = _unit(closest - centre, _leg_fallback(a, b, centre))
-    support = n @ centre + radius
+def _circle_half_planes(a: np.ndarray, b: np.ndarray, centres: np.ndarray,
+                        radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per disc (C) and leg ab (L, 2): the unit normal n from the centre to the leg's closest
+    point, the disc's support n . c + r, and the leg's separation from the disc along n."""
+    closest = closest_on_segments(centres[:, None, :], a[None], b[None])         # (C, L, 2)
+    n = _unit(closest - centres[:, None, :], _leg_fallback(a, b, centres))
+    support = np.einsum('clj,cj->cl', n, centres) + radii[:, None]
     return n, support, _separation(n, a, b, support)
 
 
-def _polygon_half_plane(a: np.ndarray, b: np.ndarray,
-                        vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per leg ab (L, 2) and a convex polygon (V, 2): the unit normal from the polygon's point
-    closest to the leg to the leg's, the polygon's support max_v n . v, and the separation.
+#: Work arrays of the polygons' half-planes hold about this many points at the most.
+CHUNK_POINTS = 1_000_000
+
+
+def _polygon_half_planes(a: np.ndarray, b: np.ndarray,
+                         polygons: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per convex polygon (P, V, 2) and leg ab (L, 2): the unit normal from the polygon's
+    point closest to the leg to the leg's, the polygon's support max_v n . v, and the
+    separation.
 
     The closest pair of a segment and a convex polygon (apart) is an end of the segment and a
     point of an edge, or a vertex and a point of the segment.
     """
-    starts, ends = vertices, np.roll(vertices, -1, axis=0)
-    candidates_leg, candidates_piece = [], []
+    chunk = max(1, CHUNK_POINTS // (3 * len(a) * polygons.shape[1]))
+    if len(polygons) > chunk:
+        parts = [_polygon_half_planes(a, b, polygons[i:i + chunk])
+                 for i in range(0, len(polygons), chunk)]
+        return tuple(np.concatenate(arrays) for arrays in zip(*parts))
+    starts, ends = polygons[:, None], np.roll(polygons, -1, axis=1)[:, None]   # (P, 1, V, 2)
+    shape = (len(polygons), len(a), polygons.shape[1], 2)
+    leg_points, piece_points = [], []
     for end in (a, b):                                   # an end of the leg and each edge
-        on_edge = closest_on_segments(end[:, None, :], starts[None], ends[None])   # (L, V, 2)
-        candidates_leg.append(np.broadcast_to(end[:, None, :], on_edge.shape))
-        candidates_piece.append(on_edge)
-    on_leg = closest_on_segments(vertices[None], a[:, None, :], b[:, None, :])    # (L, V, 2)
-    candidates_leg.append(on_leg)
-    candidates_piece.append(np.broadcast_to(vertices[None], on_leg.shape))
-    leg_points = np.concatenate(candidates_leg, axis=1)
-    piece_points = np.concatenate(candidates_piece, axis=1)
-    gaps = np.linalg.norm(leg_points - piece_points, axis=2)
-    best = np.argmin(gaps, axis=1)
-    rows = np.arange(len(a))
-    n = _unit(leg_points[rows, best] - piece_points[rows, best],
-              _leg_fallback(a, b, vertices.mean(axis=0)))
-    support = (n @ vertices.T).max(axis=1)
+        leg_points.append(np.broadcast_to(end[None, :, None], shape))
+        piece_points.append(closest_on_segments(end[None, :, None], starts, ends))
+    leg_points.append(closest_on_segments(polygons[:, None], a[None, :, None],
+                                          b[None, :, None]))
+    piece_points.append(np.broadcast_to(polygons[:, None], shape))
+    leg_points = np.concatenate(leg_points, axis=2)                              # (P, L, 3V, 2)
+    piece_points = np.concatenate(piece_points, axis=2)
+    difference = leg_points - piece_points
+    best = np.argmin(np.einsum('plvj,plvj->plv', difference, difference), axis=2)
+    nearest = np.take_along_axis(difference, best[..., None, None], axis=2)[:, :, 0]
+    n = _unit(nearest, _leg_fallback(a, b, polygons.mean(axis=1)))
+    support = np.einsum('plj,pvj->plv', n, polygons).max(axis=2)
     return n, support, _separation(n, a, b, support)
 
 

@@ -272,35 +272,37 @@ def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
 
 
-def ear_triangles(vertices: np.ndarray) -> list[np.ndarray]:
-    """A simple polygon's vertices (V, 2), counter-clockwise, cut into V - 2 triangles (3, 2)
-    by ear clipping: a convex vertex whose triangle with its neighbours holds no other vertex
-    is cut off, until three are left. Every simple polygon has an ear (two, when V > 3)."""
-    points = [np.asarray(v, dtype=float) for v in vertices]
+def ear_triangles(vertices: np.ndarray) -> list[tuple[int, int, int]]:
+    """A simple polygon's vertices (V, 2), counter-clockwise, cut into V - 2 triangles (vertex
+    indices, CCW) by ear clipping: a convex vertex whose triangle with its neighbours holds no
+    other vertex is cut off, until three are left. Every simple polygon has an ear (two, when
+    V > 3); the search goes on from the last ear cut, so a polygon takes O(V^2) tests."""
+    points = np.asarray(vertices, dtype=float)
     left = list(range(len(points)))
     triangles = []
-    scale = float(np.ptp(np.asarray(vertices), axis=0).max()) ** 2
+    scale = float(np.ptp(points, axis=0).max()) ** 2
+    k = 0
     while len(left) > 3:
         count = len(left)
-        for k in range(count):
-            corner = (left[k - 1], left[k], left[(k + 1) % count])
-            a, b, c = (points[v] for v in corner)
+        for attempt in range(count):
+            at = (k + attempt) % count
+            corner = (left[at - 1], left[at], left[(at + 1) % count])
+            a, b, c = points[list(corner)]
             if _cross(a, b, c) <= 1e-14 * scale:
                 continue                      # reflex or flat: not an ear
-            others = np.array([points[v] for v in left if v not in corner])
+            others = points[[v for v in left if v not in corner]]
             inside = ((_cross_many(a, b, others) >= 0) & (_cross_many(b, c, others) >= 0)
                       & (_cross_many(c, a, others) >= 0))
             if not inside.any():
-                triangles.append(np.array([a, b, c]))
-                del left[k]
                 break
         else:                                 # round-off on a near-degenerate polygon
-            k = max(range(count), key=lambda k: _cross(points[left[k - 1]], points[left[k]],
-                                                       points[left[(k + 1) % count]]))
-            triangles.append(np.array([points[left[k - 1]], points[left[k]],
-                                       points[left[(k + 1) % count]]]))
-            del left[k]
-    triangles.append(np.array([points[v] for v in left]))
+            at = max(range(count), key=lambda i: _cross(
+                *points[[left[i - 1], left[i], left[(i + 1) % count]]]))
+            corner = (left[at - 1], left[at], left[(at + 1) % count])
+        triangles.append(corner)
+        del left[at]
+        k = max(at - 1, 0)
+    triangles.append(tuple(left))
     return triangles
 
 
@@ -325,25 +327,32 @@ def convex_hull(vertices: np.ndarray) -> list[int]:
     return sorted(set(hull))
 
 
-def merge_convex(pieces: list[np.ndarray]) -> list[np.ndarray]:
-    """Join pieces (convex CCW polygons sharing whole edges, as ear clipping leaves them) two
-    at a time while the union of two neighbours is still convex (Hertel and Mehlhorn): fewer
-    pieces, so fewer constraints, the same set."""
-    pieces = [np.asarray(piece, dtype=float) for piece in pieces]
-    merged = True
-    while merged:
-        merged = False
-        for i in range(len(pieces)):
-            for j in range(i + 1, len(pieces)):
-                union = _join(pieces[i], pieces[j])
-                if union is not None and _is_convex(union):
-                    pieces[i] = union
-                    del pieces[j]
-                    merged = True
-                    break
-            if merged:
-                break
-    return pieces
+def merge_convex(vertices: np.ndarray,
+                 pieces: list[tuple[int, ...]]) -> list[np.ndarray]:
+    """Join convex CCW pieces of a polygon (vertex indices, sharing whole edges, as ear
+    clipping leaves them) across each shared edge in turn while the union stays convex
+    (Hertel and Mehlhorn: at most four times the fewest convex pieces): fewer pieces, so
+    fewer constraints, the same set. Returns each piece's vertices (K, 2)."""
+    points = np.asarray(vertices, dtype=float)
+    owner: dict[tuple[int, int], int] = {}
+    polygons: dict[int, list[int]] = {}
+    for number, piece in enumerate(pieces):
+        polygons[number] = list(piece)
+        for i, j in zip(piece, piece[1:] + piece[:1]):
+            owner[(i, j)] = number
+    for (i, j), first in list(owner.items()):
+        second = owner.get((j, i))
+        if second is None or first == second or owner.get((i, j)) != first:
+            continue
+        union = _join(polygons[first], polygons[second], i, j)
+        if not _is_convex(points[union]):
+            continue
+        for a, b in zip(polygons[second], polygons[second][1:] + polygons[second][:1]):
+            owner[(a, b)] = first
+        del owner[(i, j)], owner[(j, i)]
+        polygons[first] = union
+        del polygons[second]
+    return [points[piece] for piece in polygons.values()]
 
 
 def convex_pieces(vertices: np.ndarray) -> list[np.ndarray]:
@@ -351,21 +360,17 @@ def convex_pieces(vertices: np.ndarray) -> list[np.ndarray]:
     else its ear-clipping triangles joined while convex."""
     if _is_convex(vertices):
         return [np.array(vertices, dtype=float)]
-    return merge_convex(ear_triangles(vertices))
+    return merge_convex(vertices, ear_triangles(vertices))
 
 
-def _join(first: np.ndarray, second: np.ndarray) -> np.ndarray | None:
-    """The polygon of two CCW polygons that share an edge (a, b) in first, (b, a) in second."""
-    n, m = len(first), len(second)
-    for i in range(n):
-        a, b = first[i], first[(i + 1) % n]
-        for j in range(m):
-            if np.array_equal(second[j], b) and np.array_equal(second[(j + 1) % m], a):
-                # first from b round to a, then second from a round to b, each shared end once.
-                rest_of_first = [first[(i + 1 + k) % n] for k in range(n)]      # b ... a
-                rest_of_second = [second[(j + 2 + k) % m] for k in range(m - 2)]  # after a
-                return np.array(rest_of_first + rest_of_second)
-    return None
+def _join(first: list[int], second: list[int], i: int, j: int) -> list[int]:
+    """The polygon of two CCW polygons (vertex indices) across their shared edge: (i, j) in
+    ``first``, (j, i) in ``second``."""
+    at = first.index(j)
+    around_first = first[at:] + first[:at]               # j ... i
+    at = second.index(i)
+    around_second = second[at:] + second[:at]            # i ... j
+    return around_first + around_second[1:-1]
 
 
 def _is_convex(vertices: np.ndarray) -> bool:
