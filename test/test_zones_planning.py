@@ -9,7 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from uav_comm_planner.core.detour import around_zones, hover_start, path_length, shortest_path
+from uav_comm_planner.core.detour import (around_zones, GRAPH_CLEARANCE_M, hover_start,
+                                          outside_point, path_length, shortest_path)
 from uav_comm_planner.core.fast_trajectory import trajectory_step_clarabel
 from uav_comm_planner.core.feasibility import within_speed_limit
 from uav_comm_planner.core.model import average_rates, flown_path, snr_per_watt
@@ -391,3 +392,24 @@ def test_a_many_sided_non_convex_zone_across_the_letter_s_line_is_kept_out():
     result = plan(scenario)
     check_plan(result, scenario)
     assert result.min_throughput > result.baselines['straight']
+
+
+def test_the_hover_start_hovers_at_each_node_s_nearest_point_outside_the_zones(across):
+    scenario = across[0]
+    zones = scenario.zones
+    disc = zones.keep_out[0]
+    node = np.array(scenario.ground_nodes_m[1])
+    point = outside_point(zones, node)
+    # Radially out of the disc to the margin and the graph's 5 cm.
+    reach = disc.radius_m + zones.margin_m + GRAPH_CLEARANCE_M
+    np.testing.assert_allclose(np.linalg.norm(point - np.array(disc.center_m)), reach)
+    out, inside = point - np.array(disc.center_m), node - np.array(disc.center_m)
+    assert out[0] * inside[1] - out[1] * inside[0] == pytest.approx(0.0, abs=1e-6)
+    assert out @ inside > 0
+    assert np.array_equal(outside_point(zones, scenario.ground_nodes_m[2]),
+                          np.array(scenario.ground_nodes_m[2]))       # node 3 is outside
+    q = hover_start(scenario)
+    assert clearance_of(q, scenario) >= zones.margin_m
+    assert within_speed_limit(q, scenario)
+    # It hovers there: several slots at the very point.
+    assert np.sum(np.all(q == point, axis=1)) >= 2
