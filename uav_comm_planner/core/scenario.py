@@ -118,6 +118,24 @@ def _check_scales(scenario: 'Scenario') -> None:
         2 * span ** 2 + scenario.altitude_m ** 2), 'change altitude_m or the noise')
 
 
+def _check_zones(scenario: 'Scenario') -> None:
+    """q0 and qF keep the zones' margin (a path between them may still be refused when the
+    plan is made: :mod:`uav_comm_planner.core.detour`)."""
+    zones = scenario.zones
+    if zones is None:
+        return
+    if not isinstance(zones, Zones):
+        raise InvalidScenarioError(f'zones must be a Zones or None, got {type(zones).__name__}')
+    for name, point in (('start_m', scenario.start_m), ('goal_m', scenario.goal_m)):
+        clearance = float(zones.clearance([point])[0])
+        if clearance < zones.margin_m:
+            where = ('inside a keep-out zone or outside the operating area'
+                     if clearance < 0 else 'closer to a zone\'s edge than the margin')
+            raise InfeasibleHorizonError(
+                f'{name} {point} is {where}: its clearance from the zones is '
+                f'{clearance:.2f} m, the margin is {zones.margin_m:g} m; move it or the zones')
+
+
 @dataclass(frozen=True)
 class Scenario:
     """One planning problem (letter, Section II).
@@ -182,7 +200,7 @@ class Scenario:
         _check_scales(self)
         self._check_duplicates()
         self._check_reachable()
-        self._check_zones()
+        _check_zones(self)
 
     def _check_wind(self) -> None:
         speed = _real('wind_speed_mps', self.wind_speed_mps)
@@ -234,24 +252,6 @@ class Scenario:
                 f'at most {reach:.1f} m in {legs} legs ({fastest:.3g} m/s over the ground '
                 f'towards the goal, {limit}); raise horizon_s to {needed:.1f} s or more, or '
                 f'max_speed_mps, or move the goal')
-
-    def _check_zones(self) -> None:
-        """q0 and qF keep the zones' margin (a path between them may still be refused when
-        the plan is made: :mod:`uav_comm_planner.core.detour`)."""
-        if self.zones is None:
-            return
-        if not isinstance(self.zones, Zones):
-            raise InvalidScenarioError(
-                f'zones must be a Zones or None, got {type(self.zones).__name__}')
-        margin = self.zones.margin_m
-        for name, point in (('start_m', self.start_m), ('goal_m', self.goal_m)):
-            clearance = float(self.zones.clearance([point])[0])
-            if clearance < margin:
-                where = ('inside a keep-out zone or outside the operating area'
-                         if clearance < 0 else 'closer to a zone\'s edge than the margin')
-                raise InfeasibleHorizonError(
-                    f'{name} {point} is {where}: its clearance from the zones is '
-                    f'{clearance:.2f} m, the margin is {margin:g} m; move it or the zones')
 
     def fastest_ground_speed_mps(self, direction: Sequence[float]) -> float:
         """The fastest ground speed along the unit vector ``direction`` (east, north) that keeps
