@@ -413,3 +413,15 @@ def test_the_hover_start_hovers_at_each_node_s_nearest_point_outside_the_zones(a
     assert within_speed_limit(q, scenario)
     # It hovers there: several slots at the very point.
     assert np.sum(np.all(q == point, axis=1)) >= 2
+
+
+def test_two_nodes_served_from_one_point_share_its_hovers():
+    zones = Zones(keep_out=(KeepOutCircle((1000.0, 100.0), 150.0),))
+    scenario = paper_scenario('I', ground_nodes_m=((1000, 150), (1000, 200), (1800, 400)),
+                              zones=zones)
+    shared = outside_point(zones, scenario.nodes[0])
+    assert np.array_equal(shared, outside_point(zones, scenario.nodes[1]))
+    q = hover_start(scenario)
+    assert q.shape == (scenario.num_slots, 2) and within_speed_limit(q, scenario)
+    assert clearance_of(q, scenario) >= zones.margin_m
+    check_plan(plan(scenario), scenario)

@@ -199,10 +199,6 @@ def shortest_path(zones: Zones, start: np.ndarray, goal: np.ndarray) -> np.ndarr
     return points[order[::-1]]
 
 
-def _corners(zones: Zones) -> np.ndarray:
-    return _corner_graph(zones)[0]
-
-
 def path_length(path: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
 
@@ -303,7 +299,7 @@ def outside_point(zones: Zones, point: np.ndarray) -> np.ndarray | None:
     if zones.clearance([point])[0] >= zones.margin_m:
         return point
     reach = zones.margin_m + GRAPH_CLEARANCE_M
-    candidates = [_corners(zones)]
+    candidates = [_corner_graph(zones)[0]]
     for zone in (*zones.keep_out, *(() if zones.area is None else (zones.area,))):
         if zone.clearance([point])[0] >= zones.margin_m:
             continue
@@ -378,7 +374,9 @@ def hover_start(scenario: Scenario) -> np.ndarray:
             path, counts, hover_at = _joined(pieces, scenario)
             if counts.sum() <= legs:
                 hovers = np.zeros(len(path), dtype=int)
-                hovers[hover_at] = initial.even_hovers(legs - int(counts.sum()), len(order))
+                # Two stops at one point (a node's nearest point shared) hover there for both.
+                np.add.at(hovers, hover_at,
+                          initial.even_hovers(legs - int(counts.sum()), len(order)))
                 return _waypoints(path, counts, hovers)[1:-1]
         # Leave out the stop whose detour costs most (straight-line lengths, as initial does).
         tour = np.array(tour)
