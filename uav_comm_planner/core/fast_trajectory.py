@@ -19,8 +19,12 @@ limits are M + 1 second-order cones of dimension 3, and u[m] >= ||z[m]||^2 is th
 exact: u appears only with non-negative weights on the small side of each constraint, so some
 optimum has u[m] = ||z[m]||^2.
 
-Only the node rows change between SCA iterations (coefficients and right-hand sides),
-so the sparsity pattern is fixed by (N, M) and the solver is updated in place.
+With zones, K linear rows per slot (:mod:`uav_comm_planner.core.zone_rows`, the restriction
+at q^k) follow, in a non-negative cone of their own.
+
+Only the node rows and the zone rows change between SCA iterations (coefficients and
+right-hand sides), so the sparsity pattern is fixed by (N, M, K) and the solver is updated in
+place.
 """
 
 from __future__ import annotations
@@ -34,9 +38,11 @@ import numpy as np
 from scipy import sparse
 
 from uav_comm_planner.core.feasibility import within_speed_limit
+from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.trajectory import (kilometre_rows, KM, surrogate_coefficients,
                                               TrajectoryStep, with_offsets)
+from uav_comm_planner.core.zone_rows import zone_model
 from uav_comm_planner.errors import SolverError
 
 
@@ -76,7 +82,9 @@ class ConeLayout:
     B = ceil(M / K) blocks. Rows, in cone order: N node rows t + sum_k e_{n,k} <= C'_n and
     N B block rows (1/M) sum_{m in block k} W_{n,m} (u[m] - 2 w_n . z[m]) <= e_{n,k}
     (non-negative cone), 3 (M + 1) speed rows, with ``air_legs`` 3 (M + 1) airspeed rows (the
-    same legs less the drift), 4 M epigraph rows. ``values`` holds A's
+    same legs less the drift), 4 M epigraph rows, then ``zone_rows`` K rows per slot, in
+    (m, k) order, of the zones' restriction (non-negative cone, 2 M K entries in (m, k,
+    (z_x, z_y)) order at the end of the build order). ``values`` holds A's
     entries in build order, where the 3 N M block coefficients, in (n, m, (z_x, z_y, u))
     order, start at ``first_coefficient``; ``to_csc`` reorders such a list into CSC order.
     """
@@ -89,6 +97,7 @@ class ConeLayout:
     indptr: np.ndarray
     to_csc: np.ndarray
     values: np.ndarray
+    zone_rows: int = 0
 
     @property
     def num_blocks(self) -> int:
@@ -110,6 +119,10 @@ class ConeLayout:
 
     @property
     def num_rows(self) -> int:
+        return self.first_zone_row + self.zone_rows * self.num_slots
+
+    @property
+    def first_zone_row(self) -> int:
         return self.num_nodes + self.num_sums + 3 * self.num_leg_cones + 4 * self.num_slots
 
     @property
@@ -130,6 +143,14 @@ class ConeLayout:
         order = np.argsort(build_to_csc[build])
         return build_to_csc[build][order], build[order] - self.first_coefficient
 
+    @functools.cached_property
+    def zone_entries(self) -> np.ndarray:
+        """The zone rows' entries' positions in A's CSC data, in their build order."""
+        build_to_csc = np.empty_like(self.to_csc)
+        build_to_csc[self.to_csc] = np.arange(len(self.to_csc))
+        count = 2 * self.zone_rows * self.num_slots
+        return build_to_csc[len(self.to_csc) - count:]
+
     def matrix(self, values: np.ndarray) -> sparse.csc_matrix:
         """A (rows, columns) from entries in build order."""
         return sparse.csc_matrix((values[self.to_csc], self.indices, self.indptr),
@@ -146,9 +167,11 @@ class ConeLayout:
     def cones(self) -> tuple:
         """Node and block rows (non-negative), speed limits (M + 1 of dim 3, and as many for
         the airspeed), epigraphs (M of dim 4)."""
+        zones = ((clarabel.NonnegativeConeT(self.zone_rows * self.num_slots),)
+                 if self.zone_rows else ())
         return ((clarabel.NonnegativeConeT(self.num_nodes + self.num_sums),)
                 + (clarabel.SecondOrderConeT(3),) * self.num_leg_cones
-                + (clarabel.SecondOrderConeT(4),) * self.num_slots)
+                + (clarabel.SecondOrderConeT(4),) * self.num_slots + zones)
 
 
 def _speed_entries(first_row: int, num_slots: int) -> tuple[np.ndarray, ...]:
@@ -169,6 +192,14 @@ def _epigraph_entries(first_row: int, num_slots: int) -> tuple[np.ndarray, ...]:
     rows = first_row + 4 * slot + np.arange(4)
     cols = np.concatenate([u_col, 1 + 2 * slot, 2 + 2 * slot, u_col], axis=1)
     return rows.ravel(), cols.ravel(), np.tile([-0.5, -1.0, -1.0, -0.5], num_slots)
+
+
+def _zone_entries(first_row: int, num_slots: int, rows: int) -> tuple[np.ndarray, ...]:
+    """Slot m's row k is s = b - A x with A's entries on z[m]_x and z[m]_y (set per step)."""
+    row = first_row + np.arange(num_slots * rows)
+    slot = np.repeat(np.arange(num_slots), rows)
+    cols = np.stack([1 + 2 * slot, 2 + 2 * slot], axis=1)
+    return np.repeat(row, 2), cols.ravel(), np.zeros(2 * num_slots * rows)
 
 
 def _num_sums(num_nodes: int, num_slots: int, block: int) -> int:
@@ -206,10 +237,11 @@ def _sum_entries(num_nodes: int, num_slots: int,
 
 @functools.lru_cache(maxsize=8)
 def cone_layout(num_nodes: int, num_slots: int, block: int | None = None, *,
-                air_legs: bool = False) -> ConeLayout:
+                air_legs: bool = False, zone_rows: int = 0) -> ConeLayout:
     """The fixed sparsity pattern for N nodes, M slots and blocks of ``block`` slots
     (:func:`block_slots` by default; M or more for none), with the airspeed cones when
-    ``air_legs``. Cached; arrays are read-only."""
+    ``air_legs`` and ``zone_rows`` rows per slot for the zones. Cached; arrays are
+    read-only."""
     block = block_slots(num_nodes) if block is None else block
     sums = _num_sums(num_nodes, num_slots, block)
     first_speed_row = num_nodes + sums
@@ -218,6 +250,9 @@ def cone_layout(num_nodes: int, num_slots: int, block: int | None = None, *,
              *(_speed_entries(first_speed_row + 3 * (num_slots + 1) * k, num_slots)
                for k in range(leg_sets)),
              _epigraph_entries(first_speed_row + 3 * (num_slots + 1) * leg_sets, num_slots))
+    if zone_rows:
+        first_zone_row = first_speed_row + 3 * (num_slots + 1) * leg_sets + 4 * num_slots
+        parts += (_zone_entries(first_zone_row, num_slots, zone_rows),)
     rows, cols, values = (np.concatenate(arrays) for arrays in zip(*parts))
     # CSC order: by column, then by row; no entry repeats, so this is a permutation.
     to_csc = np.lexsort((rows, cols))
@@ -225,7 +260,7 @@ def cone_layout(num_nodes: int, num_slots: int, block: int | None = None, *,
     layout = ConeLayout(num_nodes=num_nodes, num_slots=num_slots, block_slots=block,
                         air_legs=air_legs, indices=rows[to_csc].astype(np.int32),
                         indptr=np.concatenate([[0], np.cumsum(counts)]).astype(np.int32),
-                        to_csc=to_csc, values=values)
+                        to_csc=to_csc, values=values, zone_rows=zone_rows)
     for array in (layout.indices, layout.indptr, layout.to_csc, layout.values):
         array.setflags(write=False)
     return layout
@@ -295,6 +330,7 @@ class ClarabelTrajectoryStep:
             [-2.0 / m * self.w, np.full((scenario.num_nodes, 1), 1.0 / m)], axis=1)[:, None, :]
         self._w_squared = (self.w ** 2).sum(axis=1)
         self._node_index = list(range(scenario.num_nodes))
+        self.zones = zone_model(scenario.zones)
         self.attempt = 0
         self._configure()
 
@@ -303,7 +339,8 @@ class ClarabelTrajectoryStep:
         blocks, self.refine = ATTEMPTS[self.attempt]
         n, m = self.scenario.num_nodes, self.scenario.num_slots
         self.layout = cone_layout(n, m, block_slots(n) if blocks else m,
-                                  air_legs=self.scenario.airspeed_limited)
+                                  air_legs=self.scenario.airspeed_limited,
+                                  zone_rows=0 if self.zones is None else self.zones.rows_per_slot)
         self.b_fixed = self._fixed_right_hand_side()
         self.objective = np.zeros(self.layout.num_columns)
         self.objective[0] = -1.0
@@ -327,7 +364,8 @@ class ClarabelTrajectoryStep:
             legs.append(air.ravel())
         epigraph = np.tile([0.5, 0.0, 0.0, -0.5], m)
         sum_rows = np.zeros(self.layout.num_nodes + self.layout.num_sums)
-        return np.concatenate([sum_rows, *legs, epigraph])
+        zone_rows = np.zeros(self.layout.zone_rows * m)
+        return np.concatenate([sum_rows, *legs, epigraph, zone_rows])
 
     def node_rows(self, q_k: np.ndarray, p: np.ndarray,
                   offsets: np.ndarray | None = None) -> NodeRows:
@@ -345,19 +383,36 @@ class ClarabelTrajectoryStep:
         """b of the N node rows: C_n - ||w_n||^2 (1/M) sum_m W_{n,m}."""
         return rows.constant - self._w_squared * (rows.weight.sum(axis=1) / rows.weight.shape[1])
 
-    def cone_data(self, rows: NodeRows) -> tuple[np.ndarray, np.ndarray]:
-        """A's entries in build order and b for these node rows."""
+    def zone_data(self, q_k: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """The zone rows' entries of A ((M, K, 2) build order) and b (M K,) for the
+        restriction at q_k: a . q >= o is a . z >= (o - a . centre) / 1000, and Clarabel's
+        s = b - A x >= 0 takes A = -a, b = -(o - a . centre) / 1000. None without zones."""
+        if self.zones is None:
+            return None
+        rows = self.zones.rows(flown_path(q_k, self.scenario))
+        b = -(rows.offsets - rows.normals @ self.centre_m) / KM
+        return -rows.normals, b.ravel()
+
+    def cone_data(self, rows: NodeRows,
+                  zones: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """A's entries in build order and b for these node rows (and zone rows)."""
         values = self.layout.values.copy()
         first = self.layout.first_coefficient
         coefficients = self.coefficients(rows).ravel()
         values[first:first + len(coefficients)] = coefficients
         b = self.b_fixed.copy()
         b[:self.scenario.num_nodes] = self.node_right_hand_side(rows)
+        if zones is not None:
+            entries, right = zones
+            values[len(values) - entries.size:] = entries.ravel()
+            b[self.layout.first_zone_row:] = right
         return values, b
 
-    def _solve(self, rows: NodeRows) -> clarabel.DefaultSolution:
+    def _solve(self, rows: NodeRows,
+               zones: tuple[np.ndarray, np.ndarray] | None = None) -> clarabel.DefaultSolution:
         if self._solver is None:
-            values, b = self.cone_data(rows)
+            values, b = self.cone_data(rows, zones)
             p, a = self.layout.clarabel_matrices(values)
             self._solver = clarabel.DefaultSolver(
                 p, self.objective.tolist(), a, b.tolist(), list(self.layout.cones),
@@ -368,8 +423,18 @@ class ClarabelTrajectoryStep:
                 # A list for this plan only; the cached layout keeps arrays, a fifth the size.
                 self._update_positions = positions.tolist()
             changed = self.coefficients(rows).ravel()[coefficient]
-            self._solver.update(A=(self._update_positions, changed.tolist()),
-                                b=(self._node_index, self.node_right_hand_side(rows).tolist()))
+            if zones is None:
+                self._solver.update(
+                    A=(self._update_positions, changed.tolist()),
+                    b=(self._node_index, self.node_right_hand_side(rows).tolist()))
+            else:
+                entries, right = zones
+                first = self.layout.first_zone_row
+                self._solver.update(
+                    A=(self._update_positions + self.layout.zone_entries.tolist(),
+                       changed.tolist() + entries.ravel().tolist()),
+                    b=(self._node_index + list(range(first, first + right.size)),
+                       self.node_right_hand_side(rows).tolist() + right.tolist()))
         return self._solver.solve()
 
     def __call__(self, q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
@@ -379,8 +444,9 @@ class ClarabelTrajectoryStep:
         if scenario is not self.scenario and scenario != self.scenario:
             raise ValueError('this trajectory stepper was built for another scenario')
         rows = self.node_rows(q_k, p, offsets)
+        zones = self.zone_data(q_k)
         while True:
-            solution = self._solve(rows)
+            solution = self._solve(rows, zones)
             z = self._positions(solution)
             if solution.status == clarabel.SolverStatus.Solved or (
                     solution.status == clarabel.SolverStatus.AlmostSolved

@@ -10,15 +10,17 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from uav_comm_planner.core import initial
+from uav_comm_planner.core import detour
 from uav_comm_planner.core.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
-from uav_comm_planner.core.model import (average_rates, LN2, snr_per_watt, snr_scale,
-                                         spectral_efficiencies, spectral_efficiency_to_rate)
+from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt,
+                                         snr_scale, spectral_efficiencies,
+                                         spectral_efficiency_to_rate)
 from uav_comm_planner.core.power import (checked_offsets, conic_power, PowerAllocation,
                                          waterfilling_power)
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.trajectory import trajectory_step_cvxpy, TrajectoryStep
+from uav_comm_planner.core.zone_rows import zone_model
 from uav_comm_planner.errors import InvalidScenarioError, PlanCancelledError, SolverError
 
 logger = logging.getLogger(__name__)
@@ -58,10 +60,11 @@ class Start:
         return cls(name, lambda scenario: trajectory.copy())
 
 
-#: Initial trajectories, by the names :attr:`SolverSettings.starts` uses.
+#: Initial trajectories, by the names :attr:`SolverSettings.starts` uses (with zones, the
+#: path around them and the tour outside them: :mod:`uav_comm_planner.core.detour`).
 STARTS: dict[str, Start] = {
-    'straight': Start('straight', initial.straight_line),
-    'hover': Start('hover', initial.hover_and_fly),
+    'straight': Start('straight', detour.straight_start),
+    'hover': Start('hover', detour.hover_start),
 }
 
 
@@ -158,10 +161,12 @@ def optimal_power(q: np.ndarray, scenario: Scenario,
 
 def baseline_rates(scenario: Scenario, power_solver: PowerSolver = waterfilling_power, *,
                    offsets: np.ndarray | None = None) -> dict[str, float]:
-    """The letter's benchmarks, each with its optimal power: min throughput in bit/s."""
+    """The letter's benchmarks, each with its optimal power: min throughput in bit/s. With
+    zones, the straight line is the path around them and the static point the nearest one
+    outside them (:mod:`uav_comm_planner.core.detour`)."""
     rates = {}
-    for name, q in (('straight', initial.straight_line(scenario)),
-                    ('static', initial.static_point(scenario))):
+    for name, q in (('straight', detour.straight_start(scenario)),
+                    ('static', detour.static_start(scenario))):
         p = optimal_power(q, scenario, power_solver, offsets=offsets)
         rates[name] = float(average_rates(q, p, scenario, offsets).min())
     return rates
@@ -181,7 +186,10 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
     rate (possible only through solver round-off) is discarded and ends its loop. Every
     trajectory is projected onto the speed limit (:func:`~uav_comm_planner.core.feasibility.
     project_onto_speed_limit`), so solver
-    round-off never lets a leg exceed V delta. ``should_stop`` is asked before every step;
+    round-off never lets a leg exceed V delta; with zones, a step that solver round-off left
+    below their margin is moved back towards the trajectory it started from
+    (:class:`ZoneKeeper`), and the start must keep them.
+    ``should_stop`` is asked before every step;
     when it returns True the run ends with :class:`~uav_comm_planner.errors.PlanCancelledError`.
     With ``offsets`` o (N,) bits per use, every step maximises min_n (o_n + mean_m log2(...)).
     """
@@ -203,6 +211,9 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
         return allocation.p, value
 
     q = project_onto_speed_limit(q, scenario)
+    keep = _zone_keeper(scenario)
+    if keep is not None:
+        keep.check_start(q)
     a = snr_per_watt(q, scenario)
     previous_power_value = -np.inf
     inner_total = 0
@@ -220,6 +231,8 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
             step = trajectory_solver(q, p, scenario, **extra)
             inner_total += 1
             q_new = project_onto_speed_limit(step.q, scenario)
+            if keep is not None:
+                q_new = keep(q_new, q)
             a_new = snr_per_watt(q_new, scenario)
             new_value = min_rate(a_new, p)
             if new_value < value:
@@ -236,6 +249,62 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
     if p is None:
         raise SolverError('Algorithm 1 ran no iteration; max_outer_iterations must be >= 1')
     return Run(q, p, tuple(history), outer, inner_total, converged)
+
+
+class ZoneKeeper:
+    """Keeps every trajectory of Algorithm 1 out of the zones by their margin, exactly.
+
+    A step's answer q meets the restriction at q^k to the solver's tolerance, and the
+    restriction asks for :data:`~uav_comm_planner.core.zone_rows.ZONE_CUSHION_M` more than
+    the margin, so q nearly always keeps it. When it does not, the restriction's rows at level
+    margin (half-planes, each of which q^k keeps) hold on the blend (1 - lam) q + lam q^k for
+    lam = max over the rows of -s(q) / (s(q^k) - s(q)), s a row's slack; the blend also keeps
+    the speed limits, which both keep (the limits are convex).
+    """
+
+    def __init__(self, scenario: Scenario):
+        self.scenario = scenario
+        self.model = zone_model(scenario.zones)
+
+    def _clear(self, q: np.ndarray) -> bool:
+        """Whether every leg of the path of q (M, 2) keeps the margin, to round-off."""
+        path = flown_path(q, self.scenario)
+        margin = self.scenario.zones.margin_m
+        return bool(detour.segments_clear(self.scenario.zones, path[:-1], path[1:],
+                                          margin_m=margin * (1 - 1e-9) - 1e-9).all())
+
+    def keeps(self, q: np.ndarray) -> bool:
+        """Whether q (M, 2) metres, projected onto the speed limits, keeps the margin (to
+        round-off)."""
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.scenario.num_slots, 2) or not np.isfinite(q).all():
+            return False
+        return self._clear(project_onto_speed_limit(q, self.scenario))
+
+    def check_start(self, q: np.ndarray) -> None:
+        """Refuse a start that does not keep the zones' margin."""
+        if not self._clear(q):
+            zones = self.scenario.zones
+            clearance = zones.path_clearance(flown_path(q, self.scenario))
+            raise InvalidScenarioError(
+                f'the start trajectory comes within {clearance:.3f} m of a zone, the margin is '
+                f'{zones.margin_m:g} m: start from a path that keeps out of the zones')
+
+    def __call__(self, q: np.ndarray, q_k: np.ndarray) -> np.ndarray:
+        rows = self.model.rows(flown_path(q_k, self.scenario), cushion_m=0.0)
+        new, old = rows.slack(q), rows.slack(q_k)
+        short = new < 0.0
+        if not short.any():
+            return q
+        lam = float(np.max(-new[short] / np.maximum(old[short] - new[short], 1e-300)))
+        lam = min(1.0, lam * (1 + 1e-9) + 1e-12)
+        return (1.0 - lam) * q + lam * q_k
+
+
+def _zone_keeper(scenario: Scenario) -> ZoneKeeper | None:
+    if scenario.zones is None or scenario.zones.empty:
+        return None
+    return ZoneKeeper(scenario)
 
 
 def throughput_upper_bound(scenario: Scenario) -> float:
@@ -302,6 +371,12 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     (M, 2) metres by name (for example the rest of the previous plan; a name of
     ``settings.starts`` is replaced by the trajectory given); each should keep the speed
     limit, since Algorithm 1 only improves on its start (projected onto it otherwise).
+
+    With ``scenario.zones`` every slot point and every leg of every trajectory keeps out of
+    the zones by their margin: the starts go round them (:mod:`uav_comm_planner.core.detour`),
+    each SCA step adds their restriction (:mod:`uav_comm_planner.core.zone_rows`), and an extra
+    start that does not keep them is left out. A request with no way round the zones within
+    the horizon raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError`.
     """
     if settings is None:
         settings = SolverSettings()
@@ -316,7 +391,11 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     began = time.perf_counter()
     power_solver, trajectory_solver = _solvers(scenario, power_method, trajectory_method)
     starts = {name: STARTS[name] for name in settings.starts}
+    keeper = _zone_keeper(scenario)
     for name, trajectory in (extra_starts or {}).items():
+        if keeper is not None and not keeper.keeps(trajectory):
+            logger.info('start %r left out: it does not keep out of the zones', name)
+            continue
         starts[name] = Start.given(name, trajectory)
     order = list(starts)
     runs = {name: alternate(scenario, start.make(scenario), settings, power_solver=power_solver,

@@ -16,6 +16,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
+from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import (ComputeBudgetError, InfeasibleHorizonError,
                                      InvalidScenarioError)
 
@@ -117,6 +118,24 @@ def _check_scales(scenario: 'Scenario') -> None:
         2 * span ** 2 + scenario.altitude_m ** 2), 'change altitude_m or the noise')
 
 
+def _check_zones(scenario: 'Scenario') -> None:
+    """q0 and qF keep the zones' margin (a path between them may still be refused when the
+    plan is made: :mod:`uav_comm_planner.core.detour`)."""
+    zones = scenario.zones
+    if zones is None:
+        return
+    if not isinstance(zones, Zones):
+        raise InvalidScenarioError(f'zones must be a Zones or None, got {type(zones).__name__}')
+    for name, point in (('start_m', scenario.start_m), ('goal_m', scenario.goal_m)):
+        clearance = float(zones.clearance([point])[0])
+        if clearance < zones.margin_m:
+            where = ('inside a keep-out zone or outside the operating area'
+                     if clearance < 0 else 'closer to a zone\'s edge than the margin')
+            raise InfeasibleHorizonError(
+                f'{name} {point} is {where}: its clearance from the zones is '
+                f'{clearance:.2f} m, the margin is {zones.margin_m:g} m; move it or the zones')
+
+
 @dataclass(frozen=True)
 class Scenario:
     """One planning problem (letter, Section II).
@@ -132,6 +151,10 @@ class Scenario:
     slot's ground velocity v must then also keep ||v - w|| <= V_air, the airspeed
     ``max_airspeed_mps`` (None: V). Without wind and with V_air >= V that adds nothing: the
     letter's problem exactly.
+
+    ``zones`` (:class:`~uav_comm_planner.core.zones.Zones`, None: none) are where the UAV may
+    fly: every slot point and every leg, q0 and qF included, keeps ``zones.margin_m`` inside
+    the operating area and out of every keep-out zone.
     """
 
     ground_nodes_m: tuple[Point, ...]
@@ -148,6 +171,7 @@ class Scenario:
     wind_speed_mps: float = 0.0
     wind_from_deg: float = 0.0
     max_airspeed_mps: float | None = None
+    zones: Zones | None = None
 
     def __post_init__(self) -> None:
         nodes = self.ground_nodes_m
@@ -176,6 +200,7 @@ class Scenario:
         _check_scales(self)
         self._check_duplicates()
         self._check_reachable()
+        _check_zones(self)
 
     def _check_wind(self) -> None:
         speed = _real('wind_speed_mps', self.wind_speed_mps)

@@ -28,8 +28,9 @@ import numpy as np
 
 from uav_comm_planner.core.conic import Certificate, solve_checked
 from uav_comm_planner.core.feasibility import LEG_SLACK, limit_discs
-from uav_comm_planner.core.model import LN2, snr_scale, squared_distances
+from uav_comm_planner.core.model import flown_path, LN2, snr_scale, squared_distances
 from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.core.zone_rows import zone_model, ZoneRows
 
 #: The conic problems see positions in kilometres: coordinates of order 1, not 1000.
 KM = 1000.0
@@ -119,16 +120,30 @@ class LegDisc:
     prices: np.ndarray
 
 
+@dataclass(frozen=True)
+class HalfPlanes:
+    """Linear rows normals[m, k] . z[m] >= offsets[m, k] on the slot points (kilometres: the
+    zones' restriction, :mod:`uav_comm_planner.core.zone_rows`), with the solver's multipliers
+    ``prices`` (M, K)."""
+
+    normals: np.ndarray
+    offsets: np.ndarray
+    prices: np.ndarray
+
+
 def sca_duality_gap(z: np.ndarray, weights: np.ndarray, discs: Sequence[LegDisc],
                     weight: np.ndarray, constant: np.ndarray, start: np.ndarray,
-                    goal: np.ndarray, w: np.ndarray) -> float:
+                    goal: np.ndarray, w: np.ndarray,
+                    half_planes: HalfPlanes | None = None) -> float:
     """An upper bound on how far ``z`` is from the SCA step's optimum, relative to max(1, value).
 
     The step (kilometres): maximise min_n f_n(z), f_n(z) = constant_n - (1/M) sum_m
     weight_{n,m} ||z[m] - w_n||^2, subject to every leg l of the path start, z[1..M], goal
-    keeping ||l - c|| <= r for each disc (c, r) of ``discs``. For multipliers lambda (N,) >= 0
-    summing to 1 and nu >= 0 per disc and leg, weak duality bounds the optimum by max_z L(z),
-    L = sum_n lambda_n f_n + sum_discs sum_l nu_l (r - ||l - c||). L is concave, and strongly
+    keeping ||l - c|| <= r for each disc (c, r) of ``discs`` and, with ``half_planes``, every
+    row a . z[m] >= b. For multipliers lambda (N,) >= 0 summing to 1, nu >= 0 per disc and leg
+    and eta >= 0 per row, weak duality bounds the optimum by max_z L(z),
+    L = sum_n lambda_n f_n + sum_discs sum_l nu_l (r - ||l - c||) + sum eta (a . z[m] - b).
+    L is concave, and strongly
     so in each z[m] with modulus mu_m = (2/M) sum_n lambda_n weight_{n,m}, so
     max_z L <= L(z) + sum_m ||g_m||^2 / (2 mu_m) with g a supergradient of L at z. The gap is
     that bound minus min_n f_n(z); infinite if z breaks a limit (beyond
@@ -157,6 +172,13 @@ def sca_duality_gap(z: np.ndarray, weights: np.ndarray, discs: Sequence[LegDisc]
                           where=length[:, None] > 0.0)
         lagrangian += float(nu @ (disc.radius - length))
         g += -nu[:-1, None] * units[:-1] + nu[1:, None] * units[1:]
+    if half_planes is not None:
+        slack = np.einsum('mkj,mj->mk', half_planes.normals, z) - half_planes.offsets
+        if slack.size and slack.min() < -LEG_SLACK * max(1.0, float(np.abs(z).max())):
+            return math.inf
+        eta = np.maximum(half_planes.prices, 0.0)
+        lagrangian += float((eta * slack).sum())
+        g += np.einsum('mk,mkj->mj', eta, half_planes.normals)
     modulus = (2.0 / m) * (lam @ weight)                                  # (M,)
     squared = (g ** 2).sum(axis=1)
     if np.any((modulus <= 0.0) & (squared > 0.0)):
@@ -164,6 +186,14 @@ def sca_duality_gap(z: np.ndarray, weights: np.ndarray, discs: Sequence[LegDisc]
     ascent = float(np.divide(squared, 2.0 * modulus, out=np.zeros_like(squared),
                              where=modulus > 0.0).sum())
     return (lagrangian + ascent - value) / max(1.0, abs(value))
+
+
+def zone_rows_at(q_k: np.ndarray, scenario: Scenario) -> ZoneRows | None:
+    """The zones' restriction at the path of q^k (M, 2) metres, None without zones."""
+    model = zone_model(scenario.zones)
+    if model is None:
+        return None
+    return model.rows(flown_path(q_k, scenario))
 
 
 def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
@@ -174,7 +204,8 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
     Variables are z = q / 1000 (kilometres) and t (bits per use): maximise t subject to
     o_n + mean_m lbr_{n,m}(z) >= t for every node (o = 0 without ``offsets`` (N,)) and every
     leg within the speed limits (:func:`~uav_comm_planner.core.feasibility.limit_discs`: at
-    most V delta, and in wind within V_air delta of the drift). The answer is accepted only
+    most V delta, and in wind within V_air delta of the drift), and with zones their
+    restriction at q^k (:func:`zone_rows_at`). The answer is accepted only
     when its duality gap (:func:`sca_duality_gap`) is at most :data:`CERTIFIED_GAP`; with
     Clarabel, one that is not is solved again with :data:`CLARABEL_RETRY`.
     """
@@ -195,14 +226,23 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
     for n in range(scenario.num_nodes):
         spread = cp.sum(cp.square(z - w[n][None, :]), axis=1)
         constraints.append(constant[n] - weight[n] @ spread / m >= t)
-    problem = cp.Problem(cp.Maximize(t), constraints)
+    rows = zone_rows_at(q_k, scenario)
+    zone_constraints = [] if rows is None else [
+        cp.sum(cp.multiply(rows.normals[:, k, :], z), axis=1) >= rows.offsets[:, k] / KM
+        for k in range(rows.offsets.shape[1])]
+    problem = cp.Problem(cp.Maximize(t), constraints + zone_constraints)
 
     def certify() -> Certificate:
-        weights = np.array([float(c.dual_value) for c in constraints[len(limits):]])
+        weights = np.array([float(c.dual_value) for c in
+                            constraints[len(limits):len(limits) + scenario.num_nodes]])
         discs = [LegDisc(centre, radius, np.asarray(c.dual_value, dtype=float).reshape(-1))
                  for (centre, radius), c in zip(limits, constraints)]
+        half_planes = None if rows is None else HalfPlanes(
+            rows.normals, rows.offsets / KM,
+            np.stack([np.asarray(c.dual_value, dtype=float).reshape(-1)
+                      for c in zone_constraints], axis=1))
         gap = sca_duality_gap(np.asarray(z.value), weights, discs, weight, constant, start,
-                              goal, w)
+                              goal, w, half_planes)
         return Certificate(gap, CERTIFIED_GAP)
 
     bases = [{}, CLARABEL_RETRY] if solver == 'CLARABEL' else [{}]

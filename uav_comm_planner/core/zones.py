@@ -80,6 +80,14 @@ def _simple_polygon(name: str, vertices: ArrayLike) -> np.ndarray:
     return points
 
 
+def closest_on_segments(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The closest point of each segment a b to each point (arrays (..., 2), broadcasting)."""
+    ab = b - a
+    length2 = np.einsum('...j,...j->...', ab, ab)
+    t = np.einsum('...j,...j->...', points - a, ab) / np.where(length2 > 0, length2, 1.0)
+    return a + np.clip(t, 0.0, 1.0)[..., None] * ab
+
+
 def _point_segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distance of each of ``points`` (K, 2) to the segment ab."""
     ab = b - a
@@ -88,7 +96,7 @@ def _point_segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) ->
     return np.linalg.norm(points - (a + t[:, None] * ab), axis=1)
 
 
-def _inside_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+def inside_polygon(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """Even-odd rule: whether each of ``points`` (K, 2) lies strictly inside the polygon."""
     x, y = points[:, 0][:, None], points[:, 1][:, None]
     x0, y0 = vertices[:, 0], vertices[:, 1]
@@ -107,7 +115,7 @@ def _boundary_distance(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
 def _polygon_signed_distance(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """Distance to the polygon's boundary, negative inside it."""
     distance = _boundary_distance(points, vertices)
-    return np.where(_inside_polygon(points, vertices), -distance, distance)
+    return np.where(inside_polygon(points, vertices), -distance, distance)
 
 
 #: Points a segment that meets a polygon's boundary is sampled at for its deepest point.
@@ -159,7 +167,7 @@ class KeepOutCircle:
         return float(distance[0]) - self.radius_m
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class KeepOutPolygon:
     """A simple polygon the flight must not enter (vertices east-north metres, stored CCW)."""
 
@@ -170,9 +178,22 @@ class KeepOutPolygon:
         vertices.setflags(write=False)
         object.__setattr__(self, 'vertices_m', vertices)
 
+    def __eq__(self, other: object) -> bool:
+        # By value, so that scenarios holding zones compare and hash as dataclasses do.
+        return type(other) is type(self) and np.array_equal(self.vertices_m, other.vertices_m)
+
+    def __hash__(self) -> int:
+        return hash((type(self).__name__, self.vertices_m.tobytes()))
+
     @property
     def convex(self) -> bool:
         return _is_convex(self.vertices_m)
+
+    def convex_pieces(self) -> list[np.ndarray]:
+        """Convex polygons (CCW vertices) whose union is this one: itself when convex, else its
+        ear-clipping triangles joined while convex. A point's distance to the polygon is the
+        least of its distances to the pieces."""
+        return convex_pieces(self.vertices_m)
 
     def clearance(self, points: ArrayLike) -> np.ndarray:
         points = np.atleast_2d(np.asarray(points, dtype=float))
@@ -183,7 +204,7 @@ class KeepOutPolygon:
                                          self.vertices_m)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class OperatingArea:
     """A simple polygon the whole flight stays inside (vertices east-north metres, CCW)."""
 
@@ -194,9 +215,31 @@ class OperatingArea:
         vertices.setflags(write=False)
         object.__setattr__(self, 'vertices_m', vertices)
 
+    def __eq__(self, other: object) -> bool:
+        # By value, so that scenarios holding zones compare and hash as dataclasses do.
+        return type(other) is type(self) and np.array_equal(self.vertices_m, other.vertices_m)
+
+    def __hash__(self) -> int:
+        return hash((type(self).__name__, self.vertices_m.tobytes()))
+
     @property
     def convex(self) -> bool:
         return _is_convex(self.vertices_m)
+
+    def hull_and_pockets(self) -> tuple[np.ndarray, list[np.ndarray]]:
+        """The area's convex hull (CCW vertices) and its pockets, the polygons between the hull
+        and the area (none for a convex area): the area is the hull less the pockets, and its
+        boundary lies on the hull's edges and the pockets' boundaries, so a point in the hull
+        at least d from the hull's edges and at least d outside every pocket is in the area,
+        at least d from its boundary."""
+        vertices = self.vertices_m
+        hull = convex_hull(vertices)
+        pockets = []
+        for i, j in zip(hull, hull[1:] + [hull[0] + len(vertices)]):
+            if j - i > 1:
+                pockets.append(np.array([vertices[k % len(vertices)] for k in range(i, j + 1)]))
+        # The pocket runs i, i+1, ..., j along the area (clockwise about the pocket): reverse.
+        return vertices[hull], [pocket[::-1].copy() for pocket in pockets]
 
     def clearance(self, points: ArrayLike) -> np.ndarray:
         """Distance of each point inside the area from its boundary; negative outside."""
@@ -223,6 +266,111 @@ def _segment_polygon_distance_outside(a: np.ndarray, b: np.ndarray,
         return -inside
     t = np.linspace(0.0, 1.0, SEGMENT_SAMPLES)[:, None]
     return float(max(_polygon_signed_distance(a + t * (b - a), vertices).max(), 0.0))
+
+
+def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
+
+
+def ear_triangles(vertices: np.ndarray) -> list[tuple[int, int, int]]:
+    """A simple polygon's vertices (V, 2), counter-clockwise, cut into V - 2 triangles (vertex
+    indices, CCW) by ear clipping: a convex vertex whose triangle with its neighbours holds no
+    other vertex is cut off, until three are left. Every simple polygon has an ear (two, when
+    V > 3); the search goes on from the last ear cut, so a polygon takes O(V^2) tests."""
+    points = np.asarray(vertices, dtype=float)
+    left = list(range(len(points)))
+    triangles = []
+    scale = float(np.ptp(points, axis=0).max()) ** 2
+    k = 0
+    while len(left) > 3:
+        count = len(left)
+        for attempt in range(count):
+            at = (k + attempt) % count
+            corner = (left[at - 1], left[at], left[(at + 1) % count])
+            a, b, c = points[list(corner)]
+            if _cross(a, b, c) <= 1e-14 * scale:
+                continue                      # reflex or flat: not an ear
+            others = points[[v for v in left if v not in corner]]
+            inside = ((_cross_many(a, b, others) >= 0) & (_cross_many(b, c, others) >= 0)
+                      & (_cross_many(c, a, others) >= 0))
+            if not inside.any():
+                break
+        else:                                 # round-off on a near-degenerate polygon
+            at = max(range(count), key=lambda i: _cross(
+                *points[[left[i - 1], left[i], left[(i + 1) % count]]]))
+            corner = (left[at - 1], left[at], left[(at + 1) % count])
+        triangles.append(corner)
+        del left[at]
+        k = max(at - 1, 0)
+    triangles.append(tuple(left))
+    return triangles
+
+
+def _cross_many(o: np.ndarray, a: np.ndarray, points: np.ndarray) -> np.ndarray:
+    return (a[0] - o[0]) * (points[:, 1] - o[1]) - (a[1] - o[1]) * (points[:, 0] - o[0])
+
+
+def convex_hull(vertices: np.ndarray) -> list[int]:
+    """Indices of the polygon's vertices on its convex hull (collinear ones included), in
+    the polygon's (CCW) order."""
+    order = sorted(range(len(vertices)), key=lambda i: (vertices[i][0], vertices[i][1]))
+    hull: list[int] = []
+    for sweep in (order, order[::-1]):
+        start = len(hull)
+        for i in sweep:
+            # Collinear points stay: a pocket then never has an edge along the hull's.
+            while len(hull) >= start + 2 and _cross(vertices[hull[-2]], vertices[hull[-1]],
+                                                    vertices[i]) < 0:
+                hull.pop()
+            hull.append(i)
+        hull.pop()
+    return sorted(set(hull))
+
+
+def merge_convex(vertices: np.ndarray,
+                 pieces: list[tuple[int, ...]]) -> list[np.ndarray]:
+    """Join convex CCW pieces of a polygon (vertex indices, sharing whole edges, as ear
+    clipping leaves them) across each shared edge in turn while the union stays convex
+    (Hertel and Mehlhorn: at most four times the fewest convex pieces): fewer pieces, so
+    fewer constraints, the same set. Returns each piece's vertices (K, 2)."""
+    points = np.asarray(vertices, dtype=float)
+    owner: dict[tuple[int, int], int] = {}
+    polygons: dict[int, list[int]] = {}
+    for number, piece in enumerate(pieces):
+        polygons[number] = list(piece)
+        for i, j in zip(piece, piece[1:] + piece[:1]):
+            owner[(i, j)] = number
+    for (i, j), first in list(owner.items()):
+        second = owner.get((j, i))
+        if second is None or first == second or owner.get((i, j)) != first:
+            continue
+        union = _join(polygons[first], polygons[second], i, j)
+        if not _is_convex(points[union]):
+            continue
+        for a, b in zip(polygons[second], polygons[second][1:] + polygons[second][:1]):
+            owner[(a, b)] = first
+        del owner[(i, j)], owner[(j, i)]
+        polygons[first] = union
+        del polygons[second]
+    return [points[piece] for piece in polygons.values()]
+
+
+def convex_pieces(vertices: np.ndarray) -> list[np.ndarray]:
+    """A simple CCW polygon (V, 2) as convex CCW polygons whose union it is: itself when convex,
+    else its ear-clipping triangles joined while convex."""
+    if _is_convex(vertices):
+        return [np.array(vertices, dtype=float)]
+    return merge_convex(vertices, ear_triangles(vertices))
+
+
+def _join(first: list[int], second: list[int], i: int, j: int) -> list[int]:
+    """The polygon of two CCW polygons (vertex indices) across their shared edge: (i, j) in
+    ``first``, (j, i) in ``second``."""
+    at = first.index(j)
+    around_first = first[at:] + first[:at]               # j ... i
+    at = second.index(i)
+    around_second = second[at:] + second[:at]            # i ... j
+    return around_first + around_second[1:-1]
 
 
 def _is_convex(vertices: np.ndarray) -> bool:
@@ -281,6 +429,43 @@ class Zones:
             for zone in zones:
                 least = min(least, zone.segment_clearance(a, b))
         return least
+
+    def to_dict(self) -> dict:
+        """A JSON-ready form: {'area': [[x, y], ...] or None, 'keep_out': [{'center_m': [x,
+        y], 'radius_m': r} or {'vertices_m': [[x, y], ...]}, ...], 'margin_m': m}."""
+        def zone(item: KeepOut) -> dict:
+            if isinstance(item, KeepOutCircle):
+                return {'center_m': list(item.center_m), 'radius_m': item.radius_m}
+            return {'vertices_m': item.vertices_m.tolist()}
+        return {'area': None if self.area is None else self.area.vertices_m.tolist(),
+                'keep_out': [zone(item) for item in self.keep_out], 'margin_m': self.margin_m}
+
+    @classmethod
+    def from_dict(cls, data: object) -> 'Zones':
+        """The zones of :meth:`to_dict`'s form; InvalidScenarioError for anything else."""
+        if not isinstance(data, dict) or not set(data) <= {'area', 'keep_out', 'margin_m'}:
+            raise InvalidScenarioError(
+                f"zones must be a mapping of 'area', 'keep_out' and 'margin_m', got {data!r}")
+        items = data.get('keep_out', [])
+        if not isinstance(items, (list, tuple)):
+            raise InvalidScenarioError(f"zones' keep_out must be a list, got {items!r}")
+        keep_out = []
+        for item in items:
+            if isinstance(item, dict) and set(item) == {'center_m', 'radius_m'} \
+                    and isinstance(item['radius_m'], (int, float)):
+                keep_out.append(KeepOutCircle(item['center_m'], item['radius_m']))
+            elif isinstance(item, dict) and set(item) == {'vertices_m'}:
+                keep_out.append(KeepOutPolygon(item['vertices_m']))
+            else:
+                raise InvalidScenarioError(
+                    f"a keep-out zone is {{'center_m', 'radius_m'}} or {{'vertices_m'}}, got "
+                    f'{item!r}')
+        area = data.get('area')
+        margin = data.get('margin_m', 5.0)
+        if isinstance(margin, bool) or not isinstance(margin, (int, float)):
+            raise InvalidScenarioError(f'the zone margin must be a number, got {margin!r}')
+        return cls(area=None if area is None else OperatingArea(area),
+                   keep_out=tuple(keep_out), margin_m=margin)
 
 
 __all__ = ['KeepOut', 'KeepOutCircle', 'KeepOutPolygon', 'MAX_POLYGON_VERTICES',

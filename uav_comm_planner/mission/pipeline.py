@@ -94,7 +94,7 @@ def plan_mission(request: MissionRequest, *, planner: Planner = plan,
     """Plan ``request`` (module docstring); ``should_stop`` is passed on to the planner, which
     asks it between steps. Raises the planner's errors
     (:class:`~uav_comm_planner.errors.PlannerError` and its subclasses)."""
-    scenario = request.scenario
+    scenario = request.planned_scenario
     receding = None
     problem = None
     options: dict = {'should_stop': should_stop}

@@ -18,6 +18,7 @@ import numpy as np
 
 from uav_comm_planner.core.receding import FlownSlots
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
@@ -111,7 +112,9 @@ class MissionRequest:
     vehicle_aware: plan for ``vehicle``'s limits and return the plan as it flies (else the
     optimiser's plan as is); firmware, end, home: how its mission items are built
     (``items=False`` builds none); in_flight: replan the rest of a mission in flight instead
-    of the whole mission from the scenario's start.
+    of the whole mission from the scenario's start; zones: where the vehicle may fly (for
+    example read from a fence file), which replace the scenario's own when given
+    (:attr:`planned_scenario`).
     """
 
     scenario: Scenario
@@ -123,6 +126,20 @@ class MissionRequest:
     home: Home = Home(*DEFAULT_HOME)
     items: bool = True
     in_flight: InFlight | None = None
+    zones: Zones | None = None
+
+    def __post_init__(self) -> None:
+        if self.zones is not None and not isinstance(self.zones, Zones):
+            raise InvalidScenarioError(
+                f'zones must be a Zones or None, got {type(self.zones).__name__}')
+
+    @property
+    def planned_scenario(self) -> Scenario:
+        """The scenario planned: ``scenario`` with the request's zones, when it has any
+        (validated again: q0 and qF must keep their margin)."""
+        if self.zones is None or self.zones == self.scenario.zones:
+            return self.scenario
+        return self.scenario.replace(zones=self.zones)
 
 
 __all__ = ['InFlight', 'MissionRequest', 'vehicle_limits']

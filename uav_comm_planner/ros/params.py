@@ -390,6 +390,8 @@ OWNERS = (Scenario, SolverSettings, NodeSettings, VehicleLimits)
 NOT_PARAMETERS = {
     (Scenario, 'max_airspeed_mps'): 'a vehicle-aware plan takes the airspeed from the vehicle '
                                     '(vehicle_airframe_speed_mps less vehicle_gust_margin_mps)',
+    (Scenario, 'zones'): 'zones are polygons and circles read from a fence file, not a '
+                         'parameter value',
 }
 
 

@@ -10,6 +10,7 @@ from typing import Any, Mapping
 
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InvalidScenarioError
 
 DISTRIBUTION = 'uav_comm_planner'
@@ -41,6 +42,7 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
     data['ground_nodes_m'] = [list(w) for w in scenario.ground_nodes_m]
     data['start_m'] = list(scenario.start_m)
     data['goal_m'] = list(scenario.goal_m)
+    data['zones'] = None if scenario.zones is None else scenario.zones.to_dict()
     return data
 
 
@@ -56,6 +58,8 @@ def scenario_from_dict(data: Mapping[str, Any], base: Scenario | None = None) ->
     if unknown:
         raise InvalidScenarioError(
             f'unknown scenario field(s) {unknown}; known fields: {sorted(known)}')
+    if data.get('zones') is not None and not isinstance(data['zones'], Zones):
+        data = {**data, 'zones': Zones.from_dict(data['zones'])}
     if base is None:
         if 'ground_nodes_m' not in data:
             raise InvalidScenarioError('a scenario needs ground_nodes_m: [[x, y], ...]')

@@ -29,13 +29,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Callable
+from typing import Callable, Optional
 
 import numpy as np
 
+from uav_comm_planner.core.detour import segments_clear
 from uav_comm_planner.core.model import average_rates, flown_path
 from uav_comm_planner.core.optimizer import optimal_power, plan, PlanResult, Step
 from uav_comm_planner.core.scenario import MIN_STEP_M, Scenario, SolverSettings
+from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InfeasibleHorizonError
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline
 from uav_comm_planner.vehicle.firmware import firmware_named, FIRMWARES
@@ -116,18 +118,33 @@ def hover_runs(points: np.ndarray, merge_radius_m: float) -> list[tuple[int, int
     return runs
 
 
-def _stop_position(points: np.ndarray, first: int, last: int) -> np.ndarray:
+#: Whether a straight segment from a to b may replace the plan between them (the zones).
+SegmentCheck = Optional[Callable[[np.ndarray, np.ndarray], bool]]
+
+
+def zone_check(zones: Zones | None) -> SegmentCheck:
+    """With zones, the check that a segment keeps their margin (exact); None without."""
+    if zones is None or zones.empty:
+        return None
+    return lambda a, b: bool(segments_clear(zones, a, b)[0])
+
+
+def _stop_index(points: np.ndarray, first: int, last: int) -> int:
+    """The point of the run [first, last] the vehicle stops at: q0, qF, or the run's most
+    central point."""
     if first == 0:
-        return points[0].copy()
+        return 0
     if last == len(points) - 1:
-        return points[-1].copy()
+        return len(points) - 1
     run = points[first:last + 1]
     spread = np.linalg.norm(run[:, None, :] - run[None, :, :], axis=-1).max(axis=1)
-    return run[int(np.argmin(spread))].copy()
+    return first + int(np.argmin(spread))
 
 
-def simplify(points: np.ndarray, tolerance_m: float) -> list[int]:
-    """Douglas-Peucker: indices of the points kept so every point is within the tolerance."""
+def simplify(points: np.ndarray, tolerance_m: float, keeps: SegmentCheck = None) -> list[int]:
+    """Douglas-Peucker: indices of the points kept so every point is within the tolerance
+    and, with ``keeps``, every segment between kept points passes it (a segment of two
+    neighbours is the plan's own leg, which keeps the zones)."""
     keep = {0, len(points) - 1}
     pending = [(0, len(points) - 1)]
     while pending:
@@ -137,16 +154,19 @@ def simplify(points: np.ndarray, tolerance_m: float) -> list[int]:
         inner = points[first + 1:last]
         gaps = distance_to_polyline(inner, points[[first, last]])
         worst = int(np.argmax(gaps))
-        if gaps[worst] > tolerance_m:
+        if gaps[worst] > tolerance_m or (keeps is not None
+                                         and not keeps(points[first], points[last])):
             split = first + 1 + worst
             keep.add(split)
             pending += [(first, split), (split, last)]
     return sorted(keep)
 
 
-def _drop_short_steps(points: np.ndarray, kept: list[int], min_step_m: float) -> list[int]:
+def _drop_short_steps(points: np.ndarray, kept: list[int], min_step_m: float,
+                      keeps: SegmentCheck = None) -> list[int]:
     """Remove fly-through waypoints that leave a step shorter than ``min_step_m``, the one
-    whose removal moves the line least first."""
+    whose removal moves the line least first; with ``keeps``, only those whose removal leaves
+    a segment that passes it."""
     kept = list(kept)
     while len(kept) > 2:
         steps = np.linalg.norm(np.diff(points[kept], axis=0), axis=1)
@@ -154,6 +174,11 @@ def _drop_short_steps(points: np.ndarray, kept: list[int], min_step_m: float) ->
             break
         short = int(np.argmin(steps))
         candidates = [i for i in (short, short + 1) if 0 < i < len(kept) - 1]
+        if keeps is not None:
+            candidates = [i for i in candidates
+                          if keeps(points[kept[i - 1]], points[kept[i + 1]])]
+            if not candidates:
+                break
         cost = [float(distance_to_polyline(points[kept[i - 1]:kept[i + 1] + 1],
                                            points[[kept[i - 1], kept[i + 1]]]).max())
                 for i in candidates]
@@ -170,7 +195,7 @@ def turn_angles_deg(vertices: np.ndarray) -> np.ndarray:
 
 def _stop_runs(points: np.ndarray, slot_s: float, merge_radius_m: float,
                path_tolerance_m: float, min_step_m: float,
-               min_hover_s: float) -> list[tuple[int, int]]:
+               min_hover_s: float, keeps: SegmentCheck = None) -> list[tuple[int, int]]:
     """Index runs [i, j] of the points where the vehicle stops: q0, every hover that lasts at
     least ``min_hover_s`` (and a slot), every turn sharper than ``MAX_TURN_DEG``, and qF."""
     runs = [run for run in hover_runs(points, merge_radius_m)
@@ -182,8 +207,9 @@ def _stop_runs(points: np.ndarray, slot_s: float, merge_radius_m: float,
         if following is None:
             break
         chain = np.arange(run[1], following[0] + 1)
-        kept = _drop_short_steps(points[chain], simplify(points[chain], path_tolerance_m),
-                                 min_step_m)
+        kept = _drop_short_steps(points[chain],
+                                 simplify(points[chain], path_tolerance_m, keeps),
+                                 min_step_m, keeps)
         sharp = turn_angles_deg(points[chain[kept]]) > MAX_TURN_DEG
         stops += [(int(chain[k]), int(chain[k])) for k, turn in zip(kept[1:-1], sharp) if turn]
     return stops
@@ -205,24 +231,29 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     points = flown_path(np.asarray(result.trajectory, dtype=float), scenario)
     times = scenario.slot_s * np.arange(len(points), dtype=float)
     cruise = limits.cruise_speed_mps
+    keeps = zone_check(scenario.zones)
     runs = _stop_runs(points, scenario.slot_s, merge_radius_m, path_tolerance_m,
                       2.0 * ramp_distance(cruise, limits),
                       max(scenario.slot_s, ramp_time(cruise, limits) + LEG_LATENCY_S)
-                      if stop_at_hovers else math.inf)
+                      if stop_at_hovers else math.inf, keeps)
     resolution = FIRMWARES[firmware].hold_resolution_s
 
-    positions = [_stop_position(points, first, last) for first, last in runs]
+    stop_indices = [_stop_index(points, first, last) for first, last in runs]
+    positions = [points[index].copy() for index in stop_indices]
     shapes = []                      # per leg: vertices, speed, profile
-    for (_, last), (following, _), here, there in zip(runs, runs[1:], positions,
-                                                      positions[1:]):
-        path = np.vstack([here, points[last + 1:following], there])
+    for (_, last), (following, _), here, there in zip(runs, runs[1:], stop_indices,
+                                                      stop_indices[1:]):
+        # With zones the leg follows the plan from stop to stop (every step of it one of the
+        # plan's legs), not from the stop straight to the run's last point.
+        path = (points[here:there + 1] if keeps is not None
+                else np.vstack([points[here], points[last + 1:following], points[there]]))
         planned_s = times[following] - times[last]
         leg_cruise = _leg_cruise(path, scenario, cruise)
         speed = max(speed_for_time(length_of(path), planned_s, leg_cruise, limits),
                     MIN_SPEED_MPS)
         speed = min(round(speed, 2), leg_cruise)
-        kept = _drop_short_steps(path, simplify(path, path_tolerance_m),
-                                 2.0 * ramp_distance(speed, limits))
+        kept = _drop_short_steps(path, simplify(path, path_tolerance_m, keeps),
+                                 2.0 * ramp_distance(speed, limits), keeps)
         shapes.append((path[kept], speed,
                        Profile.rest_to_rest(length_of(path[kept]), speed, limits)))
     # Centre each leg's motion on the plan's time for it, but start it no later than lets
@@ -326,7 +357,9 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
     flies through the hovers instead of stopping; if that is still too slow, plans again at
     :data:`SLOWER_PLANNING` shares of ``max_speed_mps`` (the ideal plan returned then carries
     the slower scenario); the last fallback is the straight line q0 -> qF flown rest to rest, so a
-    request whose straight line fits the horizon is never refused. ``planner`` is the
+    request whose straight line fits the horizon is never refused (with zones, only when that
+    line keeps out of them). With zones, no leg of the mission is straightened across them:
+    every segment between the mission's waypoints keeps their margin. ``planner`` is the
     optimiser (the core's :func:`~uav_comm_planner.core.optimizer.plan`). Raises
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
     speed exceeds the vehicle's, or the wind the vehicle's airspeed, and when not even the
@@ -336,6 +369,7 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
     check_speed(scenario, limits)
     scenario = in_wind(scenario, limits)
     first_error = None
+    keeps = zone_check(scenario.zones)
     for share in (1.0,) + SLOWER_PLANNING:
         try:
             slower = scenario if share == 1.0 else scenario.replace(
@@ -352,6 +386,10 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
                 first_error = first_error or exc
                 continue
             return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
+    if keeps is not None and not keeps(np.asarray(scenario.start_m, float),
+                                       np.asarray(scenario.goal_m, float)):
+        # The straight line would cross a zone: there is no fallback to fly.
+        raise first_error
     return _straight_line_plan(scenario, limits, settings, firmware, planner, first_error)
 
 

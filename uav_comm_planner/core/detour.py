@@ -1,0 +1,405 @@
+"""Starts and baselines that keep out of the zones: paths around them and points outside them.
+
+With zones (:attr:`~uav_comm_planner.core.scenario.Scenario.zones`) the straight line q0 -> qF
+may cross one. :func:`straight_start` replaces it by the shortest path around the zones: a
+visibility graph over corners placed around every zone at the margin (and
+:data:`GRAPH_CLEARANCE_M` more), circles by their circumscribed polygons of
+:data:`CIRCLE_SIDES` sides, polygons by arcs of the same kind around their convex corners, the
+operating area around its reflex ones; two corners are joined when the segment between them
+keeps the margin by the zones' exact clearance, and Dijkstra finds the shortest way. That
+polyline is flown at as uniform a speed as its corners allow, every corner a waypoint (a leg
+that cut a corner could enter the zone). :func:`hover_start` flies a tour of the nodes' best
+points outside the zones (a node inside a zone is served from the nearest point that keeps
+the margin) along such paths and hovers there. Without zones both are
+:mod:`~uav_comm_planner.core.initial`'s trajectories, unchanged.
+
+A request with no path around the zones, or none that fits the horizon at V, is refused with
+:class:`~uav_comm_planner.errors.InfeasibleHorizonError` and the numbers.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from uav_comm_planner.core import initial
+from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.core.zones import (closest_on_segments, inside_polygon, KeepOutCircle,
+                                         Zones)
+from uav_comm_planner.errors import InfeasibleHorizonError
+
+#: Sides of the polygon that stands for a keep-out circle (circumscribed, so it holds the
+#: circle grown by the margin): its perimeter is 1 % longer than the circle's.
+CIRCLE_SIDES = 16
+#: The graph's corners stand this much beyond the margin, so that round-off never puts a
+#: corner-to-corner edge inside it.
+GRAPH_CLEARANCE_M = 0.05
+#: Segment-edge pairs tested at once (bounds the work arrays' memory).
+CHUNK_PAIRS = 500_000
+#: An arc of a circumscribed polygon turns at most this much per corner.
+MAX_ARC_STEP_RAD = math.pi / 8
+
+
+def _arc(vertex: np.ndarray, first: np.ndarray, second: np.ndarray,
+         radius: float) -> list[np.ndarray]:
+    """Corners of the polygon circumscribed about the arc of ``radius`` round ``vertex`` from
+    the unit direction ``first`` to ``second`` (the shorter way): each of its edges is tangent
+    to the arc, so the polygon holds it."""
+    start = math.atan2(first[1], first[0])
+    turn = (math.atan2(second[1], second[0]) - start + math.pi) % (2 * math.pi) - math.pi
+    count = max(1, math.ceil(abs(turn) / MAX_ARC_STEP_RAD))
+    step = turn / count
+    reach = radius / math.cos(step / 2)
+    return [vertex + reach * np.array([math.cos(start + (i + 0.5) * step),
+                                       math.sin(start + (i + 0.5) * step)])
+            for i in range(count)]
+
+
+def _polygon_corners(vertices: np.ndarray, radius: float, outside: bool) -> list[np.ndarray]:
+    """Corners round a CCW polygon's convex vertices (``outside``: a keep-out polygon) or
+    round its reflex vertices on the inside (an operating area)."""
+    corners = []
+    count = len(vertices)
+    for i in range(count):
+        before, here, after = vertices[i - 1], vertices[i], vertices[(i + 1) % count]
+        incoming, outgoing = here - before, after - here
+        turn = incoming[0] * outgoing[1] - incoming[1] * outgoing[0]     # > 0: convex corner
+        if (turn > 0) != outside or turn == 0:
+            continue
+        side = 1.0 if outside else -1.0      # outward normals (right of a CCW edge), or inward
+        normals = [side * np.array([v[1], -v[0]]) / np.linalg.norm(v)
+                   for v in (incoming, outgoing)]
+        corners += _arc(here, normals[0], normals[1], radius)
+    return corners
+
+
+def graph_corners(zones: Zones) -> np.ndarray:
+    """The visibility graph's corners (K, 2) metres that keep the margin."""
+    radius = zones.margin_m + GRAPH_CLEARANCE_M
+    corners: list[np.ndarray] = []
+    for zone in zones.keep_out:
+        if isinstance(zone, KeepOutCircle):
+            centre = np.array(zone.center_m)
+            corners += _arc_circle(centre, zone.radius_m + radius)
+        else:
+            corners += _polygon_corners(zone.vertices_m, radius, outside=True)
+    if zones.area is not None:
+        corners += _polygon_corners(zones.area.vertices_m, radius, outside=False)
+    if not corners:
+        return np.zeros((0, 2))
+    corners = np.array(corners)
+    return corners[zones.clearance(corners) >= zones.margin_m]
+
+
+def _arc_circle(centre: np.ndarray, radius: float) -> list[np.ndarray]:
+    reach = radius / math.cos(math.pi / CIRCLE_SIDES)
+    angles = 2 * math.pi * (np.arange(CIRCLE_SIDES) + 0.5) / CIRCLE_SIDES
+    return list(centre + reach * np.stack([np.cos(angles), np.sin(angles)], axis=1))
+
+
+def _orient(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) \
+        - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+
+
+def _point_segment(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distances of points to segments ab, broadcasting over leading axes."""
+    return np.linalg.norm(points - closest_on_segments(points, a, b), axis=-1)
+
+
+def _against_polygon(a: np.ndarray, b: np.ndarray,
+                     vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For segments ab (S, 2) and a polygon (V, 2): whether each meets its boundary, whether
+    its end a is inside, and its distance to the boundary when they do not meet."""
+    c, d = vertices[None], np.roll(vertices, -1, axis=0)[None]
+    a2, b2 = a[:, None], b[:, None]
+    o1, o2, o3, o4 = _orient(a2, b2, c), _orient(a2, b2, d), _orient(c, d, a2), _orient(c, d, b2)
+    # Closed segments: touching counts (a margin of 0 then still keeps off the boundary).
+    meets = ((o1 * o2 <= 0) & (o3 * o4 <= 0)).any(axis=1)
+    distance = np.minimum.reduce([_point_segment(a2, c, d).min(axis=1),
+                                  _point_segment(b2, c, d).min(axis=1),
+                                  _point_segment(vertices[None], a2, b2).min(axis=1)])
+    return meets, inside_polygon(a, vertices), distance
+
+
+def segments_clear(zones: Zones, a: np.ndarray, b: np.ndarray, *,
+                   margin_m: float | None = None) -> np.ndarray:
+    """Whether each segment a[s] b[s] ((S, 2) each) keeps the margin (``margin_m``, the
+    zones' own by default) from every zone: exact distances, vectorised (the zones'
+    :meth:`~uav_comm_planner.core.zones.Zones.path_clearance` is the slower reference the
+    tests use)."""
+    a, b = np.atleast_2d(np.asarray(a, float)), np.atleast_2d(np.asarray(b, float))
+    margin = zones.margin_m if margin_m is None else margin_m
+    edges = max([len(zone.vertices_m) for zone in (*zones.keep_out, zones.area)
+                 if zone is not None and not isinstance(zone, KeepOutCircle)], default=1)
+    chunk = max(1, CHUNK_PAIRS // edges)
+    if len(a) > chunk:
+        return np.concatenate([segments_clear(zones, a[i:i + chunk], b[i:i + chunk],
+                                              margin_m=margin)
+                               for i in range(0, len(a), chunk)])
+    ok = np.ones(len(a), dtype=bool)
+    for zone in zones.keep_out:
+        if isinstance(zone, KeepOutCircle):
+            centre = np.array(zone.center_m)[None]
+            ok &= _point_segment(centre, a, b) >= zone.radius_m + margin
+        else:
+            meets, inside, distance = _against_polygon(a, b, zone.vertices_m)
+            ok &= ~meets & ~inside & (distance >= margin)
+    if zones.area is not None:
+        meets, inside, distance = _against_polygon(a, b, zones.area.vertices_m)
+        ok &= ~meets & inside & (distance >= margin)
+    return ok
+
+
+def clear(zones: Zones, a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether the segment ab keeps the margin from every zone (exact)."""
+    return bool(segments_clear(zones, a, b)[0])
+
+
+@functools.lru_cache(maxsize=16)
+def _corner_graph(zones: Zones) -> tuple[np.ndarray, np.ndarray]:
+    """The graph's corners (K, 2) and their visibility (K, K), lengths or 0 (none)."""
+    corners = graph_corners(zones)
+    i, j = np.triu_indices(len(corners), k=1)
+    visible = segments_clear(zones, corners[i], corners[j])
+    lengths = np.zeros((len(corners), len(corners)))
+    i, j = i[visible], j[visible]
+    lengths[i, j] = np.linalg.norm(corners[j] - corners[i], axis=1)
+    for array in (corners, lengths):
+        array.setflags(write=False)
+    return corners, lengths
+
+
+def shortest_path(zones: Zones, start: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
+    """The shortest polyline (K, 2) from ``start`` to ``goal`` through the graph's corners
+    whose every segment keeps the margin; None when there is none."""
+    start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
+    if clear(zones, start, goal):
+        return np.array([start, goal])
+    corners, corner_lengths = _corner_graph(zones)
+    count = len(corners) + 2
+    lengths = np.zeros((count, count))
+    lengths[2:, 2:] = corner_lengths
+    for row, end in ((0, start), (1, goal)):
+        ends = np.repeat(end[None], len(corners), axis=0)
+        seen = segments_clear(zones, ends, corners)
+        lengths[row, 2:] = np.where(seen, np.linalg.norm(corners - end, axis=1), 0.0)
+    points = np.vstack([start, goal, corners])
+    distances, previous = dijkstra(csr_matrix(lengths), directed=False, indices=0,
+                                   return_predecessors=True)
+    if not math.isfinite(distances[1]):
+        return None
+    order = [1]
+    while order[-1] != 0:
+        order.append(int(previous[order[-1]]))
+    return points[order[::-1]]
+
+
+def path_length(path: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+
+
+def _no_path(scenario: Scenario, what: str) -> InfeasibleHorizonError:
+    return InfeasibleHorizonError(
+        f'no path from {what} keeps the margin of {scenario.zones.margin_m:g} m from the zones '
+        f'(the goal or the start is walled in); move it or the zones')
+
+
+def _stretch_legs(path: np.ndarray, scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """The stretches of ``path`` (zero-length ones dropped) and the fewest legs each needs at
+    the fastest ground speed along it (a share of 1e-9 below it, so no leg is over a limit)."""
+    steps = np.diff(path, axis=0)
+    lengths = np.linalg.norm(steps, axis=1)
+    keep = np.concatenate([[True], lengths > 0])
+    path = path[keep]
+    steps = np.diff(path, axis=0)
+    lengths = np.linalg.norm(steps, axis=1)
+    fastest = np.array([scenario.fastest_ground_speed_mps(step / length)
+                        for step, length in zip(steps, lengths)])
+    needed = np.ceil(lengths / (fastest * scenario.slot_s * (1 - 1e-9))).astype(int)
+    return path, needed
+
+
+def _too_long(scenario: Scenario, path: np.ndarray, needed: int) -> InfeasibleHorizonError:
+    legs = scenario.num_slots + 1
+    return InfeasibleHorizonError(
+        f'goal unreachable around the zones: the shortest path that keeps their margin of '
+        f'{scenario.zones.margin_m:g} m is {path_length(path):.1f} m with {len(path) - 2} '
+        f'corners and needs {needed} legs of {scenario.slot_s:g} s at {scenario.max_speed_mps:g}'
+        f' m/s, the horizon has {legs}; raise horizon_s to '
+        f'{horizon_needed_s(path, scenario):.1f} s or more, or max_speed_mps, or move the zones')
+
+
+def horizon_needed_s(path: np.ndarray, scenario: Scenario) -> float:
+    """The shortest horizon T, rounded up to 0.1 s, in which M slots fly ``path`` with every
+    corner a slot point: sum_k ceil(L_k M / (g_k T)) <= M + 1 (bisection: the sum only falls
+    as T grows)."""
+    steps = np.diff(path, axis=0)
+    lengths = np.linalg.norm(steps, axis=1)
+    steps, lengths = steps[lengths > 0], lengths[lengths > 0]
+    fastest = np.array([scenario.fastest_ground_speed_mps(step / length)
+                        for step, length in zip(steps, lengths)])
+    m = scenario.num_slots
+
+    def fits(horizon_s: float) -> bool:
+        return int(np.ceil(lengths * m / (fastest * horizon_s * (1 - 1e-9))).sum()) <= m + 1
+
+    low = float((lengths / fastest).sum()) * m / (m + 1)
+    high = max(low, 1e-9) * 2.0
+    while not fits(high):
+        high *= 2.0
+    for _ in range(100):
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if fits(middle) else (middle, high)
+    return math.ceil(high * 10.0) / 10.0
+
+
+def around_zones(scenario: Scenario) -> np.ndarray:
+    """The shortest path around the zones from q0 to qF at as uniform a speed as its corners
+    allow: q (M, 2) metres. Each stretch between corners gets legs in proportion to its
+    length, but never fewer than the speed limits need; every corner is a slot point."""
+    path = shortest_path(scenario.zones, scenario.start_m, scenario.goal_m)
+    if path is None:
+        raise _no_path(scenario, 'q0 to qF')
+    path, needed = _stretch_legs(path, scenario)
+    legs = scenario.num_slots + 1
+    if needed.sum() > legs:
+        raise _too_long(scenario, path, int(needed.sum()))
+    if len(needed) == 0:
+        return np.repeat(path[:1], scenario.num_slots, axis=0)
+    counts = needed.copy()
+    lengths = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    ideal = legs * lengths / lengths.sum()
+    for _ in range(legs - int(counts.sum())):
+        counts[int(np.argmax(ideal - counts))] += 1
+    return _waypoints(path, counts, np.zeros(len(path), dtype=int))[1:-1]
+
+
+def _waypoints(path: np.ndarray, counts: np.ndarray, hovers: np.ndarray) -> np.ndarray:
+    """q0, ..., qF: stretch k of ``path`` in counts[k] equal legs, then hovers[k + 1] slots
+    at its end."""
+    waypoints = [path[0]]
+    for k, count in enumerate(counts):
+        fractions = np.arange(1, count + 1) / count
+        waypoints.extend(path[k] + fractions[:, None] * (path[k + 1] - path[k]))
+        waypoints.extend([path[k + 1]] * int(hovers[k + 1]))
+    return np.asarray(waypoints)
+
+
+def outside_point(zones: Zones, point: np.ndarray) -> np.ndarray | None:
+    """``point`` if it keeps the margin, else the nearest point found that does: the point
+    pushed out of each zone it is too close to, along the way to that zone's nearest edge
+    (radially for a circle), to the margin and :data:`GRAPH_CLEARANCE_M` beyond, or a graph
+    corner; None when none keeps the margin."""
+    point = np.asarray(point, dtype=float)
+    if zones.clearance([point])[0] >= zones.margin_m:
+        return point
+    reach = zones.margin_m + GRAPH_CLEARANCE_M
+    candidates = [_corner_graph(zones)[0]]
+    for zone in (*zones.keep_out, *(() if zones.area is None else (zones.area,))):
+        if zone.clearance([point])[0] >= zones.margin_m:
+            continue
+        if isinstance(zone, KeepOutCircle):
+            centre = np.array(zone.center_m)
+            away = _unit_or_east(point - centre)
+            candidates.append((centre + (zone.radius_m + reach) * away)[None])
+            continue
+        # On the wrong side of the edge (in a keep-out polygon, out of the area): cross it;
+        # on the right side but too close: move away from it.
+        edge = _nearest_boundary(point, zone.vertices_m)
+        wrong_side = zone.clearance([point])[0] < 0
+        direction = _unit_or_east(edge - point if wrong_side else point - edge)
+        candidates.append((edge + reach * direction)[None])
+    candidates = np.vstack(candidates)
+    candidates = candidates[zones.clearance(candidates) >= zones.margin_m]
+    if not len(candidates):
+        return None
+    return candidates[int(np.argmin(np.linalg.norm(candidates - point, axis=1)))]
+
+
+def _unit_or_east(vector: np.ndarray) -> np.ndarray:
+    length = float(np.linalg.norm(vector))
+    return vector / length if length > 0 else np.array([1.0, 0.0])
+
+
+def _nearest_boundary(point: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    closest = closest_on_segments(point[None], vertices, np.roll(vertices, -1, axis=0))
+    return closest[int(np.argmin(np.linalg.norm(closest - point, axis=1)))]
+
+
+def straight_start(scenario: Scenario) -> np.ndarray:
+    """The straight line q0 -> qF at uniform speed, or with zones the path around them."""
+    if scenario.zones is None or scenario.zones.empty:
+        return initial.straight_line(scenario)
+    return around_zones(scenario)
+
+
+def static_start(scenario: Scenario) -> np.ndarray:
+    """The static access point above the nodes' centroid, or the nearest point outside the
+    zones (the path to it is not flown: the baseline ignores q0 and qF, as in the letter)."""
+    q = initial.static_point(scenario)
+    if scenario.zones is None or scenario.zones.empty:
+        return q
+    point = outside_point(scenario.zones, q[0])
+    if point is None:
+        raise _no_path(scenario, 'the nodes\' centroid')
+    return np.repeat(point[None], scenario.num_slots, axis=0)
+
+
+def hover_start(scenario: Scenario) -> np.ndarray:
+    """:func:`~uav_comm_planner.core.initial.hover_and_fly`, or with zones a tour of the
+    nodes' points outside them (:func:`outside_point`) flown around the zones, the slots left
+    over hovered evenly at the points; the nodes whose detours cost most are left out until it
+    fits, and with none left it is :func:`around_zones`."""
+    if scenario.zones is None or scenario.zones.empty:
+        return initial.hover_and_fly(scenario)
+    zones = scenario.zones
+    start, goal = np.asarray(scenario.start_m), np.asarray(scenario.goal_m)
+    stops = [outside_point(zones, w) for w in scenario.nodes]
+    reachable = [i for i, stop in enumerate(stops)
+                 if stop is not None and shortest_path(zones, start, stop) is not None]
+    if not reachable:
+        return around_zones(scenario)
+    points = np.array([stops[i] for i in reachable])
+    order = initial.two_opt(start, goal, points, initial.nearest_neighbour_order(start, points))
+    legs = scenario.num_slots + 1
+    while order:
+        tour = [start, *points[order], goal]
+        pieces = [shortest_path(zones, a, b) for a, b in zip(tour[:-1], tour[1:])]
+        if all(piece is not None for piece in pieces):
+            path, counts, hover_at = _joined(pieces, scenario)
+            if counts.sum() <= legs:
+                hovers = np.zeros(len(path), dtype=int)
+                # Two stops at one point (a node's nearest point shared) hover there for both.
+                np.add.at(hovers, hover_at,
+                          initial.even_hovers(legs - int(counts.sum()), len(order)))
+                return _waypoints(path, counts, hovers)[1:-1]
+        # Leave out the stop whose detour costs most (straight-line lengths, as initial does).
+        tour = np.array(tour)
+        detour = (np.linalg.norm(tour[1:-1] - tour[:-2], axis=1)
+                  + np.linalg.norm(tour[2:] - tour[1:-1], axis=1)
+                  - np.linalg.norm(tour[2:] - tour[:-2], axis=1))
+        del order[int(np.argmax(detour))]
+    return around_zones(scenario)
+
+
+def _joined(pieces: list[np.ndarray],
+            scenario: Scenario) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The tour's polyline, the legs each stretch needs, and the path indices of the stops."""
+    path = [pieces[0][:1]]
+    counts = []
+    stops = []
+    for piece in pieces:
+        piece, needed = _stretch_legs(piece, scenario)
+        path.append(piece[1:])
+        counts.append(needed)
+        stops.append(sum(len(p) for p in path) - 1)
+    return np.vstack(path), np.concatenate(counts), stops[:-1]
+
+
+__all__ = ['around_zones', 'graph_corners', 'hover_start', 'outside_point', 'shortest_path',
+           'static_start', 'straight_start']
