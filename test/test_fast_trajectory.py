@@ -10,7 +10,8 @@ from scipy import sparse
 
 from uav_comm_planner import paper_scenario, plan, Scenario, SolverError, SolverSettings
 from uav_comm_planner.core.fast_trajectory import (clarabel_settings, ClarabelTrajectoryStep,
-                                                   cone_layout, trajectory_step_clarabel)
+                                                   cone_layout, LOOSE_TOLERANCE, SolverCache,
+                                                   SOLVERS, trajectory_step_clarabel)
 from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.model import leg_lengths, snr_per_watt
 from uav_comm_planner.core.power import waterfilling_power
@@ -28,6 +29,15 @@ def random_radio_scenario(seed: int) -> Scenario:
                            power_budget_w=float(rng.uniform(0.5, 10.0)),
                            bandwidth_hz=float(rng.choice([1.0, 1e6])),
                            reference_gain=float(rng.choice([1e-3, 1e-6])))
+
+
+@pytest.fixture(autouse=True)
+def no_cached_solvers():
+    """Tests that replace Clarabel's solver must not be handed a cached real one (nor leave
+    theirs behind)."""
+    SOLVERS.clear()
+    yield
+    SOLVERS.clear()
 
 
 CASES = {'I': paper_scenario('I'), 'II': paper_scenario('II'),
@@ -250,6 +260,9 @@ class _AlmostSolver:
     def solve(self):
         return types.SimpleNamespace(status=clarabel.SolverStatus.AlmostSolved, x=self.x)
 
+    def update(self, **data):
+        pass
+
 
 def test_an_almost_solved_step_is_kept_only_within_the_speed_limits(monkeypatch):
     scenario = CASES['I']
@@ -264,14 +277,15 @@ def test_an_almost_solved_step_is_kept_only_within_the_speed_limits(monkeypatch)
     too_fast[1:3] += 1.0   # q[1] one kilometre away from q0: a 100 m leg limit broken
     monkeypatch.setattr(clarabel, 'DefaultSolver', lambda *args: _AlmostSolver(too_fast))
     with pytest.raises(SolverError, match='Clarabel returned status AlmostSolved'):
-        ClarabelTrajectoryStep(scenario)(q_k, p, scenario)
+        ClarabelTrajectoryStep(scenario, cache=None)(q_k, p, scenario)
 
 
 def test_moderate_snr_plans_succeed_on_the_fast_path_and_match_the_reference():
     # B = 1 MHz, beta0 = -60 dB, P_T = 0.5 W: Clarabel's gap stalls at AlmostSolved there.
     scenario = paper_scenario('I', bandwidth_hz=1e6, reference_gain=1e-6, power_budget_w=0.5)
     for starts in (('straight',), ('hover',)):
-        settings = SolverSettings(starts=starts)
+        # The same steps on both paths: full SCA loops, the tight tolerance, no screening.
+        settings = SolverSettings(starts=starts, screened_tours=0, fast_steps=False)
         fast = plan(scenario, settings)
         reference = plan(scenario, settings, power_method='conic', trajectory_method='cvxpy')
         assert fast.min_throughput == pytest.approx(reference.min_throughput, rel=1e-6)

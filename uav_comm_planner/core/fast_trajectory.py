@@ -31,7 +31,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import functools
+import itertools
 import math
+import threading
 
 import clarabel
 import numpy as np
@@ -275,12 +277,18 @@ def clarabel_settings(*, refine: bool) -> clarabel.DefaultSettings:
     problems and is rarely needed here: Clarabel checks its residuals on the iterates, so a
     Solved status holds either way, and a step that fails without it is tried again with it
     (see :data:`ATTEMPTS`).
+    Equilibration is off: Clarabel scales updated data by the factors it computed from the
+    first data a solver saw, so with it a solver reused across plans (:class:`SolverCache`)
+    would give answers that depend on the plans before; without it a step's answer depends
+    on the step's data alone, and the same scenario always gets the same plan. The data is
+    already in kilometres about the scene's centre; the iterations were seen to be the same.
     """
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.presolve_enable = False
     settings.input_sparse_dropzeros = False
     settings.iterative_refinement_enable = refine
+    settings.equilibrate_enable = False
     return settings
 
 
@@ -308,6 +316,49 @@ ALMOST_SOLVED_SLACK = 1e-5
 #: the rest of the plan: refinement makes the KKT solves more accurate, and the form without
 #: partial sums has no degenerate e_{n,k} (blocks where every weight is zero).
 ATTEMPTS = ((True, False), (True, True), (False, True))
+#: The loose interior-point tolerance (duality gap, absolute and relative, and feasibility)
+#: that :meth:`ClarabelTrajectoryStep.set_tolerance` offers for the steps before the last.
+LOOSE_TOLERANCE = 1e-4
+
+
+class SolverCache:
+    """Idle Clarabel solvers by form (N, M, block size, airspeed cones, zone rows, refinement),
+    reused across plans: the cone program's sparsity depends on the form only, and every
+    scenario-dependent entry (the node and zone rows and the whole of b) is updated before a
+    solve.
+
+    A solver is taken out while it solves and given back after, so two threads never share
+    one; at most ``per_form`` idle solvers are kept for each of the last ``forms`` forms.
+    """
+
+    def __init__(self, forms: int = 8, per_form: int = 2):
+        self.forms, self.per_form = forms, per_form
+        self._idle: dict[tuple, list] = {}
+        self._lock = threading.Lock()
+
+    def take(self, form: tuple):
+        """An idle solver of this form as (solver, owner, tolerance), or None."""
+        with self._lock:
+            idle = self._idle.get(form)
+            return idle.pop() if idle else None
+
+    def give(self, form: tuple, entry: tuple) -> None:
+        with self._lock:
+            idle = self._idle.pop(form, [])   # re-inserted last: the most recently used form
+            if len(idle) < self.per_form:
+                idle.append(entry)
+            self._idle[form] = idle
+            while len(self._idle) > self.forms:
+                del self._idle[next(iter(self._idle))]
+
+    def clear(self) -> None:
+        with self._lock:
+            self._idle.clear()
+
+
+#: The solvers every :class:`ClarabelTrajectoryStep` draws from.
+SOLVERS = SolverCache()
+_STEPPER_IDS = itertools.count()
 
 
 class ClarabelTrajectoryStep:
@@ -315,11 +366,15 @@ class ClarabelTrajectoryStep:
 
     Call it like :func:`~uav_comm_planner.core.trajectory.trajectory_step_cvxpy`:
     ``step = stepper(q_k, p, scenario)`` with q_k (M, 2) metres and p (N, M) watts. One
-    instance serves one plan on one thread (the solver inside is mutable).
+    instance serves one plan on one thread. Its solver comes from ``cache`` (:data:`SOLVERS`
+    by default; None builds a fresh solver for every plan) and goes back after every solve.
     """
 
-    def __init__(self, scenario: Scenario):
+    def __init__(self, scenario: Scenario, cache: SolverCache | None = SOLVERS):
         self.scenario = scenario
+        self.cache = cache
+        self.tolerance: float | None = None
+        self._id = next(_STEPPER_IDS)     # names this stepper's b in the cache
         corners = np.vstack([scenario.nodes, scenario.start_m, scenario.goal_m])
         # Centred kilometres keep ||z||^2 and ||w_n||^2 of the order of the scene, not its offset.
         self.centre_m = (corners.min(axis=0) + corners.max(axis=0)) / 2.0
@@ -345,7 +400,28 @@ class ClarabelTrajectoryStep:
         self.objective = np.zeros(self.layout.num_columns)
         self.objective[0] = -1.0
         self._solver = None
+        self._solver_tolerance = None
+        self._b_is_ours = True
         self._update_positions = None
+
+    def set_tolerance(self, tolerance: float | None) -> None:
+        """Stop later steps at this duality gap and feasibility (e.g. :data:`LOOSE_TOLERANCE`);
+        None restores Clarabel's 1e-8 (:func:`clarabel_settings`)."""
+        self.tolerance = tolerance
+
+    def _settings(self) -> clarabel.DefaultSettings:
+        settings = clarabel_settings(refine=self.refine)
+        if self.tolerance is not None:
+            settings.tol_gap_abs = settings.tol_gap_rel = self.tolerance
+            settings.tol_feas = self.tolerance
+            settings.tol_ktratio = max(settings.tol_ktratio, self.tolerance)
+        return settings
+
+    @property
+    def _form(self) -> tuple:
+        layout = self.layout
+        return (layout.num_nodes, layout.num_slots, layout.block_slots, layout.air_legs,
+                layout.zone_rows, self.refine)
 
     def _fixed_right_hand_side(self) -> np.ndarray:
         m = self.scenario.num_slots
@@ -411,31 +487,49 @@ class ClarabelTrajectoryStep:
 
     def _solve(self, rows: NodeRows,
                zones: tuple[np.ndarray, np.ndarray] | None = None) -> clarabel.DefaultSolution:
+        if self._solver is None and self.cache is not None:
+            self._adopt(self.cache.take(self._form))
         if self._solver is None:
             values, b = self.cone_data(rows, zones)
             p, a = self.layout.clarabel_matrices(values)
             self._solver = clarabel.DefaultSolver(
                 p, self.objective.tolist(), a, b.tolist(), list(self.layout.cones),
-                clarabel_settings(refine=self.refine))
+                self._settings())
+            self._solver_tolerance = self.tolerance
         else:
+            if self._solver_tolerance != self.tolerance:
+                self._solver.update(settings=self._settings())
+                self._solver_tolerance = self.tolerance
             positions, coefficient = self.layout.node_entries
             if self._update_positions is None:
                 # A list for this plan only; the cached layout keeps arrays, a fifth the size.
                 self._update_positions = positions.tolist()
             changed = self.coefficients(rows).ravel()[coefficient]
             if zones is None:
-                self._solver.update(
-                    A=(self._update_positions, changed.tolist()),
-                    b=(self._node_index, self.node_right_hand_side(rows).tolist()))
+                a = (self._update_positions, changed.tolist())
+                b = (self._node_index, self.node_right_hand_side(rows).tolist())
             else:
                 entries, right = zones
                 first = self.layout.first_zone_row
-                self._solver.update(
-                    A=(self._update_positions + self.layout.zone_entries.tolist(),
-                       changed.tolist() + entries.ravel().tolist()),
-                    b=(self._node_index + list(range(first, first + right.size)),
-                       self.node_right_hand_side(rows).tolist() + right.tolist()))
-        return self._solver.solve()
+                a = (self._update_positions + self.layout.zone_entries.tolist(),
+                     changed.tolist() + entries.ravel().tolist())
+                b = (self._node_index + list(range(first, first + right.size)),
+                     self.node_right_hand_side(rows).tolist() + right.tolist())
+            if not self._b_is_ours:
+                b = self.cone_data(rows, zones)[1].tolist()
+            self._solver.update(A=a, b=b)
+        solution = self._solver.solve()
+        if self.cache is not None:
+            self.cache.give(self._form, (self._solver, self._id, self._solver_tolerance))
+            self._solver = None
+        return solution
+
+    def _adopt(self, entry: tuple | None) -> None:
+        """Take a cached (solver, owner, tolerance): its b is this scenario's only if it last
+        served this stepper."""
+        if entry is not None:
+            self._solver, owner, self._solver_tolerance = entry
+            self._b_is_ours = owner == self._id
 
     def __call__(self, q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
                  offsets: np.ndarray | None = None) -> TrajectoryStep:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from uav_comm_planner.core.scenario import Scenario
@@ -119,12 +121,19 @@ def hover_and_fly(scenario: Scenario) -> np.ndarray:
     the nodes whose detours cost most are left out until it does; with none left, the start
     is the straight line.
     """
-    order = _drop_until_flyable(scenario, tour_order(scenario))
+    return fly_tour(scenario, tour_order(scenario))
+
+
+def fly_tour(scenario: Scenario, order: list[int],
+             split: Callable[[int, int], np.ndarray] = even_hovers) -> np.ndarray:
+    """:func:`hover_and_fly` along the visit ``order`` given: q (M, 2) metres, with the spare
+    legs split over the visited nodes by ``split(spare_legs, stops)`` (integers in order)."""
+    order = _drop_until_flyable(scenario, order)
     if not order:
         return straight_line(scenario)
     points = np.vstack([scenario.start_m, scenario.nodes[order], scenario.goal_m])
     legs = _legs_needed(points, scenario)
-    hovers = even_hovers(scenario.num_slots + 1 - int(legs.sum()), len(order))
+    hovers = split(scenario.num_slots + 1 - int(legs.sum()), len(order))
     waypoints = [np.asarray(scenario.start_m, dtype=float)]
     for k, count in enumerate(legs):
         fractions = np.arange(1, count + 1) / count

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
+import functools
 import logging
 import math
 import time
@@ -11,7 +13,9 @@ from typing import Callable, Mapping
 import numpy as np
 
 from uav_comm_planner.core import detour
-from uav_comm_planner.core.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
+from uav_comm_planner.core.bound import dual_upper_bound
+from uav_comm_planner.core.fast_trajectory import (ClarabelTrajectoryStep, LOOSE_TOLERANCE,
+                                                   trajectory_step_clarabel)
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt,
                                          snr_scale, spectral_efficiencies,
@@ -19,6 +23,7 @@ from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per
 from uav_comm_planner.core.power import (checked_offsets, conic_power, PowerAllocation,
                                          waterfilling_power)
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.core.tours import random_tours
 from uav_comm_planner.core.trajectory import trajectory_step_cvxpy, TrajectoryStep
 from uav_comm_planner.core.zone_rows import zone_model
 from uav_comm_planner.errors import InvalidScenarioError, PlanCancelledError, SolverError
@@ -103,8 +108,10 @@ class PlanResult:
     history: the true min rate after every power and trajectory step (never decreasing);
     baselines: min throughput of the straight line ('straight') and the static access point
     ('static'), each with its optimal power, bit/s.
-    start: the initial trajectory of the kept plan ('straight' or 'hover');
-    start_throughputs: the min throughput Algorithm 1 reached from each start tried, bit/s;
+    start: the initial trajectory of the kept plan ('straight', 'hover', a screened
+    'tour k' of :func:`~uav_comm_planner.core.tours.random_tours`, or an extra start's name);
+    start_throughputs: the min throughput Algorithm 1 reached from each start tried, bit/s
+    (for a screened start not continued, where its screening left it);
     upper_bound: :func:`throughput_upper_bound`, no plan can exceed it, bit/s (inf with
     offsets, where it does not hold);
     solve_time_s: wall time of the whole plan (every start and the baselines), seconds.
@@ -139,6 +146,22 @@ class PlanResult:
     def gap_to_upper_bound(self) -> float:
         """1 - min_throughput / upper_bound: the share of the bound not (yet) reached."""
         return 1.0 - self.min_throughput / self.upper_bound
+
+    @functools.cached_property
+    def tight_upper_bound(self) -> float:
+        """The Lagrangian dual bound over every flyable trajectory
+        (:func:`~uav_comm_planner.core.bound.dual_upper_bound`, at this plan's multipliers),
+        or :attr:`upper_bound` where that is lower; no plan exceeds it, bit/s (inf with
+        offsets). Computed on first use (0.1 to 1 s)."""
+        if self.offsets is not None:
+            return math.inf
+        a = snr_per_watt(self.trajectory, self.scenario)
+        return min(self.upper_bound, dual_upper_bound(self.scenario, self.power, a))
+
+    @property
+    def gap_to_tight_bound(self) -> float:
+        """1 - min_throughput / tight_upper_bound: at most this share of the optimum is left."""
+        return 1.0 - self.min_throughput / self.tight_upper_bound
 
 
 def _tolerance(settings: SolverSettings, value: float) -> float:
@@ -176,7 +199,7 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
               power_solver: PowerSolver = waterfilling_power,
               trajectory_solver: TrajectorySolver = trajectory_step_cvxpy,
               should_stop: StopCheck | None = None,
-              offsets: np.ndarray | None = None) -> Run:
+              offsets: np.ndarray | None = None, sca_steps: int | None = None) -> Run:
     """Algorithm 1 from trajectory q (M, 2) metres, as a :class:`Run`.
 
     Each outer iteration solves the power step, then runs SCA trajectory steps until one
@@ -192,6 +215,8 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
     ``should_stop`` is asked before every step;
     when it returns True the run ends with :class:`~uav_comm_planner.errors.PlanCancelledError`.
     With ``offsets`` o (N,) bits per use, every step maximises min_n (o_n + mean_m log2(...)).
+    ``sca_steps`` caps the SCA steps per power step (``settings.max_inner_iterations`` when
+    None).
     """
     history: list[Step] = []
     check_stop = _stop_checker(should_stop)
@@ -226,7 +251,7 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
             converged = True
             break
         previous_power_value = value
-        for _ in range(settings.max_inner_iterations):
+        for _ in range(settings.max_inner_iterations if sca_steps is None else sca_steps):
             check_stop()
             step = trajectory_solver(q, p, scenario, **extra)
             inner_total += 1
@@ -305,6 +330,97 @@ def _zone_keeper(scenario: Scenario) -> ZoneKeeper | None:
     if scenario.zones is None or scenario.zones.empty:
         return None
     return ZoneKeeper(scenario)
+
+
+#: How many screened starts are continued to convergence: the best after one outer iteration.
+CONTINUED = 1
+#: How many starts, the best by one power step on each, get one outer iteration before the
+#: best :data:`CONTINUED` of them are picked.
+SHORTLIST = 4
+#: SCA steps per power step at the tight tolerance once the loose steps have converged.
+FINAL_SCA_STEPS = 1
+
+
+def letter_rules(settings: SolverSettings) -> SolverSettings:
+    """The letter's Algorithm 1 (:meth:`SolverSettings.letter`) within the iteration limits of
+    ``settings``: the rules of the straight start's first run."""
+    return SolverSettings.letter(max_outer_iterations=settings.max_outer_iterations,
+                                 max_inner_iterations=settings.max_inner_iterations,
+                                 max_nodes=settings.max_nodes,
+                                 max_node_slots=settings.max_node_slots,
+                                 compute_baselines=False)
+
+
+def _joined(first: Run, *later: Run) -> Run:
+    """A run continued by ``later`` runs, each started where the one before it ended."""
+    runs = (first, *later)
+    return Run(runs[-1].q, runs[-1].p, tuple(step for run in runs for step in run.history),
+               sum(run.outer_iterations for run in runs),
+               sum(run.trajectory_steps for run in runs), runs[-1].converged)
+
+
+def _set_tolerance(trajectory_solver: TrajectorySolver, tolerance: float | None) -> None:
+    """Loosen (or, with None, restore) the interior-point tolerance of a solver that offers it
+    (:class:`ClarabelTrajectoryStep`); the cvxpy reference always solves at its own."""
+    setter = getattr(trajectory_solver, 'set_tolerance', None)
+    if setter is not None:
+        setter(tolerance)
+
+
+def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: SolverSettings,
+                   run_from: Callable[..., Run],
+                   trajectory_solver: TrajectorySolver) -> dict[str, Run]:
+    """Runs from every start, screened: the straight start runs the letter's Algorithm 1
+    exactly (:func:`letter_rules`), every other start is screened by one power step on it;
+    the best :data:`SHORTLIST` of those get one outer iteration, the best :data:`CONTINUED`
+    of these are continued under ``settings`` to convergence, and then the letter's run too
+    if it is still ahead of them.
+
+    Continuing with ``fast_steps`` alternates one SCA step at :data:`LOOSE_TOLERANCE` per
+    power step until a power step gains at most the tolerance, then runs Algorithm 1 again
+    from there with full SCA loops at the tight tolerance, so that the plan ends where the
+    letter's rules would also stop. Every continuation starts with a power step on the
+    trajectory reached and keeps a step only when it does not lower the true minimum rate,
+    so no run ends below where it was screened, and the straight start never below the
+    letter's own run.
+    """
+    loose = LOOSE_TOLERANCE if settings.fast_steps else None
+    sca_steps = 1 if settings.fast_steps else None
+
+    def continued(run: Run) -> Run:
+        _set_tolerance(trajectory_solver, loose)
+        run = _joined(run, run_from(run.q, settings, sca_steps=sca_steps))
+        if settings.fast_steps:
+            _set_tolerance(trajectory_solver, None)
+            run = _joined(run, run_from(run.q, settings, sca_steps=FINAL_SCA_STEPS))
+        return run
+
+    runs: dict[str, Run] = {}
+    screen = dataclasses.replace(settings, max_outer_iterations=1)
+    for name, start in starts.items():
+        q = start.make(scenario)
+        if start is STARTS['straight']:
+            _set_tolerance(trajectory_solver, None)
+            runs[name] = run_from(q, letter_rules(settings))
+        else:
+            runs[name] = run_from(q, screen, sca_steps=0)
+    order = list(runs)
+
+    def ranked(names) -> list[str]:
+        return sorted(names, key=lambda name: (-runs[name].min_throughput, order.index(name)))
+
+    shortlist = ranked(name for name in runs if name != 'straight')[:SHORTLIST]
+    _set_tolerance(trajectory_solver, loose)
+    for name in shortlist:
+        runs[name] = _joined(runs[name], run_from(runs[name].q, screen, sca_steps=sca_steps))
+    screened = ranked(shortlist)
+    for name in screened[:CONTINUED]:
+        runs[name] = continued(runs[name])
+    if 'straight' in runs and all(runs['straight'].min_throughput > runs[name].min_throughput
+                                  for name in screened[:CONTINUED]):
+        runs['straight'] = continued(runs['straight'])
+    _set_tolerance(trajectory_solver, None)
+    return runs
 
 
 def throughput_upper_bound(scenario: Scenario) -> float:
@@ -397,11 +513,17 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
             logger.info('start %r left out: it does not keep out of the zones', name)
             continue
         starts[name] = Start.given(name, trajectory)
+    run_from = functools.partial(alternate, scenario, power_solver=power_solver,
+                                 trajectory_solver=trajectory_solver, should_stop=should_stop,
+                                 offsets=offsets)
+    if settings.fast_steps or settings.screened_tours:
+        for name, trajectory in random_tours(scenario, settings.screened_tours).items():
+            if keeper is None or keeper.keeps(trajectory):   # tours that cross a zone are left out
+                starts.setdefault(name, Start.given(name, trajectory))
+        runs = _screened_runs(scenario, starts, settings, run_from, trajectory_solver)
+    else:
+        runs = {name: run_from(start.make(scenario), settings) for name, start in starts.items()}
     order = list(starts)
-    runs = {name: alternate(scenario, start.make(scenario), settings, power_solver=power_solver,
-                            trajectory_solver=trajectory_solver, should_stop=should_stop,
-                            offsets=offsets)
-            for name, start in starts.items()}
     values = {name: run.min_throughput for name, run in runs.items()}
     best = max(values, key=lambda name: (values[name], -order.index(name)))
     run = runs[best]

@@ -349,6 +349,10 @@ class SolverSettings:
     rule is relative, because rates in bit/s scale with B and shrink with N: the letter's
     absolute 0.01 stops early when rates are small. ``starts`` names the initial
     trajectories Algorithm 1 is run from ('straight', 'hover'); the best plan is kept.
+    ``screened_tours`` random tours (:mod:`~uav_comm_planner.core.tours`) are screened beside
+    them; ``fast_steps`` runs one SCA step per power step at a loose interior-point tolerance
+    before a last full SCA loop at the tight one (see :func:`~uav_comm_planner.core.optimizer.
+    plan`).
     ``max_nodes`` and ``max_node_slots`` bound the work a plan may take: at most
     ``max_nodes`` ground nodes and at most ``max_node_slots`` = N x M (nodes times slots; the
     memory and the time of each step grow with it).
@@ -363,11 +367,15 @@ class SolverSettings:
     max_node_slots: int = MAX_NODE_SLOTS
     compute_baselines: bool = True
     starts: tuple[str, ...] = START_NAMES
+    screened_tours: int = 20
+    fast_steps: bool = True
 
     @classmethod
     def letter(cls, **changes: object) -> 'SolverSettings':
-        """The letter's Algorithm 1: the straight-line start only, absolute epsilon 0.01."""
-        fields = dict(tolerance_bps=0.01, relative_tolerance=0.0, starts=('straight',))
+        """The letter's Algorithm 1: the straight-line start only, absolute epsilon 0.01, no
+        screened tours, full SCA loops at the solver's tight tolerance."""
+        fields = dict(tolerance_bps=0.01, relative_tolerance=0.0, starts=('straight',),
+                      screened_tours=0, fast_steps=False)
         fields.update(changes)
         return cls(**fields)
 
@@ -389,6 +397,15 @@ class SolverSettings:
             raise InvalidScenarioError(
                 f'compute_baselines must be True or False, got {self.compute_baselines!r}')
         object.__setattr__(self, 'compute_baselines', bool(self.compute_baselines))
+        if isinstance(self.screened_tours, (bool, np.bool_)) or not isinstance(
+                self.screened_tours, (int, np.integer)) or not 0 <= self.screened_tours <= 100:
+            raise InvalidScenarioError(
+                f'screened_tours must be an integer from 0 to 100, got {self.screened_tours!r}')
+        object.__setattr__(self, 'screened_tours', int(self.screened_tours))
+        if not isinstance(self.fast_steps, (bool, np.bool_)):
+            raise InvalidScenarioError(
+                f'fast_steps must be True or False, got {self.fast_steps!r}')
+        object.__setattr__(self, 'fast_steps', bool(self.fast_steps))
         self._check_starts()
 
     def _check_starts(self) -> None:

@@ -194,6 +194,9 @@ DESCRIPTIONS = {
                       '(read-only: fixed at start-up)',
     'compute_baselines': 'also compute the straight-line and static-point baselines',
     'starts': 'initial trajectories Algorithm 1 is run from; the best plan is kept',
+    'screened_tours': 'random tours screened as extra starts (0 to 100; 0: none)',
+    'fast_steps': 'one SCA step per power step at a loose solver tolerance, then a tight '
+                  'last step (false: full SCA loops at the tight tolerance)',
     'frame_id': 'frame of the ground nodes, the UAV pose and every output',
     'mission_dir': 'folder of mission files, fixed at start-up (read-only); empty: the '
                    "node's working directory",

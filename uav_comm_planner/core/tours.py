@@ -1,0 +1,64 @@
+"""Screened tours: random visiting orders and hover splits that start Algorithm 1, drawn from
+a generator seeded by the scenario itself, so that one scenario always gets the same tours
+(and the same plan).
+
+The hover start (:func:`~uav_comm_planner.core.initial.hover_and_fly`) flies one short tour
+with an even split of the spare slots; the max-min optimum often visits the nodes in another
+order (a longer tour can serve the far nodes better) or hovers longer over some nodes.
+:func:`random_tours` gives other tours of both kinds: each is a random order improved by
+2-opt (a different local optimum of the tour length for each draw) or kept as drawn, with the
+spare slots split evenly or in random shares.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+
+from uav_comm_planner.core import initial
+from uav_comm_planner.core.scenario import Scenario
+
+
+def scenario_seed(scenario: Scenario) -> int:
+    """A 32-bit seed from the scenario's geometry (nodes, start, goal, slots, step length)."""
+    numbers = np.concatenate([scenario.nodes.ravel(), np.asarray(scenario.start_m, float),
+                              np.asarray(scenario.goal_m, float),
+                              [scenario.num_slots, scenario.max_step_m]])
+    return zlib.crc32(np.ascontiguousarray(numbers, dtype=np.float64).tobytes())
+
+
+def random_split(rng: np.random.Generator):
+    """A hover split of ``spare`` legs over ``stops`` nodes in random shares (Dirichlet with
+    unit weights, rounded so that the integers add up to ``spare``)."""
+    def split(spare: int, stops: int) -> np.ndarray:
+        shares = rng.dirichlet(np.ones(stops)) * spare
+        hovers = np.floor(shares).astype(int)
+        left = spare - int(hovers.sum())
+        hovers[np.argsort(hovers - shares)[:left]] += 1
+        return hovers
+    return split
+
+
+def random_tours(scenario: Scenario, count: int,
+                 seed: int | None = None) -> dict[str, np.ndarray]:
+    """Up to ``count`` tour starts q (M, 2) metres by name ('tour 1', ...; a tour that repeats
+    an earlier one is left out), reproducible for the
+    scenario: odd tours are random orders improved by 2-opt with an even hover split, even
+    tours a random order as drawn (every other one improved by 2-opt) with random shares.
+    ``seed`` draws other tours (:func:`scenario_seed` when None)."""
+    rng = np.random.default_rng(scenario_seed(scenario) if seed is None else seed)
+    start, goal = np.asarray(scenario.start_m, float), np.asarray(scenario.goal_m, float)
+    tours = {}
+    for k in range(1, count + 1):
+        order = [int(i) for i in rng.permutation(scenario.num_nodes)]
+        if k % 2 == 1 or k % 4 == 0:
+            order = initial.two_opt(start, goal, scenario.nodes, order)
+        split = initial.even_hovers if k % 2 == 1 else random_split(rng)
+        q = initial.fly_tour(scenario, order, split)
+        if not any(np.array_equal(q, other) for other in tours.values()):
+            tours[f'tour {k}'] = q
+    return tours
+
+
+__all__ = ['random_split', 'random_tours', 'scenario_seed']
