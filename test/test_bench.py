@@ -34,6 +34,7 @@ def test_every_section_is_printed(output):
     for title in ('Speed:', 'Scaling:', 'Quality:', 'Quality, low SNR:'):
         assert f'\n== {title}' in output
     assert output.count('\n== Scaling:') == 2
+    assert output.count('\n== Speed:') == 2
     assert '\n== Flown:' not in output
 
 
@@ -68,23 +69,39 @@ def test_scaling_tables_fit_an_exponent(output, design):
     assert math.isfinite(exponent)
 
 
+def test_the_default_speed_table_times_both_paths_on_the_same_plan(output):
+    header, *rows = section(output, 'Speed: the default plan')
+    assert header.split() == ['case', 'runs', 'reference_s', 'default_s', 'ratio', 'cold_s',
+                              'reference_bps', 'default_bps']
+    assert [row[:15].strip() for row in rows] == ['letter case I', 'N=10, M=200']
+    for row in rows:
+        runs, reference_s, default_s, ratio, cold_s, reference, default = row[15:].split()
+        assert float(ratio.rstrip('x')) == pytest.approx(
+            float(reference_s) / float(default_s), rel=0.1, abs=0.1)
+        # The fast path's loose steps end where the stopping rule (relative 1e-4) stops.
+        assert float(default) == pytest.approx(float(reference), rel=1e-3)
+
+
 @pytest.mark.parametrize('title', ['Quality:', 'Quality, low SNR:'])
-def test_quality_tables_compare_the_default_with_the_letter(output, title):
+def test_quality_tables_compare_the_default_with_the_letter_the_best_known_and_the_bound(
+        output, title):
     header, *rows = section(output, title)
-    assert header.split()[:5] == ['N', 'letter_bps', 'default_bps', 'ratio', 'start']
+    assert header.split() == ['N', 'M', 'letter_bps', 'default_bps', 'best_bps', 'bound_bps',
+                              'default/letter', 'gap_to_best', 'gap_to_bound', 'old_gap',
+                              'letter_s', 'default_s', 'start']
     cases = rows[:-2]
-    assert [int(row.split()[0]) for row in cases] == [4, 5, 6, 7]
+    assert len(cases) == (4 if title == 'Quality:' else 2)
     for row in cases:
-        _, letter, default, ratio, start, *_ = row.split()
-        assert float(ratio) == pytest.approx(float(default) / float(letter), abs=1e-4)
-        assert start in ('straight', 'hover')
-        assert row.count('%') == 2
-    summary = re.match(r'default / letter: mean (\S+), min (\S+), max (\S+); worse in (\d+) '
-                       r'of 4 cases; hover start kept in (\d+)', rows[-2])
-    assert summary is not None
-    if title == 'Quality:':
-        assert summary.group(4) == '0'
-    assert rows[-1].startswith('mean gap to the upper bound: letter ')
+        n, m, letter, default, best, bound, ratio, gap_best, gap_bound, *_ = row.split()
+        assert 3 <= int(n) <= 20 and 51 <= int(m) <= 80
+        assert float(ratio) == pytest.approx(float(default) / float(letter), rel=1e-5)
+        assert float(letter) <= float(default) <= float(best) <= float(bound)
+        assert float(gap_best.rstrip('%')) == pytest.approx(
+            100 * (1 - float(default) / float(best)), abs=1e-3)
+    summary = re.match(r'default below the letter in (\d+) of (\d+) drops .*; within 0.1 % of '
+                       r'the best known in (\d+) of (\d+)', rows[-2])
+    assert summary is not None and summary.group(1) == '0'
+    assert rows[-1].startswith('gap of the default to the dual bound: median ')
 
 
 def test_peak_memory_counts_what_the_call_allocates():

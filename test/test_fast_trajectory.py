@@ -289,3 +289,58 @@ def test_moderate_snr_plans_succeed_on_the_fast_path_and_match_the_reference():
         fast = plan(scenario, settings)
         reference = plan(scenario, settings, power_method='conic', trajectory_method='cvxpy')
         assert fast.min_throughput == pytest.approx(reference.min_throughput, rel=1e-6)
+
+
+def test_a_cached_solver_gives_the_step_a_fresh_solver_gives():
+    # Same (N, M), another scenario first: the cached solver's every entry is replaced.
+    scenario = CASES['II']
+    other = paper_scenario('I', power_budget_w=1.0, goal_m=(1500.0, 300.0))
+    q_k, p = expansion_point(scenario)
+    cache = SolverCache()
+    ClarabelTrajectoryStep(other, cache)(*expansion_point(other), other)
+    reused = ClarabelTrajectoryStep(scenario, cache)
+    step = reused(q_k, p, scenario)
+    fresh = ClarabelTrajectoryStep(scenario, cache=None)(q_k, p, scenario)
+    np.testing.assert_allclose(step.q, fresh.q, rtol=0, atol=1e-9)
+    assert step.bound == pytest.approx(fresh.bound, rel=1e-12)
+    # Handed back after the solve, for the next plan of this form.
+    assert cache.take(reused._form) is not None and cache.take(reused._form) is None
+
+
+def test_plans_on_reused_solvers_are_the_plans_of_fresh_ones():
+    scenario = random_scenario(21, 6, 60)
+    first = plan(scenario, SolverSettings(compute_baselines=False))
+    plan(random_scenario(22, 6, 60), SolverSettings(compute_baselines=False))   # same form
+    again = plan(scenario, SolverSettings(compute_baselines=False))
+    SOLVERS.clear()
+    fresh = plan(scenario, SolverSettings(compute_baselines=False))
+    for result in (again, fresh):
+        assert result.min_throughput == pytest.approx(first.min_throughput, rel=1e-12)
+        np.testing.assert_allclose(result.trajectory, first.trajectory, rtol=0, atol=1e-6)
+        assert result.start == first.start
+
+
+@pytest.mark.parametrize('case', ['I', 'random-1', 'random-2'])
+def test_a_loose_step_is_close_to_the_tight_one_and_the_tight_tolerance_comes_back(case):
+    scenario = CASES[case]
+    q_k, p = expansion_point(scenario)
+    stepper = ClarabelTrajectoryStep(scenario)
+    tight = stepper(q_k, p, scenario).bound
+    stepper.set_tolerance(LOOSE_TOLERANCE)
+    loose = stepper(q_k, p, scenario).bound
+    assert loose == pytest.approx(tight, rel=10 * LOOSE_TOLERANCE, abs=1e-9)
+    stepper.set_tolerance(None)
+    assert stepper(q_k, p, scenario).bound == pytest.approx(tight, rel=1e-9, abs=1e-12)
+
+
+@pytest.mark.parametrize('case', ['random-0', 'random-1', 'random-3'])
+def test_the_loose_steps_do_not_change_the_plan_beyond_the_stopping_rule(case):
+    # The default's loose steps end with a tight one: its plan is the plan of tight steps
+    # alone to the stopping rule, and no plan ends below the letter's.
+    scenario = CASES[case]
+    fast = plan(scenario, SolverSettings(compute_baselines=False))
+    tight = plan(scenario, SolverSettings(compute_baselines=False, fast_steps=False))
+    letter = plan(scenario, SolverSettings.letter(compute_baselines=False))
+    assert fast.min_throughput == pytest.approx(tight.min_throughput, rel=1e-3)
+    assert min(fast.min_throughput, tight.min_throughput) >= letter.min_throughput
+    assert SOLVERS.take(ClarabelTrajectoryStep(scenario)._form)[2] is None   # left tight

@@ -167,6 +167,10 @@ def test_a_row_holds_every_method_computed_as_plan_computes_it():
     assert row['static_bps'] == pytest.approx(default.baselines['static'], rel=1e-12)
     assert row['bound_bps'] == throughput_upper_bound(scenario)
     assert max(row['default_bps'], row['letter_bps']) <= row['bound_bps']
+    # The dual bound at the hover start's multipliers: above both plans, below the old bound.
+    assert max(row['default_bps'], row['letter_bps']) <= row['dual_bound_bps']
+    assert row['dual_bound_bps'] <= row['bound_bps']
+    assert row['dual_bound_status'] == 'bound'
     assert [name for name, _ in columns(design)] == list(row)
 
 

@@ -46,18 +46,19 @@ def two_opt(start: np.ndarray, goal: np.ndarray, w: np.ndarray,
     (i, j+1); moves are made while one shortens the path by more than round-off.
     """
     order = list(order)
+    # Distances between the points start (0), w (1..N) and goal (N + 1), computed once.
+    points = np.vstack([start, w, goal])
+    distance = np.linalg.norm(points[:, None, :] - points[None, :, :], axis=-1)
     improved = True
     while improved:
         improved = False
-        path = np.vstack([start, w[order], goal]) if order else np.vstack([start, goal])
+        path = np.array([0, *(k + 1 for k in order), len(w) + 1])
         for i in range(1, len(order) + 1):
             j = np.arange(i + 1, len(order) + 1)
             if j.size == 0:
                 continue
-            old = (np.linalg.norm(path[i] - path[i - 1])
-                   + np.linalg.norm(path[j + 1] - path[j], axis=1))
-            new = (np.linalg.norm(path[j] - path[i - 1], axis=1)
-                   + np.linalg.norm(path[j + 1] - path[i], axis=1))
+            old = distance[path[i], path[i - 1]] + distance[path[j + 1], path[j]]
+            new = distance[path[j], path[i - 1]] + distance[path[j + 1], path[i]]
             gain = old - new
             best = int(np.argmax(gain))
             if gain[best] > 1e-9 * (1.0 + old[best]):

@@ -444,8 +444,10 @@ def _stop_checker(should_stop: StopCheck | None) -> Callable[[], None]:
     return check
 
 
-def _solvers(scenario: Scenario, power_method: str,
-             trajectory_method: str) -> tuple[PowerSolver, TrajectorySolver]:
+def step_solvers(scenario: Scenario, power_method: str,
+                 trajectory_method: str) -> tuple[PowerSolver, TrajectorySolver]:
+    """The power and trajectory steps for these method names (:data:`POWER_SOLVERS`,
+    :data:`TRAJECTORY_SOLVERS`), a stepper built for ``scenario`` where there is one."""
     try:
         power_solver = POWER_SOLVERS[power_method]
         trajectory_solver = TRAJECTORY_SOLVERS[trajectory_method]
@@ -505,7 +507,7 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     check_stop = _stop_checker(should_stop)
     offsets = checked_offsets(offsets, scenario.num_nodes)
     began = time.perf_counter()
-    power_solver, trajectory_solver = _solvers(scenario, power_method, trajectory_method)
+    power_solver, trajectory_solver = step_solvers(scenario, power_method, trajectory_method)
     starts = {name: STARTS[name] for name in settings.starts}
     keeper = _zone_keeper(scenario)
     for name, trajectory in (extra_starts or {}).items():
@@ -543,5 +545,5 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
 
 
 __all__ = ['PlanResult', 'Run', 'Start', 'Step', 'StopCheck', 'alternate',
-           'baseline_rates', 'optimal_power', 'plan',
+           'baseline_rates', 'letter_rules', 'optimal_power', 'plan', 'step_solvers',
            'spectral_efficiency_to_rate', 'throughput_upper_bound']

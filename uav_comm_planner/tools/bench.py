@@ -6,13 +6,15 @@
   alternation in one process. Every fast plan builds its own Clarabel solver; the sparsity
   pattern of its cone program, a function of N and M only, is kept between plans as in a
   running planner, and a third column times plans that build it again (the first plan of a
-  size). Peak
+  size) and builds its Clarabel solvers again. Peak
   memory is the growth of the peak resident set (VmHWM) of a freshly spawned process that
   plans once, so it counts the solvers' native memory too.
 * Scaling: the fast path for N = 20 and a growing number of slots M, with slots of 1 s and
   over one 200 s flight, with the least-squares exponent of M on a log-log scale.
-* Quality: on random scenarios, the default plan (both starts, relative tolerance) against
-  the letter's Algorithm 1, with the upper bound of every plan.
+* Speed of the default plan: the same settings on the reference path and on the fast path
+  (loose steps and the solvers kept between plans only help the fast path).
+* Quality: on seeded random drops, the default plan against the letter's Algorithm 1 and the
+  best known plan, with the dual upper bound (:mod:`uav_comm_planner.core.bound`) and its gap.
 
 Run ``uav-comm-planner bench`` or ``python -m uav_comm_planner.tools.bench`` (``--quick`` for a
 smaller run).
@@ -35,9 +37,10 @@ from typing import Callable, Sequence, TextIO
 import numpy as np
 
 from uav_comm_planner.core.drops import random_scenario
-from uav_comm_planner.core.fast_trajectory import cone_layout
-from uav_comm_planner.core.optimizer import plan, PlanResult
+from uav_comm_planner.core.fast_trajectory import cone_layout, SOLVERS
+from uav_comm_planner.core.optimizer import alternate, plan, PlanResult, step_solvers
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
+from uav_comm_planner.core.tours import random_tours, scenario_seed
 from uav_comm_planner.tools.flights import flight_cases, fly_case, format_flights
 from uav_comm_planner.vehicle.sitl import why_not_runnable
 
@@ -73,6 +76,7 @@ def timed_plan(scenario: Scenario, settings: SolverSettings, methods: dict[str, 
     first, so the plan also builds it, as the first plan of each size does."""
     if cold:
         cone_layout.cache_clear()
+        SOLVERS.clear()
     began = time.perf_counter()
     result = plan(scenario, settings, **methods)
     return time.perf_counter() - began, result
@@ -203,48 +207,139 @@ def format_scaling(rows: Sequence[tuple[int, float, int]], exponent: float) -> s
     return '\n'.join(lines)
 
 
+def quality_drop(seed: int, *, low_snr: bool, max_slots: int = 399) -> Scenario:
+    """A random drop like the study's: N 3-20 nodes, M 51-``max_slots`` slots of 0.5-2 s,
+    V 20-100 m/s, nodes in a square of side 0.5-2 km (shrunk to fit the flight) flown corner to
+    corner; the letter's radio settings, or B = 1 MHz, beta0 = -60 dB with ``low_snr``."""
+    rng = np.random.default_rng(seed)
+    n, m = int(rng.integers(3, 21)), int(rng.integers(51, max_slots + 1))
+    speed, slot = float(rng.uniform(20.0, 100.0)), float(rng.uniform(0.5, 2.0))
+    side = float(min(rng.uniform(500.0, 2000.0), 0.7 * speed * m * slot / math.sqrt(2.0)))
+    return random_scenario(n, m, rng, side_m=side, horizon_s=m * slot, max_speed_mps=speed,
+                           **(LOW_SNR if low_snr else {}))
+
+
+def best_of_random_tours(scenario: Scenario, count: int = 20) -> float:
+    """The best min throughput of Algorithm 1 run to convergence (full SCA loops, relative
+    tolerance) from each of ``count`` random tours other than the default's screened ones,
+    bit/s."""
+    settings = SolverSettings(compute_baselines=False, screened_tours=0, fast_steps=False)
+    power_solver, trajectory_solver = step_solvers(scenario, FAST['power_method'],
+                                                   FAST['trajectory_method'])
+    tours = random_tours(scenario, count, seed=scenario_seed(scenario) + 1)
+    return max(alternate(scenario, q, settings, power_solver=power_solver,
+                         trajectory_solver=trajectory_solver).min_throughput
+               for q in tours.values())
+
+
 @dataclass(frozen=True)
 class QualityRow:
-    num_nodes: int
     letter: PlanResult
     default: PlanResult
+    tours_best: float
+
+    @property
+    def best_known(self) -> float:
+        """The best of the default, the letter's and 20 other random tours, bit/s."""
+        return max(self.tours_best, self.default.min_throughput, self.letter.min_throughput)
 
     @property
     def ratio(self) -> float:
         return self.default.min_throughput / self.letter.min_throughput
 
+    @property
+    def gap_to_best(self) -> float:
+        return 1.0 - self.default.min_throughput / self.best_known
 
-def compare_quality(num_cases: int, radio: dict[str, float]) -> list[QualityRow]:
-    """Default plan against the letter's Algorithm 1 on random 2 km x 2 km scenes, M = 120."""
+
+def compare_quality(num_cases: int, *, low_snr: bool, max_slots: int = 399,
+                    first_seed: int = 1000) -> list[QualityRow]:
+    """Default plan against the letter's Algorithm 1 and the best known on seeded drops
+    (:func:`quality_drop`), with the default's tight upper bound."""
     rows = []
-    for seed in range(num_cases):
-        n = 4 + seed % 9
-        scenario = random_scenario(n, 120, 1000 + seed, side_m=2000.0, **radio)
+    for seed in range(first_seed, first_seed + num_cases):
+        scenario = quality_drop(seed, low_snr=low_snr, max_slots=max_slots)
         letter = plan(scenario, SolverSettings.letter(compute_baselines=False))
         default = plan(scenario, SolverSettings(compute_baselines=False))
-        rows.append(QualityRow(n, letter, default))
+        rows.append(QualityRow(letter, default, best_of_random_tours(scenario)))
     return rows
 
 
 def format_quality(rows: Sequence[QualityRow]) -> str:
-    lines = [' N   letter_bps   default_bps   ratio  start     letter_gap  default_gap  '
-             'letter_s  default_s']
+    lines = [' N    M    letter_bps   default_bps      best_bps     bound_bps  '
+             'default/letter  gap_to_best  gap_to_bound  old_gap  letter_s  default_s  start']
     for r in rows:
+        d, size = r.default, r.default.scenario
         lines.append(
-            f'{r.num_nodes:>2} {r.letter.min_throughput:>12.6g} {r.default.min_throughput:>13.6g} '
-            f'{r.ratio:>7.4f}  {r.default.start:<8} {r.letter.gap_to_upper_bound:>11.1%} '
-            f'{r.default.gap_to_upper_bound:>12.1%} {r.letter.solve_time_s:>9.3f} '
-            f'{r.default.solve_time_s:>10.3f}')
+            f'{size.num_nodes:>2} {size.num_slots:>4} {r.letter.min_throughput:>13.6g} '
+            f'{d.min_throughput:>13.6g} {r.best_known:>13.6g} {d.tight_upper_bound:>13.6g} '
+            f'{r.ratio:>15.6f} {r.gap_to_best:>12.4%} {d.gap_to_tight_bound:>13.2%} '
+            f'{d.gap_to_upper_bound:>8.1%} {r.letter.solve_time_s:>9.3f} '
+            f'{d.solve_time_s:>10.3f}  {d.start}')
     ratios = np.array([r.ratio for r in rows])
-    worse = int(np.sum(ratios < 1.0))
-    hover = sum(r.default.start == 'hover' for r in rows)
-    lines.append(f'default / letter: mean {ratios.mean():.4f}, min {ratios.min():.6f}, '
-                 f'max {ratios.max():.4f}; worse in {worse} of {len(rows)} cases; '
-                 f'hover start kept in {hover}')
-    lines.append('mean gap to the upper bound: letter '
-                 f'{np.mean([r.letter.gap_to_upper_bound for r in rows]):.1%}, default '
-                 f'{np.mean([r.default.gap_to_upper_bound for r in rows]):.1%}')
+    gaps = np.array([r.gap_to_best for r in rows])
+    within = int(np.sum(gaps <= 1e-3))
+    lines.append(f'default below the letter in {int(np.sum(ratios < 1.0))} of {len(rows)} drops '
+                 f'(min default/letter {ratios.min():.6f}, mean {ratios.mean():.4f}); within '
+                 f'0.1 % of the best known in {within} of {len(rows)} '
+                 f'({within / len(rows):.0%}); gap to the best known mean {gaps.mean():.3%}, '
+                 f'max {gaps.max():.3%}')
+    tight = [r.default.gap_to_tight_bound for r in rows]
+    lines.append(f'gap of the default to the dual bound: median {statistics.median(tight):.2%}, '
+                 f'max {max(tight):.2%}; to the old bound (every channel at its best): median '
+                 f'{statistics.median(r.default.gap_to_upper_bound for r in rows):.1%}')
     return '\n'.join(lines)
+
+
+@dataclass(frozen=True)
+class DefaultSpeedRow:
+    label: str
+    repeats: int
+    reference_s: float
+    default_s: float
+    cold_s: float
+    reference_value: float
+    default_value: float
+
+    @property
+    def ratio(self) -> float:
+        return self.reference_s / self.default_s
+
+
+def measure_default_speed(case: SizeCase) -> DefaultSpeedRow:
+    """The default plan on the reference path and on the fast path, in alternation; the fast
+    plan again with no cached solver or cone structure (the first plan of a size)."""
+    settings = SolverSettings(compute_baselines=False)
+    runs = (('reference', REFERENCE, False), ('default', FAST, False), ('cold', FAST, True))
+    times: dict[str, list[float]] = {name: [] for name, _, _ in runs}
+    values = {}
+    for _ in range(case.repeats):
+        for name, methods, cold in runs:
+            seconds, result = timed_plan(case.scenario, settings, methods, cold=cold)
+            times[name].append(seconds)
+            values[name] = result.min_throughput
+    median = {name: statistics.median(seconds) for name, seconds in times.items()}
+    return DefaultSpeedRow(case.label, case.repeats, median['reference'], median['default'],
+                           median['cold'], values['reference'], values['default'])
+
+
+def format_default_speed(rows: Sequence[DefaultSpeedRow]) -> str:
+    lines = ['case            runs  reference_s  default_s    ratio   cold_s  reference_bps  '
+             'default_bps']
+    for r in rows:
+        lines.append(f'{r.label:<15} {r.repeats:>4} {r.reference_s:>12.4f} {r.default_s:>10.4f} '
+                     f'{r.ratio:>7.1f}x {r.cold_s:>8.4f} {r.reference_value:>14.8g} '
+                     f'{r.default_value:>12.8g}')
+    return '\n'.join(lines)
+
+
+def default_size_cases(quick: bool) -> list[SizeCase]:
+    """The default plan's speed table: the letter's case I and N = 20, M = 500."""
+    cases = [SizeCase('letter case I', paper_scenario('I'), 3 if quick else 11)]
+    cases.append(SizeCase('N=20, M=500', random_scenario(20, 500, 20, side_m=2000.0),
+                          1 if quick else 3) if not quick else
+                 SizeCase('N=10, M=200', random_scenario(10, 200, 10, side_m=1500.0), 1))
+    return cases
 
 
 DESCRIPTION = ("time the reference and fast paths; compare the default plan with the letter's "
@@ -293,11 +388,19 @@ def run(quick: bool = False, out: TextIO | None = None, *, flights: bool = True,
                                             horizon_s=horizon_s)
         section(f"Scaling: fast path, letter's settings, N = 20, {title}",
                 format_scaling(scaling, exponent))
-    cases = 4 if quick else 20
-    section("Quality: default plan vs the letter's Algorithm 1, random 2 km x 2 km, M = 120, "
-            "letter's radio settings", format_quality(compare_quality(cases, {})))
+    section("Speed: the default plan (letter's run, screened tours, fast steps), median of "
+            "'runs' alternating triples (reference path, fast path, fast path with no cached "
+            'solver or cone structure)', format_default_speed(
+                [measure_default_speed(case) for case in default_size_cases(quick)]))
+    cases, max_slots = (4, 80) if quick else (24, 199)
+    drops = (f'random drops: N 3-20, M 51-{max_slots}, slots 0.5-2 s, V 20-100 m/s; best known: '
+             'the best of the default, the letter and 20 other random tours run to '
+             'convergence; bound: the dual bound at the default plan')
+    section(f"Quality: default plan vs the letter's Algorithm 1, {drops}; letter's radio "
+            'settings', format_quality(compare_quality(cases, low_snr=False,
+                                                       max_slots=max_slots)))
     section('Quality, low SNR: B = 1 MHz, beta0 = -60 dB',
-            format_quality(compare_quality(cases, LOW_SNR)))
+            format_quality(compare_quality(cases // 2, low_snr=True, max_slots=max_slots)))
     if flights:
         title = ('Flown: vehicle-aware plans on ArduCopter SITL, autopilot time; the plan '
                  'states the throughput of its predicted flight')

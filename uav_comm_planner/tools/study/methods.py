@@ -1,5 +1,6 @@
 """The methods a Monte Carlo study compares on every scenario: Algorithm 1 with the default and
-the letter's settings, the letter's two baselines, and the upper bound of every plan.
+the letter's settings, the letter's two baselines, and two upper bounds of every plan (the
+closed form, and the dual bound over the flyable paths).
 
 A method is a label for the figures and a function ``Scenario -> Outcome``; :data:`METHODS`
 names each by the prefix of its table columns, so a new method is one more entry there.
@@ -14,7 +15,8 @@ from typing import Callable
 import numpy as np
 
 from uav_comm_planner.core import initial
-from uav_comm_planner.core.model import average_rates
+from uav_comm_planner.core.bound import dual_upper_bound
+from uav_comm_planner.core.model import average_rates, snr_per_watt
 from uav_comm_planner.core.optimizer import optimal_power, plan, throughput_upper_bound
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.tools.plots import METHOD_LABELS
@@ -56,6 +58,15 @@ def upper_bound_outcome(scenario: Scenario) -> Outcome:
     return Outcome(throughput_upper_bound(scenario), status='bound')
 
 
+def dual_bound_outcome(scenario: Scenario) -> Outcome:
+    """:func:`~uav_comm_planner.core.bound.dual_upper_bound` at the multipliers of the
+    hover-and-fly start with its optimal power (valid at any multipliers; no plan exceeds it),
+    or the closed-form bound where that is lower."""
+    q = initial.hover_and_fly(scenario)
+    dual = dual_upper_bound(scenario, optimal_power(q, scenario), snr_per_watt(q, scenario))
+    return Outcome(min(dual, throughput_upper_bound(scenario)), status='bound')
+
+
 #: Every method a study can run, by column prefix; a new method is one more entry.
 METHODS: dict[str, Method] = {
     'default': Method('default plan (straight and hover starts)',
@@ -69,6 +80,9 @@ METHODS: dict[str, Method] = {
     'static': Method(METHOD_LABELS['static'],
                      functools.partial(fixed_path_outcome, initial.static_point)),
     'bound': Method('upper bound', upper_bound_outcome),
+    'dual_bound': Method('upper bound, dual over the flyable paths', dual_bound_outcome),
 }
+#: The methods that bound every plan from above rather than plan.
+BOUNDS = ('bound', 'dual_bound')
 #: The letter's benchmarks, against which the figures show the gain of the other methods.
 BASELINES = ('straight', 'static')

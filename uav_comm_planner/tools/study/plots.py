@@ -25,7 +25,7 @@ from scipy import stats
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.tools.plots import _pyplot, legend_label, make_folder, save_figure
 from uav_comm_planner.tools.study.design import Draw, SETTINGS, StudyDesign
-from uav_comm_planner.tools.study.methods import BASELINES, METHODS
+from uav_comm_planner.tools.study.methods import BASELINES, BOUNDS, METHODS
 
 #: Confidence level of the intervals.
 CONFIDENCE = 0.95
@@ -33,7 +33,7 @@ CONFIDENCE = 0.95
 MAX_GROUPS = 8
 STYLES = {'default': 'o-', 'letter': 's--'}
 LINES = {'default': '-', 'letter': '--', 'straight': ':', 'static': '-.',
-         'bound': (0, (6, 2, 1, 2))}
+         'bound': (0, (6, 2, 1, 2)), 'dual_bound': (0, (2, 2))}
 #: How titles write each setting: its symbol and unit.
 SYMBOLS = {'nodes': ('N', ''), 'slots': ('M', ''), 'horizon_s': ('T', ' s'),
            'max_speed_mps': ('V', ' m/s'), 'altitude_m': ('H', ' m'),
@@ -105,7 +105,7 @@ def _ok(rows: Sequence[dict]) -> list[dict]:
 
 def optimised_methods(design: StudyDesign) -> list[str]:
     """The methods that plan a trajectory (not a baseline, not the bound)."""
-    return [m for m in design.methods if m not in BASELINES and m != 'bound']
+    return [m for m in design.methods if m not in BASELINES and m not in BOUNDS]
 
 
 def mean_interval(values: np.ndarray, confidence: float = CONFIDENCE) -> tuple[float, float]:

@@ -24,7 +24,7 @@ from uav_comm_planner.files import write_text_atomic, write_with
 from uav_comm_planner.tools.plots import STATIC_CAVEAT
 from uav_comm_planner.tools.study.design import (row_scenario, row_settings, SETTINGS,
                                                  StudyDesign, StudyError)
-from uav_comm_planner.tools.study.methods import BASELINES, METHODS, Outcome
+from uav_comm_planner.tools.study.methods import BASELINES, BOUNDS, METHODS, Outcome
 
 if TYPE_CHECKING:
     import pyarrow
@@ -335,8 +335,15 @@ def summary(design: StudyDesign, rows: Sequence[dict]) -> str:
         lines.append(f'{METHODS[method].label:<44}{statistics.fmean(values):>28.6g}'
                      f'{statistics.fmean(times):>15.4f}' + _caveat(method, '  '))
     for method in design.methods:
-        if method in BASELINES or method == 'bound':
+        if method in BASELINES or method in BOUNDS:
             continue
+        for bound in (b for b in BOUNDS if b in design.methods):
+            gaps = [1.0 - row[f'{method}_bps'] / row[f'{bound}_bps'] for row in ok
+                    if row[f'{bound}_bps'] > 0]
+            if gaps:
+                lines.append(f'{method} below the {bound}: median gap '
+                             f'{100 * statistics.median(gaps):.2f} %, max '
+                             f'{100 * max(gaps):.2f} %')
         for baseline in (b for b in BASELINES if b in design.methods):
             gains = [row[f'{method}_bps'] / row[f'{baseline}_bps'] - 1.0 for row in ok
                      if row[f'{baseline}_bps'] > 0]
