@@ -336,7 +336,7 @@ def _zone_keeper(scenario: Scenario) -> ZoneKeeper | None:
 CONTINUED = 1
 #: How many starts, the best by one power step on each, get one outer iteration before the
 #: best :data:`CONTINUED` of them are picked.
-SHORTLIST = 4
+SHORTLIST = 8
 #: SCA steps per power step at the tight tolerance once the loose steps have converged.
 FINAL_SCA_STEPS = 1
 
@@ -377,29 +377,30 @@ def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: So
     if it is still ahead of them.
 
     Continuing with ``fast_steps`` alternates one SCA step at :data:`LOOSE_TOLERANCE` per
-    power step until a power step gains at most the tolerance, then runs Algorithm 1 again
-    from there with full SCA loops at the tight tolerance, so that the plan ends where the
-    letter's rules would also stop. Every continuation starts with a power step on the
-    trajectory reached and keeps a step only when it does not lower the true minimum rate,
-    so no run ends below where it was screened, and the straight start never below the
-    letter's own run.
+    power step until a power step gains at most the tolerance, then :data:`FINAL_SCA_STEPS`
+    SCA steps per power step at the tight tolerance until the same rule stops it, so the last
+    steps are tight. Every continuation keeps a step only when it does not lower the true
+    minimum rate, and a continuation that ends below where it began (by round-off, in its
+    first power step) is dropped, so no run ends below where it was screened and the straight
+    start never below the letter's own run.
     """
     loose = LOOSE_TOLERANCE if settings.fast_steps else None
     sca_steps = 1 if settings.fast_steps else None
 
-    def continued(run: Run) -> Run:
+    def continued(begun: Run) -> Run:
         _set_tolerance(trajectory_solver, loose)
-        run = _joined(run, run_from(run.q, settings, sca_steps=sca_steps))
+        run = _joined(begun, run_from(begun.q, settings, sca_steps=sca_steps))
         if settings.fast_steps:
             _set_tolerance(trajectory_solver, None)
             run = _joined(run, run_from(run.q, settings, sca_steps=FINAL_SCA_STEPS))
-        return run
+        return run if run.min_throughput >= begun.min_throughput else begun
 
     runs: dict[str, Run] = {}
     screen = dataclasses.replace(settings, max_outer_iterations=1)
+    letter = {name for name, start in starts.items() if start is STARTS['straight']}
     for name, start in starts.items():
         q = start.make(scenario)
-        if start is STARTS['straight']:
+        if name in letter:
             _set_tolerance(trajectory_solver, None)
             runs[name] = run_from(q, letter_rules(settings))
         else:
@@ -409,16 +410,17 @@ def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: So
     def ranked(names) -> list[str]:
         return sorted(names, key=lambda name: (-runs[name].min_throughput, order.index(name)))
 
-    shortlist = ranked(name for name in runs if name != 'straight')[:SHORTLIST]
+    shortlist = ranked(name for name in runs if name not in letter)[:SHORTLIST]
     _set_tolerance(trajectory_solver, loose)
     for name in shortlist:
         runs[name] = _joined(runs[name], run_from(runs[name].q, screen, sca_steps=sca_steps))
     screened = ranked(shortlist)
     for name in screened[:CONTINUED]:
         runs[name] = continued(runs[name])
-    if 'straight' in runs and all(runs['straight'].min_throughput > runs[name].min_throughput
-                                  for name in screened[:CONTINUED]):
-        runs['straight'] = continued(runs['straight'])
+    for name in letter:
+        if all(runs[name].min_throughput > runs[other].min_throughput
+               for other in screened[:CONTINUED]):
+            runs[name] = continued(runs[name])
     _set_tolerance(trajectory_solver, None)
     return runs
 
@@ -472,9 +474,13 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
 
     Runs the letter's Algorithm 1 from every start in ``settings.starts`` (by default the
     straight line q0 -> qF at uniform speed and
-    :func:`~uav_comm_planner.core.initial.hover_and_fly`) and returns the best as a
-    :class:`PlanResult`; ties go to the earlier start. The default methods are the exact
-    water-filling power step and the SCA step on one Clarabel solver updated in place;
+    :func:`~uav_comm_planner.core.initial.hover_and_fly`) and ``settings.screened_tours``
+    random tours, and returns the best as a :class:`PlanResult`; ties go to the earlier start.
+    With screened tours or ``fast_steps`` (the default) the starts are screened and the best
+    continued (:func:`_screened_runs`), the straight start being the letter's own run;
+    otherwise each start is run to convergence. The default methods are the exact
+    water-filling power step and the SCA step on a Clarabel solver updated in place (kept
+    across plans of one size);
     ``power_method='conic', trajectory_method='cvxpy'`` rebuilds cvxpy problems every step
     (the reference). Raises
     :class:`~uav_comm_planner.errors.InvalidScenarioError` for a scenario outside the limits of

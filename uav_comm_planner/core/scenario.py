@@ -350,9 +350,10 @@ class SolverSettings:
     absolute 0.01 stops early when rates are small. ``starts`` names the initial
     trajectories Algorithm 1 is run from ('straight', 'hover'); the best plan is kept.
     ``screened_tours`` random tours (:mod:`~uav_comm_planner.core.tours`) are screened beside
-    them; ``fast_steps`` runs one SCA step per power step at a loose interior-point tolerance
-    before a last full SCA loop at the tight one (see :func:`~uav_comm_planner.core.optimizer.
-    plan`).
+    them; ``fast_steps`` runs one SCA step per power step at a loose interior-point tolerance,
+    then at the tight one for the last steps (see :func:`~uav_comm_planner.core.optimizer.
+    plan`). The straight start is then the letter's own run (:meth:`letter`'s rules), so the
+    plan is never below the letter's Algorithm 1.
     ``max_nodes`` and ``max_node_slots`` bound the work a plan may take: at most
     ``max_nodes`` ground nodes and at most ``max_node_slots`` = N x M (nodes times slots; the
     memory and the time of each step grow with it).
@@ -367,7 +368,7 @@ class SolverSettings:
     max_node_slots: int = MAX_NODE_SLOTS
     compute_baselines: bool = True
     starts: tuple[str, ...] = START_NAMES
-    screened_tours: int = 20
+    screened_tours: int = 40
     fast_steps: bool = True
 
     @classmethod

@@ -306,11 +306,13 @@ class DefaultSpeedRow:
         return self.reference_s / self.default_s
 
 
-def measure_default_speed(case: SizeCase) -> DefaultSpeedRow:
+def measure_default_speed(case: SizeCase, fast_runs: int = 3) -> DefaultSpeedRow:
     """The default plan on the reference path and on the fast path, in alternation; the fast
-    plan again with no cached solver or cone structure (the first plan of a size)."""
+    plan again with no cached solver or cone structure (the first plan of a size). Each of
+    the ``repeats`` reference plans is followed by ``fast_runs`` pairs of fast plans."""
     settings = SolverSettings(compute_baselines=False)
-    runs = (('reference', REFERENCE, False), ('default', FAST, False), ('cold', FAST, True))
+    runs = (('reference', REFERENCE, False),
+            *((('default', FAST, False), ('cold', FAST, True)) * fast_runs))
     times: dict[str, list[float]] = {name: [] for name, _, _ in runs}
     values = {}
     for _ in range(case.repeats):
@@ -335,11 +337,11 @@ def format_default_speed(rows: Sequence[DefaultSpeedRow]) -> str:
 
 def default_size_cases(quick: bool) -> list[SizeCase]:
     """The default plan's speed table: the letter's case I and N = 20, M = 500."""
-    cases = [SizeCase('letter case I', paper_scenario('I'), 3 if quick else 11)]
-    cases.append(SizeCase('N=20, M=500', random_scenario(20, 500, 20, side_m=2000.0),
-                          1 if quick else 3) if not quick else
-                 SizeCase('N=10, M=200', random_scenario(10, 200, 10, side_m=1500.0), 1))
-    return cases
+    if quick:
+        return [SizeCase('letter case I', paper_scenario('I'), 2),
+                SizeCase('N=10, M=200', random_scenario(10, 200, 10, side_m=1500.0), 1)]
+    return [SizeCase('letter case I', paper_scenario('I'), 5),
+            SizeCase('N=20, M=500', random_scenario(20, 500, 20, side_m=2000.0), 1)]
 
 
 DESCRIPTION = ("time the reference and fast paths; compare the default plan with the letter's "
@@ -389,8 +391,8 @@ def run(quick: bool = False, out: TextIO | None = None, *, flights: bool = True,
         section(f"Scaling: fast path, letter's settings, N = 20, {title}",
                 format_scaling(scaling, exponent))
     section("Speed: the default plan (letter's run, screened tours, fast steps), median of "
-            "'runs' alternating triples (reference path, fast path, fast path with no cached "
-            'solver or cone structure)', format_default_speed(
+            "'runs' reference plans, each followed by 3 pairs of fast plans (kept solvers, and "
+            'no cached solver or cone structure)', format_default_speed(
                 [measure_default_speed(case) for case in default_size_cases(quick)]))
     cases, max_slots = (4, 80) if quick else (24, 199)
     drops = (f'random drops: N 3-20, M 51-{max_slots}, slots 0.5-2 s, V 20-100 m/s; best known: '

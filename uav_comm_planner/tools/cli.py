@@ -231,6 +231,8 @@ def format_plan(result: PlanResult) -> str:
     rows += [(METHOD_LABELS[key], result.baselines[key]) for key in ('straight', 'static')
              if key in result.baselines]
     rows.append(('upper bound (every channel at its best)', result.upper_bound))
+    if math.isfinite(result.tight_upper_bound):
+        rows.append(('upper bound (dual over the flyable paths)', result.tight_upper_bound))
     lines = [f'N = {scenario.num_nodes} nodes, M = {scenario.num_slots} slots of '
              f'{scenario.slot_s:g} s, P_T = {scenario.power_budget_w:g} W, '
              f'H = {scenario.altitude_m:g} m, V = {scenario.max_speed_mps:g} m/s'
@@ -240,7 +242,9 @@ def format_plan(result: PlanResult) -> str:
     lines += [f'{label:<42}{value:>28.4f}' for label, value in rows]
     lines.append(f'{result.outer_iterations} power steps, {result.trajectory_steps} trajectory '
                  f'steps, {result.status}, start: {result.start}, '
-                 f'plan time {result.solve_time_s:.2f} s')
+                 f'plan time {result.solve_time_s:.2f} s'
+                 + (f', at most {result.gap_to_tight_bound:.2%} below the optimum'
+                    if math.isfinite(result.tight_upper_bound) else ''))
     return '\n'.join(lines)
 
 
