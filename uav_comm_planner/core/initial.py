@@ -129,11 +129,24 @@ def fly_tour(scenario: Scenario, order: list[int],
              split: Callable[[int, int], np.ndarray] = even_hovers) -> np.ndarray:
     """:func:`hover_and_fly` along the visit ``order`` given: q (M, 2) metres, with the spare
     legs split over the visited nodes by ``split(spare_legs, stops)`` (integers in order)."""
+    return fly_legs(scenario, tour_legs(scenario, order), split)
+
+
+def tour_legs(scenario: Scenario, order: list[int]) -> tuple[list[int], np.ndarray, np.ndarray]:
+    """The part of the visit ``order`` that fits the horizon (:func:`hover_and_fly`), the points
+    q0, its nodes, qF, and the legs each stretch between them needs."""
     order = _drop_until_flyable(scenario, order)
+    points = np.vstack([scenario.start_m, scenario.nodes[order], scenario.goal_m])
+    return order, points, _legs_needed(points, scenario)
+
+
+def fly_legs(scenario: Scenario, tour: tuple[list[int], np.ndarray, np.ndarray],
+             split: Callable[[int, int], np.ndarray] = even_hovers) -> np.ndarray:
+    """q (M, 2) metres along a :func:`tour_legs` answer, the spare legs split by ``split``;
+    the straight line when the tour visits no node."""
+    order, points, legs = tour
     if not order:
         return straight_line(scenario)
-    points = np.vstack([scenario.start_m, scenario.nodes[order], scenario.goal_m])
-    legs = _legs_needed(points, scenario)
     hovers = split(scenario.num_slots + 1 - int(legs.sum()), len(order))
     waypoints = [np.asarray(scenario.start_m, dtype=float)]
     for k, count in enumerate(legs):

@@ -205,7 +205,8 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
     Each outer iteration solves the power step, then runs SCA trajectory steps until one
     gains at most the tolerance; it stops when a power step gains at most the tolerance over
     the previous one (the letter's rule). A last power step on the final trajectory follows,
-    which can only raise the objective. A trajectory step that would lower the true minimum
+    which can only raise the objective (left out when no trajectory step followed the last
+    power step). A trajectory step that would lower the true minimum
     rate (possible only through solver round-off) is discarded and ends its loop. Every
     trajectory is projected onto the speed limit (:func:`~uav_comm_planner.core.feasibility.
     project_onto_speed_limit`), so solver
@@ -270,7 +271,8 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
             if gain <= _tolerance(settings, value):
                 break
     else:
-        p, value = power_step(a)
+        if history[-1].kind == 'trajectory':   # else the last power step is on this trajectory
+            p, value = power_step(a)
     if p is None:
         raise SolverError('Algorithm 1 ran no iteration; max_outer_iterations must be >= 1')
     return Run(q, p, tuple(history), outer, inner_total, converged)

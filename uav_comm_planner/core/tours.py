@@ -49,13 +49,17 @@ def random_tours(scenario: Scenario, count: int,
     ``seed`` draws other tours (:func:`scenario_seed` when None)."""
     rng = np.random.default_rng(scenario_seed(scenario) if seed is None else seed)
     start, goal = np.asarray(scenario.start_m, float), np.asarray(scenario.goal_m, float)
-    tours = {}
+    tours: dict[str, np.ndarray] = {}
+    legs: dict[tuple[int, ...], tuple] = {}     # the legs of each order, worked out once
     for k in range(1, count + 1):
         order = [int(i) for i in rng.permutation(scenario.num_nodes)]
         if k % 2 == 1 or k % 4 == 0:
             order = initial.two_opt(start, goal, scenario.nodes, order)
         split = initial.even_hovers if k % 2 == 1 else random_split(rng)
-        q = initial.fly_tour(scenario, order, split)
+        key = tuple(order)
+        if key not in legs:
+            legs[key] = initial.tour_legs(scenario, order)
+        q = initial.fly_legs(scenario, legs[key], split)
         if not any(np.array_equal(q, other) for other in tours.values()):
             tours[f'tour {k}'] = q
     return tours
