@@ -157,7 +157,7 @@ def study_rows(design: StudyDesign, nodes, slots, count: int = 30) -> list[dict]
         row = {'status': 'ok', 'nodes': int(rng.choice(nodes)), 'slots': int(rng.choice(slots))}
         base = rng.uniform(5.0, 10.0)
         for method, factor in (('default', 1.10), ('letter', 1.08), ('straight', 1.0),
-                               ('static', 1.02), ('bound', 1.3)):
+                               ('static', 1.02), ('bound', 1.3), ('dual_bound', 1.2)):
             row[f'{method}_bps'] = base * factor * rng.uniform(0.98, 1.02)
             row[f'{method}_s'] = rng.uniform(0.05, 0.3)
         rows.append(row)

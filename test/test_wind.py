@@ -78,8 +78,10 @@ def test_the_fast_path_and_the_reference_agree_in_wind(seed):
                                horizon_s=200.0, wind_speed_mps=float(rng.uniform(2.0, 8.0)),
                                wind_from_deg=float(rng.uniform(0.0, 360.0)),
                                max_airspeed_mps=12.0)
-    fast = plan(scenario, FAST)
-    reference = plan(scenario, FAST, power_method='conic', trajectory_method='cvxpy')
+    # The same steps on both paths: full SCA loops at the tight tolerance, no screening.
+    same_steps = SolverSettings(compute_baselines=False, screened_tours=0, fast_steps=False)
+    fast = plan(scenario, same_steps)
+    reference = plan(scenario, same_steps, power_method='conic', trajectory_method='cvxpy')
     assert fast.min_throughput == pytest.approx(reference.min_throughput, rel=1e-6)
     for result in (fast, reference):
         assert_within_both_discs(result.trajectory, scenario)
