@@ -281,7 +281,8 @@ def clarabel_settings(*, refine: bool) -> clarabel.DefaultSettings:
     first data a solver saw, so with it a solver reused across plans (:class:`SolverCache`)
     would give answers that depend on the plans before; without it a step's answer depends
     on the step's data alone, and the same scenario always gets the same plan. The data is
-    already in kilometres about the scene's centre; the iterations were seen to be the same.
+    already in kilometres about the scene's centre; the iteration counts were seen to be about
+    the same.
     """
     settings = clarabel.DefaultSettings()
     settings.verbose = False
