@@ -357,6 +357,30 @@ class SolverCache:
             self._idle.clear()
 
 
+def fixed_right_hand_side(scenario: Scenario, layout: ConeLayout,
+                          centre_m: np.ndarray) -> np.ndarray:
+    """b of the step's cone program with zero node and zone rows: the speed (and airspeed)
+    cones' limits and end points, the epigraph constants; centred kilometres about centre_m."""
+    m = scenario.num_slots
+    start = (np.asarray(scenario.start_m) - centre_m) / KM
+    goal = (np.asarray(scenario.goal_m) - centre_m) / KM
+    speed = np.zeros((m + 1, 3))
+    speed[:, 0] = scenario.max_step_m / KM
+    speed[0, 1:] = -start
+    speed[m, 1:] = goal
+    legs = [speed.ravel()]
+    if layout.air_legs:
+        # The same legs less the slot's drift, within V_air delta.
+        air = speed.copy()
+        air[:, 0] = scenario.max_air_step_m / KM
+        air[:, 1:] -= scenario.drift_m / KM
+        legs.append(air.ravel())
+    epigraph = np.tile([0.5, 0.0, 0.0, -0.5], m)
+    sum_rows = np.zeros(layout.num_nodes + layout.num_sums)
+    zone_rows = np.zeros(layout.zone_rows * m)
+    return np.concatenate([sum_rows, *legs, epigraph, zone_rows])
+
+
 #: The solvers every :class:`ClarabelTrajectoryStep` draws from.
 SOLVERS = SolverCache()
 _STEPPER_IDS = itertools.count()
@@ -397,7 +421,7 @@ class ClarabelTrajectoryStep:
         self.layout = cone_layout(n, m, block_slots(n) if blocks else m,
                                   air_legs=self.scenario.airspeed_limited,
                                   zone_rows=0 if self.zones is None else self.zones.rows_per_slot)
-        self.b_fixed = self._fixed_right_hand_side()
+        self.b_fixed = fixed_right_hand_side(self.scenario, self.layout, self.centre_m)
         self.objective = np.zeros(self.layout.num_columns)
         self.objective[0] = -1.0
         self._solver = None
@@ -423,26 +447,6 @@ class ClarabelTrajectoryStep:
         layout = self.layout
         return (layout.num_nodes, layout.num_slots, layout.block_slots, layout.air_legs,
                 layout.zone_rows, self.refine)
-
-    def _fixed_right_hand_side(self) -> np.ndarray:
-        m = self.scenario.num_slots
-        start = (np.asarray(self.scenario.start_m) - self.centre_m) / KM
-        goal = (np.asarray(self.scenario.goal_m) - self.centre_m) / KM
-        speed = np.zeros((m + 1, 3))
-        speed[:, 0] = self.scenario.max_step_m / KM
-        speed[0, 1:] = -start
-        speed[m, 1:] = goal
-        legs = [speed.ravel()]
-        if self.layout.air_legs:
-            # The same legs less the slot's drift, within V_air delta.
-            air = speed.copy()
-            air[:, 0] = self.scenario.max_air_step_m / KM
-            air[:, 1:] -= self.scenario.drift_m / KM
-            legs.append(air.ravel())
-        epigraph = np.tile([0.5, 0.0, 0.0, -0.5], m)
-        sum_rows = np.zeros(self.layout.num_nodes + self.layout.num_sums)
-        zone_rows = np.zeros(self.layout.zone_rows * m)
-        return np.concatenate([sum_rows, *legs, epigraph, zone_rows])
 
     def node_rows(self, q_k: np.ndarray, p: np.ndarray,
                   offsets: np.ndarray | None = None) -> NodeRows:
