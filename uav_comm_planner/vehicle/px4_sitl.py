@@ -18,7 +18,9 @@ import os
 from pathlib import Path
 import shutil
 import signal
+import socket
 import subprocess
+import threading
 import time
 
 import numpy as np
@@ -47,8 +49,15 @@ BOOT_PARAMETERS = {'SDLOG_MODE': -1}
 #: the stream rates are in simulated time and multiply with the speed-up.
 KEPT_MESSAGES = ('HEARTBEAT', 'GLOBAL_POSITION_INT', 'MISSION_ITEM_REACHED', 'STATUSTEXT',
                  'COMMAND_ACK', 'MISSION_CURRENT')
-#: GLOBAL_POSITION_INT per second of autopilot time during the flight.
-POSITION_RATE_HZ = 20.0
+#: GLOBAL_POSITION_INT per second of autopilot time during the flight (1 m apart at 10 m/s).
+POSITION_RATE_HZ = 10.0
+#: A flight whose record has a longer gap (autopilot seconds) is refused: points planned in
+#: the gap could not be held against it.
+MAX_RECORD_GAP_S = 0.5
+#: Autopilot seconds recorded after the last waypoint is reported reached, while it settles.
+RECORD_AFTER_S = 8.0
+#: The link's receive buffer, bytes: at a speed-up the telemetry comes many times faster.
+RECEIVE_BUFFER_BYTES = 8 * 1024 * 1024
 #: PX4 arms once its estimator has settled (about 5 s of autopilot time): tried this long.
 READY_TIMEOUT_S = 120.0
 #: MAV_CMD_DO_SET_MODE (base mode custom, main mode AUTO, sub mode MISSION).
@@ -166,11 +175,16 @@ def _command(link, command: int, *params: float, timeout_s: float = 2.0) -> int:
 UPLOAD_ATTEMPTS = 5
 
 
+#: One upload at a time from this process: flights side by side upload in turn.
+_UPLOADS = threading.Lock()
+
+
 def upload_with_retries(mission: Path, url: str) -> None:
     """:func:`upload_file` until PX4 holds the mission, at most UPLOAD_ATTEMPTS times."""
     for attempt in range(UPLOAD_ATTEMPTS):
         try:
-            upload_file(mission, url, connect_timeout_s=60.0)
+            with _UPLOADS:
+                upload_file(mission, url, connect_timeout_s=60.0)
             return
         except VehicleLinkError:
             if attempt == UPLOAD_ATTEMPTS - 1:
@@ -191,8 +205,9 @@ def start_mission(link) -> None:
 
 
 def record_mission(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRecord:
-    """Record GLOBAL_POSITION_INT and MISSION_ITEM_REACHED until PX4 reaches item
-    ``last_item`` (its own numbering, from 0); ``timeout_s`` is autopilot time."""
+    """Record GLOBAL_POSITION_INT and MISSION_ITEM_REACHED until RECORD_AFTER_S after PX4
+    reaches item ``last_item`` (its own numbering, from 0; PX4 reports it on entering the
+    acceptance radius); ``timeout_s`` is autopilot time."""
     link.mav.command_long_send(link.target_system, link.target_component,
                                MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
                                MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 1e6 / POSITION_RATE_HZ,
@@ -200,7 +215,7 @@ def record_mission(link, home: Home, *, last_item: int, timeout_s: float) -> Fli
     times, latitudes_e7, longitudes_e7, altitudes_mm = [], [], [], []
     reached: dict[int, float] = {}
     clock_s = started_s = None
-    while last_item not in reached:
+    while last_item not in reached or clock_s < reached[last_item] + RECORD_AFTER_S:
         message = link.recv_match(type=['GLOBAL_POSITION_INT', 'MISSION_ITEM_REACHED'],
                                   blocking=True, timeout=10.0)
         if message is None:
@@ -218,6 +233,11 @@ def record_mission(link, home: Home, *, last_item: int, timeout_s: float) -> Fli
         latitudes_e7.append(message.lat)
         longitudes_e7.append(message.lon)
         altitudes_mm.append(message.relative_alt)
+    gaps = np.diff(times)
+    if len(gaps) and gaps.max() > MAX_RECORD_GAP_S:
+        raise VehicleLinkError(f'the telemetry has a gap of {gaps.max():.2f} s at '
+                               f'{times[int(gaps.argmax())]:.1f} s (autopilot time): the machine '
+                               f'is too loaded for this speed-up')
     east, north, up = global_position_enu(latitudes_e7, longitudes_e7, altitudes_mm, home)
     return FlightRecord(np.array(times), np.column_stack([east, north]), up, reached)
 
@@ -258,6 +278,7 @@ def fly_px4_mission(vehicle_plan: VehiclePlan, mission: Path, folder: Path, *, i
         upload_with_retries(mission, url)
         link = connect(url, timeout_s=60.0)
         try:
+            link.port.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
             start_mission(link)
             horizon_s = scenario.slot_s * (scenario.num_slots + 1)
             record = record_mission(link, home, last_item=last_waypoint - 1,

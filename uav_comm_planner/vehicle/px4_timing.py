@@ -49,14 +49,19 @@ TRAJECTORY_GAIN = 0.5
 #: MPC_XY_ERR_MAX, metres: the lag at which PX4 stops the trajectory's clock.
 MAX_POSITION_ERROR_M = 2.0
 #: Seconds the vehicle trails the trajectory by (its lag e = TRACKING_LAG_S x speed), fitted
-#: to the cruise PX4 SITL holds: 4.87-4.92 m/s at 5, 9.5-9.6 at 10.
-TRACKING_LAG_S = 0.0032
-#: Metres the vehicle runs ahead of its braking trajectory: it enters a waypoint's acceptance
-#: radius when the trajectory is this much further out, fitted to PX4 SITL.
-BRAKING_LEAD_M = 1.0
+#: to the cruise PX4 SITL holds along straight legs: 4.90-4.95 m/s at 5, 9.74-9.83 at 10.
+TRACKING_LAG_S = 0.0045
+#: The vehicle brakes later than its trajectory and runs ahead of it: it enters a waypoint's
+#: acceptance radius when the trajectory is still BRAKING_LEAD_S2 x V^2 further out (V the
+#: leg's cruise; s^2/m), fitted to PX4 SITL: it enters the radius at 2.3-3 m/s where the
+#: braking curve alone gives 1.2.
+BRAKING_LEAD_S2 = 0.05
+#: The share of MPC_ACC_HOR and MPC_JERK_AUTO the vehicle speeds up with, fitted to PX4 SITL
+#: (its first 80 m took 1.1-1.9 s longer than the full limits give).
+SPEED_UP_SHARE = 0.7
 #: Seconds from the end of a hold to the start of the next leg (the navigator's cycle and the
 #: new setpoint reaching the trajectory generator), fitted to PX4 SITL.
-START_DELAY_S = 0.1
+START_DELAY_S = 0.4
 #: The simulation's step, seconds (PX4's position controller runs at 50 Hz or faster).
 STEP_S = 0.02
 #: The leg ends (the vehicle at rest) when it is this close to its last vertex, metres.
@@ -175,7 +180,7 @@ def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
     hold_start = None
     dt = STEP_S
     while True:
-        reach = ACCEPTANCE_RADIUS_M + BRAKING_LEAD_M
+        reach = ACCEPTANCE_RADIUS_M + BRAKING_LEAD_S2 * speed * speed
         while k < len(lengths) - 1 and arc[k + 1] - x <= reach:
             k += 1
         if hold_start is None and k == len(lengths) - 1 and total - x <= reach:
@@ -200,8 +205,9 @@ def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
                 times.append(t)
                 distances.append(x)
                 continue
-        a, v, ds = _velocity_step(a, v, wanted, accel * scale[k], jerk * scale[k],
-                                  dt * stretch)
+        share = SPEED_UP_SHARE if wanted > v else 1.0
+        a, v, ds = _velocity_step(a, v, wanted, share * accel * scale[k],
+                                  share * jerk * scale[k], dt * stretch)
         s = min(s + ds, total)
         u = v * stretch
         x = s - TRACKING_LAG_S * v
