@@ -242,16 +242,31 @@ def record_mission(link, home: Home, *, last_item: int, timeout_s: float) -> Fli
     return FlightRecord(np.array(times), np.column_stack([east, north]), up, reached)
 
 
+def reached_by_row(items, reached: dict[int, float]) -> dict[int, float]:
+    """When PX4 reached each waypoint, by file row, from MISSION_ITEM_REACHED: a DO command
+    after a waypoint (the DO_CHANGE_SPEED after a stop) runs at once, and PX4 reports only the
+    later of two items reached within one of its cycles, so a waypoint missing from
+    ``reached`` takes the time of the first DO row after it that was reported."""
+    out = dict(reached)
+    for row, item in enumerate(items):
+        if row in out or item.command >= MAV.MAV_CMD_NAV_LAST:
+            continue
+        for later in range(row + 1, len(items)):
+            if items[later].command < MAV.MAV_CMD_NAV_LAST:
+                break
+            if later in reached:
+                out[row] = reached[later]
+                break
+    return out
+
+
 def q0_reached_s(items, reached: dict[int, float]) -> float:
-    """When PX4 reached q0 (its hold ended), from MISSION_ITEM_REACHED by file row: the
-    DO_CHANGE_SPEED after q0 runs at once, and PX4 reports only the later of two items reached
-    within one of its cycles, so q0's time is that of the first of its rows reported."""
-    following = next(row for row in range(Q0_SEQ + 1, len(items))
-                     if items[row].command < MAV.MAV_CMD_NAV_LAST)
-    for row in range(Q0_SEQ, following):
-        if row in reached:
-            return reached[row]
-    raise VehicleLinkError(f'PX4 never reported q0 (mission row {Q0_SEQ}) reached')
+    """When PX4 reached q0 (its hold ended), from MISSION_ITEM_REACHED by file row
+    (:func:`reached_by_row`)."""
+    rows = reached_by_row(items, reached)
+    if Q0_SEQ not in rows:
+        raise VehicleLinkError(f'PX4 never reported q0 (mission row {Q0_SEQ}) reached')
+    return rows[Q0_SEQ]
 
 
 def fly_px4_mission(vehicle_plan: VehiclePlan, mission: Path, folder: Path, *, instance: int,
@@ -287,7 +302,8 @@ def fly_px4_mission(vehicle_plan: VehiclePlan, mission: Path, folder: Path, *, i
             link.close()
     finally:
         vehicle.stop()
-    record.reached = {seq + 1: when for seq, when in record.reached.items()}
+    record.reached = reached_by_row(items, {seq + 1: when for seq, when in
+                                            record.reached.items()})
     start_s = q0_reached_s(items, record.reached) - items[Q0_SEQ].params[0]
     report = evaluate_flight(vehicle_plan.flown, vehicle_plan.schedule.flight.track(),
                              record.times_s, record.positions_m, start_s)

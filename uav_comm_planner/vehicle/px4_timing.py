@@ -14,17 +14,23 @@ towards the current waypoint and follows it with a jerk-limited velocity profile
   sqrt(P A R tan(alpha / 2)), alpha the interior angle of the turn, R the acceptance radius
   (NAV_ACC_RAD, 2 m), P = MPC_XY_TRAJ_P (0.5), and no more than the vehicle can stop from on
   the next segment; the next waypoint becomes the target as soon as the vehicle is within R.
-  A turn of 10 degrees at R = 2 m already caps the speed at 5.9 m/s, one of 20 at 4.1.
+  A turn of 10 degrees at R = 2 m caps the speed at 5.9 m/s, one of 20 at 4.1. A turn whose
+  cap is above the cruise costs nothing on the SITL (legs of 15 turns of 1-11 degrees at
+  5 m/s were flown at the cruise): the vehicle brakes only for the next turn it cannot take
+  at the cruise, or for the stop.
 - **The velocity profile** changes the velocity with jerk J up to the acceleration A, per
   axis of the local frame, the axes synchronised: along a leg at heading h the acceleration
-  and jerk reach A / c and J / c, c = max(|cos h|, |sin h|).
+  and jerk reach A / c and J / c, c = max(|cos h|, |sin h|). From rest the vehicle speeds up
+  more slowly than that (``SPEED_UP_SHARE``).
 - **The cruise it holds** is below V: PX4 slows the trajectory's clock by 1 - e / E when the
-  vehicle is a distance e behind it (E = MPC_XY_ERR_MAX, 2 m). The vehicle trails the
-  trajectory by about ``TRACKING_LAG_S`` x its speed, so it cruises at
-  V (1 - TRACKING_LAG_S V / E): 4.9 at 5 m/s, 9.5 at 10 m/s on the SITL.
+  vehicle is a distance e behind it (E = MPC_XY_ERR_MAX, 2 m; PositionSmoothing's time
+  stretch). The vehicle trails the trajectory by about ``TRACKING_LAG_S`` x its speed, so it
+  cruises at V (1 - TRACKING_LAG_S V / E): 4.94 at 5 m/s, 9.78 at 10 m/s, as on the SITL.
 - **A hold** (the waypoint's param1) starts counting when the vehicle enters the acceptance
-  radius, still braking (mission_block's is_mission_item_reached_or_completed); when it ends
-  the next leg starts, after ``START_DELAY_S``.
+  radius, still braking (mission_block's is_mission_item_reached_or_completed): it enters it
+  at 2.3-3 m/s, ahead of the braking curve (``BRAKING_LEAD_S2``); when the hold ends the next
+  leg starts, after ``START_DELAY_S``. PX4 reports the waypoint reached then, and a
+  fly-through waypoint (hold 0) on entering the radius.
 
 :func:`px4_profile` simulates this along a leg's polyline (the distance flown against time,
 from rest at its first vertex to rest at its last) at ``STEP_S``; it gives the leg's duration
@@ -55,10 +61,10 @@ TRACKING_LAG_S = 0.0045
 #: acceptance radius when the trajectory is still BRAKING_LEAD_S2 x V^2 further out (V the
 #: leg's cruise; s^2/m), fitted to PX4 SITL: it enters the radius at 2.3-3 m/s where the
 #: braking curve alone gives 1.2.
-BRAKING_LEAD_S2 = 0.05
-#: The share of MPC_ACC_HOR and MPC_JERK_AUTO the vehicle speeds up with, fitted to PX4 SITL
-#: (its first 80 m took 1.1-1.9 s longer than the full limits give).
-SPEED_UP_SHARE = 0.7
+BRAKING_LEAD_S2 = 0.03
+#: The share of MPC_ACC_HOR and MPC_JERK_AUTO the vehicle speeds up with, fitted to PX4 SITL:
+#: with the full limits its first 80 m from rest took 0.9-2.0 s longer than modelled.
+SPEED_UP_SHARE = 0.45
 #: Seconds from the end of a hold to the start of the next leg (the navigator's cycle and the
 #: new setpoint reaching the trajectory generator), fitted to PX4 SITL.
 START_DELAY_S = 0.4
@@ -185,18 +191,20 @@ def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
             k += 1
         if hold_start is None and k == len(lengths) - 1 and total - x <= reach:
             hold_start = t
-        left = arc[k + 1] - s
+        # Turns PX4 flies at the cruise cost nothing; brake for the next one it cannot.
+        slow = next(j for j in range(k, len(lengths)) if ends[j] < speed or j == len(lengths) - 1)
+        left = arc[slow + 1] - s
         if (hold_start is not None and abs(total - x) <= REST_DISTANCE_M and abs(u) < 0.05
                 and abs(v) < 0.05):
             break
-        wanted = min(speed, stopping_speed(left, ends[k], accel, jerk))
+        wanted = min(speed, stopping_speed(left, ends[slow], accel, jerk))
         behind = TRACKING_LAG_S * v
         x = s - behind
         stretch = 1.0 - min(max(behind / MAX_POSITION_ERROR_M, 0.0), 1.0)
         if (wanted >= speed and abs(v - speed) < 1e-6 and a == 0.0 and abs(u - v) < 1e-4
                 and abs(s - x) < 1e-3):
             # Cruising, settled: jump to where the braking curve falls below the cruise.
-            brake_at = (speed * speed + speed * b - ends[k] ** 2) / (2.0 * accel)
+            brake_at = (speed * speed + speed * b - ends[slow] ** 2) / (2.0 * accel)
             jump = left - brake_at - 2.0 * speed * dt
             if jump > speed * dt:
                 t += jump / (speed * stretch)
