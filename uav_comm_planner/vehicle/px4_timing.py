@@ -20,8 +20,7 @@ towards the current waypoint and follows it with a jerk-limited velocity profile
   at the cruise, or for the stop.
 - **The velocity profile** changes the velocity with jerk J up to the acceleration A, per
   axis of the local frame, the axes synchronised: along a leg at heading h the acceleration
-  and jerk reach A / c and J / c, c = max(|cos h|, |sin h|). From rest the vehicle speeds up
-  more slowly than that (``SPEED_UP_SHARE``).
+  and jerk reach A / c and J / c, c = max(|cos h|, |sin h|).
 - **The cruise it holds** is below V: PX4 slows the trajectory's clock by 1 - e / E when the
   vehicle is a distance e behind it (E = MPC_XY_ERR_MAX, 2 m; PositionSmoothing's time
   stretch). The vehicle trails the trajectory by about ``TRACKING_LAG_S`` x its speed, so it
@@ -29,8 +28,9 @@ towards the current waypoint and follows it with a jerk-limited velocity profile
 - **A hold** (the waypoint's param1) starts counting when the vehicle enters the acceptance
   radius, still braking (mission_block's is_mission_item_reached_or_completed): it enters it
   at 2.3-3 m/s, ahead of the braking curve (``BRAKING_LEAD_S2``); when the hold ends the next
-  leg starts, after ``START_DELAY_S``. PX4 reports the waypoint reached then, and a
-  fly-through waypoint (hold 0) on entering the radius.
+  leg starts, after ``START_DELAY_S`` (the vehicle moving off more slowly than its
+  trajectory). PX4 reports the waypoint reached then, and a fly-through waypoint (hold 0) on
+  entering the radius.
 
 :func:`px4_profile` simulates this along a leg's polyline (the distance flown against time,
 from rest at its first vertex to rest at its last) at ``STEP_S``; it gives the leg's duration
@@ -62,12 +62,11 @@ TRACKING_LAG_S = 0.0045
 #: leg's cruise; s^2/m), fitted to PX4 SITL: it enters the radius at 2.3-3 m/s where the
 #: braking curve alone gives 1.2.
 BRAKING_LEAD_S2 = 0.03
-#: The share of MPC_ACC_HOR and MPC_JERK_AUTO the vehicle speeds up with, fitted to PX4 SITL:
-#: with the full limits its first 80 m from rest took 0.9-2.0 s longer than modelled.
-SPEED_UP_SHARE = 0.45
-#: Seconds from the end of a hold to the start of the next leg (the navigator's cycle and the
-#: new setpoint reaching the trajectory generator), fitted to PX4 SITL.
-START_DELAY_S = 0.4
+#: Seconds from the end of a hold to the start of the next leg, fitted to PX4 SITL: the vehicle
+#: moves off more slowly than its trajectory (its first 80 m from rest took 0.9-2.0 s longer
+#: than the limits give, at 5 and at 10 m/s alike), taken as a delay; with it, legs of
+#: 120-890 m reach their ends within -0.5..+0.3 s (median) of the model.
+START_DELAY_S = 1.7
 #: The simulation's step, seconds (PX4's position controller runs at 50 Hz or faster).
 STEP_S = 0.02
 #: The leg ends (the vehicle at rest) when it is this close to its last vertex, metres.
@@ -213,9 +212,8 @@ def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
                 times.append(t)
                 distances.append(x)
                 continue
-        share = SPEED_UP_SHARE if wanted > v else 1.0
-        a, v, ds = _velocity_step(a, v, wanted, share * accel * scale[k],
-                                  share * jerk * scale[k], dt * stretch)
+        a, v, ds = _velocity_step(a, v, wanted, accel * scale[k], jerk * scale[k],
+                                  dt * stretch)
         s = min(s + ds, total)
         u = v * stretch
         x = s - TRACKING_LAG_S * v
