@@ -409,7 +409,7 @@ def test_enu_anchor_is_wgs84_not_a_sphere(home):
 
 
 def test_items_need_no_file(case_one, home):
-    items = build_mission_items(case_one, home, end='rtl', firmware='px4')
+    items = build_mission_items(case_one, home, end='rtl', firmware='px4', limits=LIMITS['px4'])
     assert items[0].current and items[0].frame == 0
     assert [items[1].command, items[-1].command] == [TAKEOFF, RTL]
     assert all(math.isnan(item.params[3]) for item in items if item.command == WAYPOINT
