@@ -35,7 +35,8 @@ from uav_comm_planner.vehicle.mavlink.items import NAV_WAYPOINT, Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.link import connect
 from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu
 from uav_comm_planner.vehicle.mavlink.upload import upload_file
-from uav_comm_planner.vehicle.sitl import FlightRecord, SitlFlight
+# MAV_CMD by COMMAND_LONG until its COMMAND_ACK: the same for PX4 as for ArduCopter.
+from uav_comm_planner.vehicle.sitl import _command, FlightRecord, SitlFlight
 
 MAV = mavutil.mavlink
 ENVIRONMENT_VARIABLE = 'UAV_COMM_PLANNER_PX4'
@@ -159,22 +160,9 @@ def quiet_streams(link, keep: tuple[str, ...] = KEPT_MESSAGES, listen_s: float =
                                        0, 0, 0, 0, 0)
 
 
-def _command(link, command: int, *params: float, timeout_s: float = 2.0) -> int:
-    padded = list(params) + [0.0] * (7 - len(params))
-    link.mav.command_long_send(link.target_system, link.target_component, command, 0, *padded)
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        ack = link.recv_match(type='COMMAND_ACK', blocking=True, timeout=0.2)
-        if ack is not None and ack.command == command:
-            return ack.result
-    return -1
-
-
 #: Uploads tried before a flight gives up: PX4's mission protocol times out in simulated time,
 #: which a loaded machine at a speed-up can miss (PX4 then ends the transfer).
 UPLOAD_ATTEMPTS = 5
-
-
 #: One upload at a time from this process: flights side by side upload in turn.
 _UPLOADS = threading.Lock()
 

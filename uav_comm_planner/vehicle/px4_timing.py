@@ -47,6 +47,7 @@ import math
 import numpy as np
 
 from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.timing import slowest_speed_for
 
 #: NAV_ACC_RAD, metres: PX4's acceptance radius for multicopters (a waypoint's param2 = 0).
 ACCEPTANCE_RADIUS_M = 2.0
@@ -242,16 +243,9 @@ def px4_speed_for_time(vertices: np.ndarray, duration_s: float, max_speed_mps: f
     """The cruise (to 0.005 m/s) that reaches the end of ``vertices`` from rest
     (:func:`px4_reach_time`) in ``duration_s`` or less; ``max_speed_mps`` when even that is
     too slow."""
-    if px4_reach_time(vertices, max_speed_mps, limits) >= duration_s:
-        return max_speed_mps
-    low, high = 0.0, max_speed_mps
-    while high - low > 0.005:
-        middle = 0.5 * (low + high)
-        if middle > 0 and px4_reach_time(vertices, middle, limits) <= duration_s:
-            high = middle
-        else:
-            low = middle
-    return high
+    steps = max(1, math.ceil(math.log2(max_speed_mps / 0.005)))
+    return slowest_speed_for(lambda speed: px4_reach_time(vertices, speed, limits), duration_s,
+                             max_speed_mps, iterations=steps)
 
 
 __all__ = ['ACCEPTANCE_RADIUS_M', 'SampledProfile', 'corner_speed', 'px4_leg_time',
