@@ -29,6 +29,10 @@ from uav_comm_planner.vehicle.mavlink.items import build_mission_items
 from uav_comm_planner.vehicle.timing import ramp_time
 
 WAYPOINT, TAKEOFF, LAND, RTL, CHANGE_SPEED = 16, 22, 21, 20, 178
+#: The vehicle each firmware's mission is timed for: ArduCopter's defaults; PX4's MPC_ACC_HOR
+#: and MPC_JERK_AUTO defaults (3 m/s/s, 4 m/s/s/s) with MPC_XY_CRUISE 10 m/s.
+LIMITS = {'ardupilot': VehicleLimits(),
+          'px4': VehicleLimits(max_speed_mps=10.0, max_accel_mpss=3.0, max_jerk_mpsss=4.0)}
 POSITION_TOLERANCE_M = 0.5
 
 
@@ -126,8 +130,8 @@ def test_every_waypoint_lies_on_the_plan_and_covers_it(case_one, home, tmp_path)
 def test_the_file_holds_the_schedule(case_one, home, tmp_path, firmware):
     """Waypoints, holds and speeds are the schedule's, in order; speeds change only where a
     leg starts, right after the stop it leaves."""
-    schedule = schedule_flight(case_one, VehicleLimits(), firmware=firmware)
-    items = load(written(case_one, tmp_path, home, firmware=firmware))
+    schedule = schedule_flight(case_one, LIMITS[firmware], firmware=firmware)
+    items = load(written(case_one, tmp_path, home, firmware=firmware, limits=LIMITS[firmware]))
     timed = items[2:-1]
     expected, in_force = [], None
     for index, stop in enumerate(schedule.stops):
@@ -213,7 +217,8 @@ def test_a_plan_that_never_moves_is_one_hold_then_land(home, tmp_path):
 @pytest.mark.parametrize('firmware, firmware_type', [('ardupilot', 3), ('px4', 12)])
 def test_plan_file_has_every_field_qgroundcontrol_requires(case_one, home, tmp_path, firmware,
                                                            firmware_type):
-    target = written(case_one, tmp_path, home, name='m.plan', firmware=firmware)
+    target = written(case_one, tmp_path, home, name='m.plan', firmware=firmware,
+                     limits=LIMITS[firmware])
     document = json.loads(target.read_text())
     assert (document['fileType'], document['version']) == ('Plan', 1)
     assert document['groundStation'] == 'QGroundControl'
@@ -241,9 +246,9 @@ def test_plan_file_has_every_field_qgroundcontrol_requires(case_one, home, tmp_p
 @pytest.mark.parametrize('firmware', ['ardupilot', 'px4'])
 def test_plan_file_holds_the_same_items_as_the_waypoints_file(case_one, home, tmp_path,
                                                               firmware):
-    rows = load(written(case_one, tmp_path, home, firmware=firmware))
-    document = json.loads(written(case_one, tmp_path, home, name='m.plan',
-                                  firmware=firmware).read_text())
+    rows = load(written(case_one, tmp_path, home, firmware=firmware, limits=LIMITS[firmware]))
+    document = json.loads(written(case_one, tmp_path, home, name='m.plan', firmware=firmware,
+                                  limits=LIMITS[firmware]).read_text())
     entries = document['mission']['items']
     assert len(entries) == len(rows) - 1
     for row, entry in zip(rows[1:], entries):
@@ -404,7 +409,7 @@ def test_enu_anchor_is_wgs84_not_a_sphere(home):
 
 
 def test_items_need_no_file(case_one, home):
-    items = build_mission_items(case_one, home, end='rtl', firmware='px4')
+    items = build_mission_items(case_one, home, end='rtl', firmware='px4', limits=LIMITS['px4'])
     assert items[0].current and items[0].frame == 0
     assert [items[1].command, items[-1].command] == [TAKEOFF, RTL]
     assert all(math.isnan(item.params[3]) for item in items if item.command == WAYPOINT

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-import shutil
 import signal
 import subprocess
 import sys
@@ -23,6 +22,7 @@ from uav_comm_planner.vehicle.mavlink.files import read_mission_file
 from uav_comm_planner.vehicle.mavlink.items import mismatches, MissionItem
 from uav_comm_planner.vehicle.mavlink.link import (connect, download_mission, has_home_row,
                                                    upload_and_verify)
+from uav_comm_planner.vehicle.px4_sitl import runnable_copy
 
 RUN_PX4 = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'px4' / 'run_px4.sh'
 CLI = [sys.executable, '-m', 'uav_comm_planner.tools.cli']
@@ -40,21 +40,6 @@ pytestmark = [pytest.mark.sitl,
               pytest.mark.skipif(bool(why_px4_cannot_run()), reason=why_px4_cannot_run())]
 
 
-def runnable_copy(folder: Path) -> Path:
-    """The PX4 SITL folder copied into ``folder`` without the ``bin/px4-*`` command links: a
-    copy that lost them keeps each as a small file naming its target, which run_px4.sh takes
-    for the links and px4's start-up script cannot run; without them, run_px4.sh makes the
-    links in its working folder. Returns the copy's run_px4.sh."""
-    source = RUN_PX4.parent
-    shutil.copytree(source / 'etc', folder / 'etc')
-    (folder / 'bin').mkdir()
-    for name in ('px4', '.commands', 'px4-alias.sh'):
-        if (source / 'bin' / name).exists():
-            shutil.copy2(source / 'bin' / name, folder / 'bin' / name)
-    shutil.copy2(RUN_PX4, folder / RUN_PX4.name)
-    return folder / RUN_PX4.name
-
-
 @pytest.fixture(scope='module')
 def px4(tmp_path_factory):
     """A PX4 SITL on a free instance; yields (ground-station URL, onboard URL)."""
@@ -62,7 +47,7 @@ def px4(tmp_path_factory):
                     None)
     if instance is None:
         pytest.fail('every PX4 instance 0..9 is taken (/tmp/px4_lock-N)')
-    script = runnable_copy(tmp_path_factory.mktemp('px4_copy'))
+    script = runnable_copy(RUN_PX4, tmp_path_factory.mktemp('px4_copy'))
     work = tmp_path_factory.mktemp('px4')
     process = subprocess.Popen(['sh', str(script), str(instance), '4', str(work)],
                                env={**os.environ, 'PX4_PARAM_SDLOG_MODE': '-1'},

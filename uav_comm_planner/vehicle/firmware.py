@@ -32,7 +32,10 @@ class Firmware:
     north", NaN keeps its own heading mode; ArduCopter ignores the waypoint yaw, and Mission
     Planner shows NaN as an error, so it gets 0;
     parameters: the parameters that state the vehicle's limits, name -> (VehicleLimits field,
-    factor to SI units).
+    factor to SI units);
+    timing: how its legs are timed, a key of
+    :data:`~uav_comm_planner.vehicle.leg_models.LEG_MODELS` (ArduPilot's S-curve planned
+    ahead, or PX4's trajectory generator).
     """
 
     autopilot: int
@@ -40,6 +43,7 @@ class Firmware:
     max_hold_s: float
     waypoint_yaw: float
     parameters: Mapping[str, tuple[str, float]]
+    timing: str
 
 
 FIRMWARES = {
@@ -49,13 +53,15 @@ FIRMWARES = {
         parameters={'WPNAV_SPEED': ('max_speed_mps', 0.01),
                     'WPNAV_ACCEL': ('max_accel_mpss', 0.01),
                     'WPNAV_JERK': ('max_jerk_mpsss', 1.0),
-                    'ATC_INPUT_TC': ('jerk_time_s', 2.0)}),
+                    'ATC_INPUT_TC': ('jerk_time_s', 2.0)},
+        timing='scurve'),
     'px4': Firmware(
         autopilot=MAV.MAV_AUTOPILOT_PX4, hold_resolution_s=0.01, max_hold_s=1e9,
         waypoint_yaw=math.nan,
         parameters={'MPC_XY_CRUISE': ('max_speed_mps', 1.0),
                     'MPC_ACC_HOR': ('max_accel_mpss', 1.0),
-                    'MPC_JERK_AUTO': ('max_jerk_mpsss', 1.0)}),
+                    'MPC_JERK_AUTO': ('max_jerk_mpsss', 1.0)},
+        timing='px4'),
 }
 
 

@@ -41,9 +41,10 @@ from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InfeasibleHorizonError
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline
 from uav_comm_planner.vehicle.firmware import firmware_named, FIRMWARES
+from uav_comm_planner.vehicle.leg_models import leg_model, MIN_STOP_HOLD_S
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.timing import (Dwell, Flight, Leg, LEG_LATENCY_S, Profile,
-                                             ramp_distance, ramp_time, speed_for_time)
+                                             ramp_distance, ramp_time)
 
 #: Plan points closer than this are one stop (ArduCopter's default WPNAV_RADIUS is 2 m).
 MERGE_RADIUS_M = 2.0
@@ -51,10 +52,6 @@ MERGE_RADIUS_M = 2.0
 PATH_TOLERANCE_M = 1.0
 #: Slowest commanded speed; a slower leg waits at its start instead.
 MIN_SPEED_MPS = 0.5
-#: A stop holds at least this long: with no hold the autopilot would fly through it. q0 too:
-#: ArduCopter runs the DO_CHANGE_SPEED after a waypoint while it holds there; at q0 without a
-#: hold the first leg starts at the previous speed and was measured up to 6 s early at 3 m/s.
-MIN_STOP_HOLD_S = 1.0
 #: Sharper turns are stops: ArduCopter cuts a fly-through corner by up to WPNAV_RADIUS (2 m),
 #: and by less below about 20 degrees (at 10 m/s and its default acceleration and jerk).
 MAX_TURN_DEG = 20.0
@@ -83,11 +80,13 @@ class Schedule:
     legs: tuple[Leg, ...]
     flight: Flight
     firmware: str
+    goal_reached_s: float | None = None
 
     @property
     def arrival_s(self) -> float:
-        """Predicted arrival at qF, seconds from the start of the hold at q0."""
-        return self.flight.end_s
+        """Predicted arrival at qF (when the autopilot reports it reached), seconds from the
+        start of the hold at q0: ``goal_reached_s`` when given, else the flight's end."""
+        return self.flight.end_s if self.goal_reached_s is None else self.goal_reached_s
 
 
 @dataclass(frozen=True)
@@ -238,6 +237,7 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
                       if stop_at_hovers else math.inf, keeps)
     resolution = FIRMWARES[firmware].hold_resolution_s
 
+    model = leg_model(firmware)
     stop_indices = [_stop_index(points, first, last) for first, last in runs]
     positions = [points[index].copy() for index in stop_indices]
     shapes = []                      # per leg: vertices, speed, profile
@@ -249,44 +249,51 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
                 else np.vstack([points[here], points[last + 1:following], points[there]]))
         planned_s = times[following] - times[last]
         leg_cruise = _leg_cruise(path, scenario, cruise)
-        speed = max(speed_for_time(length_of(path), planned_s, leg_cruise, limits),
-                    MIN_SPEED_MPS)
+        speed = max(model.speed_for_time(path, planned_s, leg_cruise, limits), MIN_SPEED_MPS)
         speed = min(round(speed, 2), leg_cruise)
         kept = _drop_short_steps(path, simplify(path, path_tolerance_m, keeps),
                                  2.0 * ramp_distance(speed, limits), keeps)
-        shapes.append((path[kept], speed,
-                       Profile.rest_to_rest(length_of(path[kept]), speed, limits)))
+        if model.per_vertex:         # the turns kept are what the time depends on
+            speed = max(model.speed_for_time(path[kept], planned_s, leg_cruise, limits),
+                        MIN_SPEED_MPS)
+            speed = min(math.ceil(speed * 100.0) / 100.0, leg_cruise)
+        shapes.append((path[kept], speed, model.profile(path[kept], speed, limits)))
     # Centre each leg's motion on the plan's time for it, but start it no later than lets
     # every later leg, with the shortest holds, reach qF by the end of the horizon.
-    minimum_holds = [MIN_STOP_HOLD_S] * len(shapes)
+    minimum_holds = [model.min_hold_s(None if index == 0 else shapes[index - 1][2], cruise,
+                                      limits) for index in range(len(shapes))]
     latest = times[-1]
     latest_starts = []
     for (_, _, profile), shortest in zip(reversed(shapes), reversed(minimum_holds)):
-        latest -= profile.duration_s + LEG_LATENCY_S
+        latest -= model.start_delay_s + model.reached_s(profile)
         latest_starts.append(latest)
         latest -= shortest
     latest_starts.reverse()
 
     stops, legs, parts = [], [], []
-    clock = 0.0                      # the vehicle comes to rest at the current stop
+    clock = 0.0                      # the hold at the current stop starts counting
     for index, (vertices, speed, profile) in enumerate(shapes):
         first, last = runs[index][1], runs[index + 1][0]
-        centred = 0.5 * (times[first] + times[last] - profile.duration_s) - LEG_LATENCY_S / 2
+        centred = (0.5 * (times[first] + times[last] - model.timed_s(profile))
+                   - model.start_delay_s)
         wanted = min(centred, latest_starts[index]) - clock
         hold = max(_quantise(wanted, resolution), minimum_holds[index])
         if hold > wanted + 1e-9 and hold - resolution >= minimum_holds[index]:
             hold -= resolution       # round towards the earlier start when late
         stops.append(Stop(positions[index], hold))
-        parts.append(Dwell(positions[index], clock, clock + hold))
-        leg = Leg(vertices, speed, clock + hold + LEG_LATENCY_S / 2, profile)
+        parts.append(Dwell(positions[index], max(clock, legs[-1].end_s if legs else clock),
+                           clock + hold))
+        leg = Leg(vertices, speed, clock + hold + model.start_delay_s, profile)
         legs.append(leg)
         parts.append(leg)
-        clock = leg.end_s + LEG_LATENCY_S / 2
+        clock = leg.start_s + model.reached_s(profile)
     # A plan that never leaves its first stop holds there for the whole horizon.
     final_hold = 0.0 if shapes else _quantise(times[-1], resolution)
     stops.append(Stop(positions[-1], final_hold))
-    parts.append(Dwell(positions[-1], clock, clock + final_hold))
-    schedule = Schedule(tuple(stops), tuple(legs), Flight(tuple(parts)), firmware)
+    at_rest = max(clock, legs[-1].end_s if legs else clock)
+    parts.append(Dwell(positions[-1], at_rest, max(at_rest, clock + final_hold)))
+    schedule = Schedule(tuple(stops), tuple(legs), Flight(tuple(parts)), firmware,
+                        clock + final_hold)
     end = times[-1]
     if schedule.arrival_s > end + GOAL_TOLERANCE_SLOTS * scenario.slot_s:
         raise InfeasibleHorizonError(
@@ -309,10 +316,6 @@ def _leg_cruise(path: np.ndarray, scenario: Scenario, cruise: float) -> float:
     lengths = np.linalg.norm(steps, axis=1)
     headings = steps[lengths > 1e-9] / lengths[lengths > 1e-9, None]
     return min([cruise, *(scenario.ground_speed_at_airspeed_mps(u) for u in headings)])
-
-
-def length_of(vertices: np.ndarray) -> float:
-    return float(np.linalg.norm(np.diff(vertices, axis=0), axis=1).sum())
 
 
 def check_speed(scenario: Scenario, limits: VehicleLimits) -> None:
@@ -417,18 +420,23 @@ def _straight_line_plan(scenario: Scenario, limits: VehicleLimits,
     ideal = planner(scenario.replace(max_speed_mps=min(speed, scenario.max_speed_mps)), settings)
     start = np.asarray(scenario.start_m, dtype=float)
     goal = np.asarray(scenario.goal_m, dtype=float)
-    cruise = _leg_cruise(np.vstack([start, goal]), scenario, limits.cruise_speed_mps)
-    hold = MIN_STOP_HOLD_S
-    fitted = speed_for_time(distance, end_s - hold - LEG_LATENCY_S, cruise, limits)
+    line = np.vstack([start, goal])
+    cruise = _leg_cruise(line, scenario, limits.cruise_speed_mps)
+    model = leg_model(firmware)
+    hold = model.min_hold_s(None, cruise, limits)
+    fitted = model.speed_for_time(line, end_s - hold - model.start_delay_s
+                                  - model.after_timed_s, cruise, limits)
     # Commanded in hundredths, rounded up so that the leg is not late.
     fitted = min(max(math.ceil(fitted * 100.0) / 100.0, MIN_SPEED_MPS), cruise)
-    profile = Profile.rest_to_rest(distance, fitted, limits)
-    leg = Leg(np.vstack([start, goal]), fitted, hold + LEG_LATENCY_S / 2, profile)
-    arrival = leg.end_s + LEG_LATENCY_S / 2
+    profile = model.profile(line, fitted, limits)
+    leg = Leg(line, fitted, hold + model.start_delay_s, profile)
+    arrival = leg.start_s + model.reached_s(profile)
     if arrival > end_s + GOAL_TOLERANCE_SLOTS * scenario.slot_s:
         raise InfeasibleHorizonError(_no_flyable_plan(scenario, limits)) from first_error
-    flight = Flight((Dwell(start, 0.0, hold), leg, Dwell(goal, arrival, arrival)))
-    schedule = Schedule((Stop(start, hold), Stop(goal, 0.0)), (leg,), flight, firmware)
+    at_rest = max(arrival, leg.end_s)
+    flight = Flight((Dwell(start, 0.0, hold), leg, Dwell(goal, at_rest, at_rest)))
+    schedule = Schedule((Stop(start, hold), Stop(goal, 0.0)), (leg,), flight, firmware,
+                        arrival)
     return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
 
 

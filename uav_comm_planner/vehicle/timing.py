@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -133,22 +133,31 @@ def peak_speed(length_m: float, speed_mps: float, limits: VehicleLimits) -> floa
     return accel * (accel / jerk + tj + t4)
 
 
+def slowest_speed_for(seconds_at: Callable[[float], float], duration_s: float,
+                      max_speed_mps: float, *, iterations: int = 60) -> float:
+    """Bisection: the slowest speed v <= ``max_speed_mps`` with ``seconds_at(v)`` <=
+    ``duration_s`` (``seconds_at`` falling with the speed); ``max_speed_mps`` when even that is
+    too slow for the time given."""
+    if seconds_at(max_speed_mps) >= duration_s:
+        return max_speed_mps
+    low, high = 0.0, max_speed_mps
+    for _ in range(iterations):
+        middle = 0.5 * (low + high)
+        if middle > 0 and seconds_at(middle) <= duration_s:
+            high = middle
+        else:
+            low = middle
+    return high
+
+
 def speed_for_time(length_m: float, duration_s: float, max_speed_mps: float,
                    limits: VehicleLimits) -> float:
     """The cruise speed that flies ``length_m`` rest to rest in ``duration_s`` (at most V).
 
     Returns ``max_speed_mps`` when even that is too slow for the time given.
     """
-    if leg_time(length_m, max_speed_mps, limits) >= duration_s:
-        return max_speed_mps
-    low, high = 0.0, max_speed_mps
-    for _ in range(60):
-        middle = 0.5 * (low + high)
-        if middle > 0 and leg_time(length_m, middle, limits) <= duration_s:
-            high = middle
-        else:
-            low = middle
-    return high
+    return slowest_speed_for(lambda speed: leg_time(length_m, speed, limits), duration_s,
+                             max_speed_mps)
 
 
 @dataclass(frozen=True)

@@ -299,6 +299,8 @@ def _ask(link, request, types: Sequence[str], settings: LinkSettings, what: str,
             if message is None:
                 break
             if message.get_type() == 'MISSION_ACK':
+                if message.type == MAV.MAV_MISSION_ACCEPTED:
+                    continue         # a late copy of the upload's acceptance (PX4 repeats it)
                 raise VehicleLinkError(f'the vehicle refused to send {what}: '
                                        f'{result_name(message.type)}')
             if seq is None or message.seq == seq:

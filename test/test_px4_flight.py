@@ -1,0 +1,130 @@
+"""The package's PX4 missions flown by PX4 itself: PX4 v1.16 SITL, its SIH quadrotor.
+
+Each case is planned for PX4 with the package's own pipeline (``plan_mission``, firmware
+``px4``: PX4's leg timing, :mod:`uav_comm_planner.vehicle.px4_timing`), written as a
+QGroundControl ``.plan``, uploaded and read back with the package's ``upload``
+(:func:`~uav_comm_planner.vehicle.mavlink.upload.upload_file`), and flown in AUTO.MISSION on a
+fresh PX4 SITL (``../shared/sitl/px4``) with PX4's default parameters but MPC_XY_CRUISE. The
+three flights run side by side on instances 4, 5 and 6 at a speed-up of 10. The plan's clock
+starts when PX4 starts counting the hold at q0; every time is autopilot time. What must hold,
+for the letter's case I at 5 and at 10 m/s and for a random scenario of six nodes:
+
+- every planned point reached within one slot of its planned time, the median within a
+  quarter of a slot; qF reported reached within one slot of the end of the horizon;
+- the plan's power schedule, at the positions flown at the planned slot times, gives at least
+  99 % of the min throughput the plan states.
+
+A mission PX4 refuses is reported by ``uav-comm-planner upload`` as one error line naming the
+item (instance 7). The figures are printed for the record (``pytest -s``).
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+import subprocess
+import sys
+
+from helpers import random_six_nodes
+import pytest
+
+from uav_comm_planner import paper_scenario
+from uav_comm_planner.mission.pipeline import plan_mission
+from uav_comm_planner.mission.request import MissionRequest
+from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.px4_sitl import (fly_px4_mission, PX4_HOME, start_px4,
+                                               why_px4_not_runnable)
+
+RUN_PX4 = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'px4' / 'run_px4.sh'
+CLI = [sys.executable, '-m', 'uav_comm_planner.tools.cli']
+SPEEDUP = 10
+
+pytestmark = [pytest.mark.sitl,
+              pytest.mark.skipif(bool(why_px4_not_runnable(RUN_PX4)),
+                                 reason=why_px4_not_runnable(RUN_PX4))]
+
+
+def px4_limits(cruise_mps: float) -> VehicleLimits:
+    """PX4's MPC_ACC_HOR (3 m/s/s) and MPC_JERK_AUTO (4 m/s/s/s) defaults at a cruise."""
+    return VehicleLimits(max_speed_mps=cruise_mps, max_accel_mpss=3.0, max_jerk_mpsss=4.0)
+
+
+#: name: (scenario, cruise m/s, PX4 SITL instance). 4 s slots.
+CASES = {
+    'case I at 5 m/s': (paper_scenario('I', max_speed_mps=5.0, horizon_s=600.0,
+                                       num_slots=150), 5.0, 4),
+    'case I at 10 m/s': (paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0,
+                                        num_slots=100), 10.0, 5),
+    'random, six nodes, 5 m/s': (random_six_nodes().replace(max_speed_mps=5.0, horizon_s=600.0,
+                                                            num_slots=150), 5.0, 6),
+}
+
+
+def fly_case(name: str, folder: Path):
+    scenario, cruise, instance = CASES[name]
+    request = MissionRequest(scenario=scenario, vehicle=px4_limits(cruise), firmware='px4',
+                             home=PX4_HOME)
+    planned = plan_mission(request)
+    mission = planned.write(folder / 'mission.plan')
+    flown = fly_px4_mission(planned.vehicle_plan, mission, folder, instance=instance,
+                            parameters={'MPC_XY_CRUISE': cruise}, speedup=SPEEDUP,
+                            script=RUN_PX4)
+    return planned.vehicle_plan, flown
+
+
+@pytest.fixture(scope='module')
+def flights(tmp_path_factory):
+    folders = {name: tmp_path_factory.mktemp('px4') for name in CASES}
+    with ThreadPoolExecutor(len(CASES)) as pool:
+        futures = {name: pool.submit(fly_case, name, folders[name]) for name in CASES}
+        results = {name: future.result() for name, future in futures.items()}
+    for name, (vehicle_plan, flown) in results.items():
+        scenario = vehicle_plan.ideal.scenario
+        end_s = scenario.slot_s * (scenario.num_slots + 1)
+        within = int((flown.report.reach_errors_s <= scenario.slot_s).sum())
+        print(f'\n{name}: {flown.report.summary()}; {within} of '
+              f'{len(flown.report.reach_errors_s)} points within a slot; qF reached at '
+              f'{flown.arrival_s:.1f} s, planned {end_s:g} s')
+    return results
+
+
+@pytest.mark.parametrize('name', list(CASES))
+def test_px4_reaches_every_planned_point_on_time(flights, name):
+    vehicle_plan, flown = flights[name]
+    scenario = vehicle_plan.ideal.scenario
+    assert flown.report.worst_reach_slots <= 1.0
+    assert flown.report.median_reach_slots <= 0.25
+    assert abs(flown.arrival_s - scenario.slot_s * (scenario.num_slots + 1)) <= scenario.slot_s
+
+
+@pytest.mark.parametrize('name', list(CASES))
+def test_the_nodes_get_what_the_px4_plan_states(flights, name):
+    _, flown = flights[name]
+    assert flown.report.flown_to_stated >= 0.99
+
+
+#: A QGC WPL 110 mission whose row 3 holds a command PX4 does not know (31999).
+REFUSED = '''QGC WPL 110
+0\t1\t0\t16\t0\t0\t0\t0\t47.397742\t8.545594\t489\t1
+1\t0\t3\t22\t0\t0\t0\t0\t47.397742\t8.545594\t20\t1
+2\t0\t3\t16\t0\t0\t0\t0\t47.3978\t8.5456\t20\t1
+3\t0\t3\t31999\t0\t0\t0\t0\t47.3979\t8.5457\t20\t1
+4\t0\t3\t21\t0\t0\t0\t0\t47.3979\t8.5457\t0\t1
+'''
+
+
+def test_upload_reports_the_item_px4_refuses(tmp_path):
+    mission = tmp_path / 'refused.waypoints'
+    mission.write_text(REFUSED)
+    vehicle = start_px4(tmp_path, 7, script=RUN_PX4, speedup=SPEEDUP)
+    try:
+        uploaded = subprocess.run(CLI + ['upload', str(mission), '--connect',
+                                         vehicle.onboard_url, '--connect-timeout', '60'],
+                                  capture_output=True, text=True, timeout=180)
+    finally:
+        vehicle.stop()
+    assert uploaded.returncode == 2
+    lines = uploaded.stderr.strip().splitlines()
+    assert len(lines) == 1
+    # PX4 numbers its items from the take-off: the file's row 3 is its item 2.
+    assert 'refused the mission at item 2' in lines[0], lines[0]

@@ -1,0 +1,109 @@
+"""PX4's leg timing (:mod:`uav_comm_planner.vehicle.px4_timing`) against independent numbers.
+
+The braking curve is checked against the equation it solves, the turn speed against the
+figures PX4 SITL flew, a straight leg against the closed forms of its pieces (ramp, cruise at
+the stretched speed), and the schedule PX4 plans are made with against its own rules: each
+hold starts counting on entering the acceptance radius, the vehicle is at rest before the
+next leg starts, and the ArduCopter schedule is the S-curve's as before.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from uav_comm_planner import paper_scenario, plan
+from uav_comm_planner.vehicle import px4_timing
+from uav_comm_planner.vehicle.flyable import schedule_flight
+from uav_comm_planner.vehicle.leg_models import leg_model, LEG_MODELS, MIN_STOP_HOLD_S
+from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.px4_timing import (ACCEPTANCE_RADIUS_M, corner_speed,
+                                                 MAX_POSITION_ERROR_M, px4_profile,
+                                                 px4_reach_time, px4_speed_for_time,
+                                                 stopping_speed, TRACKING_LAG_S)
+from uav_comm_planner.vehicle.timing import LEG_LATENCY_S, Profile
+
+PX4 = VehicleLimits(max_speed_mps=5.0, max_accel_mpss=3.0, max_jerk_mpsss=4.0)
+
+
+@pytest.mark.parametrize('distance_m, end_mps', [(0.0, 0.0), (2.0, 0.0), (10.0, 1.5),
+                                                 (300.0, 4.0)])
+def test_the_braking_curve_solves_its_equation(distance_m, end_mps):
+    # v^2 + b v = 2 A d + v_e^2 with b = 4 A^2 / J: braking at A after a delay of 2 A / J.
+    accel, jerk = 3.0, 4.0
+    v = stopping_speed(distance_m, end_mps, accel, jerk)
+    b = 4 * accel ** 2 / jerk
+    assert v >= 0.0
+    assert v * v + b * v == pytest.approx(2 * accel * distance_m + end_mps ** 2, abs=1e-9)
+
+
+def test_the_turn_speed_is_what_px4_sitl_flew():
+    # A 90 degree turn at R = 2 m was flown at 1.6-1.9 m/s, at R = 10 m at 3.7-4.3 m/s.
+    assert corner_speed(math.pi / 2, 3.0) == pytest.approx(math.sqrt(3.0), rel=1e-9)
+    assert corner_speed(math.pi / 2, 3.0, radius_m=10.0) == pytest.approx(math.sqrt(15.0))
+    assert corner_speed(math.radians(180 - 20), 3.0) == pytest.approx(4.12, abs=0.01)
+
+
+def test_a_straight_leg_cruises_at_the_stretched_speed_and_ends_at_rest():
+    length = 1000.0
+    profile = px4_profile(np.array([[0.0, 0.0], [length, 0.0]]), 5.0, PX4)
+    t, s = profile.times_s, profile.distances_m
+    assert np.all(np.diff(t) > 0) and np.all(np.diff(s) >= -1e-9)
+    assert s[0] == 0.0 and s[-1] == pytest.approx(length, abs=0.11)
+    middle = (s > 300) & (s < 700)
+    cruise = np.polyfit(t[middle], s[middle], 1)[0]
+    assert cruise == pytest.approx(5.0 * (1 - TRACKING_LAG_S * 5.0 / MAX_POSITION_ERROR_M),
+                                   rel=1e-3)
+    # The hold starts counting in the acceptance radius, before the vehicle is at rest.
+    enter = profile.distance(np.array([profile.hold_start_s]))[0]
+    assert length - enter <= ACCEPTANCE_RADIUS_M + px4_timing.BRAKING_LEAD_S2 * 25 + 0.05
+    assert profile.hold_start_s < profile.duration_s
+    # Never faster than the rest-to-rest lower bound: cruise the whole leg at V.
+    assert profile.hold_start_s > (length - ACCEPTANCE_RADIUS_M - 2.0) / 5.0
+
+
+def test_a_sharp_turn_costs_time_and_a_slight_one_does_not():
+    straight = px4_reach_time(np.array([[0.0, 0.0], [200.0, 0.0], [400.0, 0.0]]), 5.0, PX4)
+    slight = np.array([[0.0, 0.0], [200.0, 0.0], [200.0 + 200 * math.cos(0.05),
+                                                  200 * math.sin(0.05)]])
+    sharp = np.array([[0.0, 0.0], [200.0, 0.0], [200.0, 200.0]])
+    assert px4_reach_time(slight, 5.0, PX4) == pytest.approx(straight, abs=0.05)
+    assert px4_reach_time(sharp, 5.0, PX4) > straight + 1.0
+
+
+def test_the_speed_for_a_time_reaches_the_end_in_that_time():
+    line = np.array([[0.0, 0.0], [300.0, 40.0]])
+    for seconds in (70.0, 100.0, 150.0):
+        speed = px4_speed_for_time(line, seconds, 5.0, PX4)
+        assert px4_reach_time(line, speed, PX4) <= seconds
+        assert px4_reach_time(line, speed - 0.01, PX4) > seconds - 0.05
+    assert px4_speed_for_time(line, 10.0, 5.0, PX4) == 5.0     # too little time: at most V
+
+
+def test_a_px4_schedule_counts_each_hold_from_the_acceptance_radius():
+    result = plan(paper_scenario('I', max_speed_mps=5.0, horizon_s=600.0, num_slots=150))
+    schedule = schedule_flight(result, PX4, firmware='px4')
+    model = leg_model('px4')
+    clock = 0.0
+    for stop, leg in zip(schedule.stops, schedule.legs):
+        assert leg.start_s == pytest.approx(clock + stop.hold_s + model.start_delay_s)
+        clock = leg.start_s + leg.profile.hold_start_s
+    assert schedule.arrival_s == pytest.approx(clock)
+    for leg, following, stop in zip(schedule.legs, schedule.legs[1:], schedule.stops[1:]):
+        assert following.start_s >= leg.end_s + MIN_STOP_HOLD_S - 1e-9   # at rest first
+    end_s = result.scenario.slot_s * (result.scenario.num_slots + 1)
+    assert schedule.arrival_s <= end_s + 0.25 * result.scenario.slot_s
+
+
+def test_the_ardupilot_model_is_the_scurve_with_its_latency():
+    model = LEG_MODELS['scurve']
+    vertices = np.array([[0.0, 0.0], [120.0, 50.0], [400.0, 60.0]])
+    length = float(np.linalg.norm(np.diff(vertices, axis=0), axis=1).sum())
+    profile = model.profile(vertices, 8.0, VehicleLimits())
+    reference = Profile.rest_to_rest(length, 8.0, VehicleLimits())
+    assert profile.duration_s == pytest.approx(reference.duration_s)
+    assert model.reached_s(profile) == pytest.approx(reference.duration_s + LEG_LATENCY_S / 2)
+    assert model.start_delay_s == LEG_LATENCY_S / 2
+    assert model.min_hold_s(None, 10.0, VehicleLimits()) == MIN_STOP_HOLD_S

@@ -1,0 +1,302 @@
+"""PX4 software-in-the-loop: start PX4's SIH quadrotor, fly a mission in AUTO.MISSION, record it.
+
+For the PX4 flight tests and for an integrator who wants to see a PX4 mission flown before a
+real vehicle flies it. PX4 SITL is started by its ``run_px4.sh`` (the path given, else
+``$UAV_COMM_PLANNER_PX4``): ``run_px4.sh N SPEED WORKDIR``, instance N (0..9) in a fresh
+working folder, lockstep at a speed-up, ``PX4_PARAM_<NAME>`` in the environment setting
+parameters at boot; it is ended by its PID. The package talks to it on PX4's onboard port
+(``udpin:127.0.0.1:14540+N``, which takes reconnections), uploads with
+:func:`~uav_comm_planner.vehicle.mavlink.upload.upload_file`, switches to AUTO.MISSION on the
+ground and arms: PX4 takes off and flies the mission. Every time here is autopilot time
+(``time_boot_ms``), never the wall clock.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import os
+from pathlib import Path
+import shutil
+import signal
+import socket
+import subprocess
+import threading
+import time
+
+import numpy as np
+from pymavlink import mavutil
+
+from uav_comm_planner.errors import VehicleLinkError
+from uav_comm_planner.vehicle.evaluation import evaluate_flight
+from uav_comm_planner.vehicle.flyable import VehiclePlan
+from uav_comm_planner.vehicle.geodesy import Home
+from uav_comm_planner.vehicle.mavlink.files import read_mission_file
+from uav_comm_planner.vehicle.mavlink.items import NAV_WAYPOINT, Q0_SEQ
+from uav_comm_planner.vehicle.mavlink.link import connect
+from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu
+from uav_comm_planner.vehicle.mavlink.upload import upload_file
+# MAV_CMD by COMMAND_LONG until its COMMAND_ACK: the same for PX4 as for ArduCopter.
+from uav_comm_planner.vehicle.sitl import _command, FlightRecord, SitlFlight
+
+MAV = mavutil.mavlink
+ENVIRONMENT_VARIABLE = 'UAV_COMM_PLANNER_PX4'
+#: PX4 SITL's home (its default, Zurich): the missions flown on it are made for this home.
+PX4_HOME = Home(47.397742, 8.545594, 489.0)
+#: Lockstep speed-up of the flights (PX4_SIM_SPEED_FACTOR).
+PX4_SPEEDUP = 20
+#: PX4_PARAM_SDLOG_MODE -1: no flight log (about 1 MB per simulated second otherwise).
+BOOT_PARAMETERS = {'SDLOG_MODE': -1}
+#: Messages the flight needs; every other stream on the onboard port is switched off, since
+#: the stream rates are in simulated time and multiply with the speed-up.
+KEPT_MESSAGES = ('HEARTBEAT', 'GLOBAL_POSITION_INT', 'MISSION_ITEM_REACHED', 'STATUSTEXT',
+                 'COMMAND_ACK', 'MISSION_CURRENT')
+#: GLOBAL_POSITION_INT per second of autopilot time during the flight (1 m apart at 10 m/s).
+POSITION_RATE_HZ = 10.0
+#: A flight whose record has a longer gap (autopilot seconds) is refused: points planned in
+#: the gap could not be held against it.
+MAX_RECORD_GAP_S = 0.5
+#: Autopilot seconds recorded after the last waypoint is reported reached, while it settles.
+RECORD_AFTER_S = 8.0
+#: The link's receive buffer, bytes: at a speed-up the telemetry comes many times faster.
+RECEIVE_BUFFER_BYTES = 8 * 1024 * 1024
+#: PX4 arms once its estimator has settled (about 5 s of autopilot time): tried this long.
+READY_TIMEOUT_S = 120.0
+#: MAV_CMD_DO_SET_MODE (base mode custom, main mode AUTO, sub mode MISSION).
+AUTO_MISSION = (1.0, 4.0, 4.0)
+
+
+def px4_run_script(path: str | os.PathLike | None = None) -> Path | None:
+    """PX4 SITL's run_px4.sh: ``path``, else ``$UAV_COMM_PLANNER_PX4``; None when neither is a
+    file."""
+    for candidate in (path, os.environ.get(ENVIRONMENT_VARIABLE)):
+        if candidate and Path(candidate).is_file():
+            return Path(candidate).resolve()
+    return None
+
+
+def why_px4_not_runnable(path: str | os.PathLike | None = None) -> str:
+    """Empty when PX4 SITL can run here, else the reason."""
+    script = px4_run_script(path)
+    if script is None:
+        return f'no PX4 SITL run_px4.sh at {path!r} and none in ${ENVIRONMENT_VARIABLE}'
+    if os.uname().machine != 'x86_64':
+        return 'the PX4 SITL binary is built for x86_64'
+    return ''
+
+
+def runnable_copy(script: Path, folder: Path) -> Path:
+    """PX4 SITL's folder (the one holding ``script``) copied into ``folder`` without the
+    ``bin/px4-*`` command links: a copy that lost them keeps each as a small file naming its
+    target, which run_px4.sh takes for the links and px4's start-up script cannot run; without
+    them, run_px4.sh makes the links in its working folder. Returns the copy's run_px4.sh."""
+    source = script.parent
+    shutil.copytree(source / 'etc', folder / 'etc')
+    (folder / 'bin').mkdir()
+    for name in ('px4', '.commands', 'px4-alias.sh'):
+        if (source / 'bin' / name).exists():
+            shutil.copy2(source / 'bin' / name, folder / 'bin' / name)
+    shutil.copy2(script, folder / script.name)
+    return folder / script.name
+
+
+@dataclass
+class Px4Sitl:
+    """A running PX4 SITL, instance ``instance``."""
+
+    process: subprocess.Popen
+    instance: int
+    folder: Path
+
+    @property
+    def onboard_url(self) -> str:
+        return f'udpin:127.0.0.1:{14540 + self.instance}'
+
+    @property
+    def ground_station_url(self) -> str:
+        return f'udpout:127.0.0.1:{18570 + self.instance}'
+
+    def stop(self) -> None:
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(20)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(10)
+
+
+def start_px4(folder: Path, instance: int, *, script: str | os.PathLike | None = None,
+              speedup: float = PX4_SPEEDUP,
+              parameters: dict[str, float] | None = None) -> Px4Sitl:
+    """Start PX4 SITL instance ``instance`` (0..9, unused by any other px4) in ``folder``
+    with ``parameters`` set at boot; returns at once (:func:`open_px4` waits for it)."""
+    found = px4_run_script(script)
+    if found is None:
+        raise VehicleLinkError(why_px4_not_runnable(script))
+    copy = runnable_copy(found, folder / 'px4')
+    work = folder / 'work'
+    work.mkdir()
+    environment = {**os.environ, **{f'PX4_PARAM_{name}': f'{value:g}' for name, value in
+                                    {**BOOT_PARAMETERS, **(parameters or {})}.items()}}
+    with open(folder / 'px4.log', 'wb') as log:
+        process = subprocess.Popen(['sh', str(copy), str(instance), f'{speedup:g}', str(work)],
+                                   env=environment, stdout=log, stderr=subprocess.STDOUT)
+    return Px4Sitl(process, instance, folder)
+
+
+def quiet_streams(link, keep: tuple[str, ...] = KEPT_MESSAGES, listen_s: float = 1.0) -> None:
+    """Switch off every stream but ``keep`` (MAV_CMD_SET_MESSAGE_INTERVAL, interval -1): the
+    streams seen within ``listen_s`` seconds (wall clock)."""
+    seen = {}
+    deadline = time.monotonic() + listen_s
+    while time.monotonic() < deadline:
+        message = link.recv_match(blocking=True, timeout=0.1)
+        if message is not None and message.get_type() not in keep:
+            seen[message.get_type()] = message.get_msgId()
+    for message_id in seen.values():
+        if message_id >= 0:
+            link.mav.command_long_send(link.target_system, link.target_component,
+                                       MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id, -1,
+                                       0, 0, 0, 0, 0)
+
+
+#: Uploads tried before a flight gives up: PX4's mission protocol times out in simulated time,
+#: which a loaded machine at a speed-up can miss (PX4 then ends the transfer).
+UPLOAD_ATTEMPTS = 5
+#: One upload at a time from this process: flights side by side upload in turn.
+_UPLOADS = threading.Lock()
+
+
+def upload_with_retries(mission: Path, url: str) -> None:
+    """:func:`upload_file` until PX4 holds the mission, at most UPLOAD_ATTEMPTS times."""
+    for attempt in range(UPLOAD_ATTEMPTS):
+        try:
+            with _UPLOADS:
+                upload_file(mission, url, connect_timeout_s=60.0)
+            return
+        except VehicleLinkError:
+            if attempt == UPLOAD_ATTEMPTS - 1:
+                raise
+            time.sleep(0.5)
+
+
+def start_mission(link) -> None:
+    """AUTO.MISSION on the ground, then arm as soon as PX4 allows: it takes off and flies."""
+    deadline = time.monotonic() + READY_TIMEOUT_S
+    while time.monotonic() < deadline:
+        if (_command(link, MAV.MAV_CMD_DO_SET_MODE, *AUTO_MISSION) == MAV.MAV_RESULT_ACCEPTED
+                and _command(link, MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+                == MAV.MAV_RESULT_ACCEPTED):
+            return
+        time.sleep(0.5)
+    raise VehicleLinkError(f'PX4 did not arm in AUTO.MISSION within {READY_TIMEOUT_S:g} s')
+
+
+def record_mission(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRecord:
+    """Record GLOBAL_POSITION_INT and MISSION_ITEM_REACHED until RECORD_AFTER_S after PX4
+    reaches item ``last_item`` (its own numbering, from 0; PX4 reports it on entering the
+    acceptance radius); ``timeout_s`` is autopilot time."""
+    link.mav.command_long_send(link.target_system, link.target_component,
+                               MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                               MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 1e6 / POSITION_RATE_HZ,
+                               0, 0, 0, 0, 0)
+    times, latitudes_e7, longitudes_e7, altitudes_mm = [], [], [], []
+    reached: dict[int, float] = {}
+    clock_s = started_s = None
+    while last_item not in reached or clock_s < reached[last_item] + RECORD_AFTER_S:
+        message = link.recv_match(type=['GLOBAL_POSITION_INT', 'MISSION_ITEM_REACHED'],
+                                  blocking=True, timeout=10.0)
+        if message is None:
+            raise VehicleLinkError('PX4 went silent during the flight')
+        if message.get_type() == 'MISSION_ITEM_REACHED':
+            if clock_s is not None:
+                reached.setdefault(message.seq, clock_s)
+            continue
+        clock_s = message.time_boot_ms / 1000.0
+        started_s = clock_s if started_s is None else started_s
+        if clock_s - started_s > timeout_s:
+            raise VehicleLinkError(f'item {last_item} not reached {timeout_s:g} s after the '
+                                   f'start')
+        times.append(clock_s)
+        latitudes_e7.append(message.lat)
+        longitudes_e7.append(message.lon)
+        altitudes_mm.append(message.relative_alt)
+    gaps = np.diff(times)
+    if len(gaps) and gaps.max() > MAX_RECORD_GAP_S:
+        raise VehicleLinkError(f'the telemetry has a gap of {gaps.max():.2f} s at '
+                               f'{times[int(gaps.argmax())]:.1f} s (autopilot time): the machine '
+                               f'is too loaded for this speed-up')
+    east, north, up = global_position_enu(latitudes_e7, longitudes_e7, altitudes_mm, home)
+    return FlightRecord(np.array(times), np.column_stack([east, north]), up, reached)
+
+
+def reached_by_row(items, reached: dict[int, float]) -> dict[int, float]:
+    """When PX4 reached each waypoint, by file row, from MISSION_ITEM_REACHED: a DO command
+    after a waypoint (the DO_CHANGE_SPEED after a stop) runs at once, and PX4 reports only the
+    later of two items reached within one of its cycles, so a waypoint missing from
+    ``reached`` takes the time of the first DO row after it that was reported."""
+    out = dict(reached)
+    for row, item in enumerate(items):
+        if row in out or item.command >= MAV.MAV_CMD_NAV_LAST:
+            continue
+        for later in range(row + 1, len(items)):
+            if items[later].command < MAV.MAV_CMD_NAV_LAST:
+                break
+            if later in reached:
+                out[row] = reached[later]
+                break
+    return out
+
+
+def q0_reached_s(items, reached: dict[int, float]) -> float:
+    """When PX4 reached q0 (its hold ended), from MISSION_ITEM_REACHED by file row
+    (:func:`reached_by_row`)."""
+    rows = reached_by_row(items, reached)
+    if Q0_SEQ not in rows:
+        raise VehicleLinkError(f'PX4 never reported q0 (mission row {Q0_SEQ}) reached')
+    return rows[Q0_SEQ]
+
+
+def fly_px4_mission(vehicle_plan: VehiclePlan, mission: Path, folder: Path, *, instance: int,
+                    home: Home = PX4_HOME, parameters: dict[str, float] | None = None,
+                    speedup: float = PX4_SPEEDUP,
+                    script: str | os.PathLike | None = None) -> SitlFlight:
+    """Fly the mission file ``mission`` (made from ``vehicle_plan`` for PX4 and ``home``) on a
+    fresh PX4 SITL and hold the flight against the plan.
+
+    The file is uploaded and read back with :func:`upload_file`; PX4 keeps no home row, so
+    the file's row k is PX4's item k - 1. The plan's clock starts when the hold at q0 starts:
+    PX4 reports q0 reached when its hold ends (:func:`q0_reached_s`).
+    """
+    items = read_mission_file(mission)
+    last_waypoint = max(i for i, item in enumerate(items) if item.command == NAV_WAYPOINT)
+    scenario = vehicle_plan.ideal.scenario
+    vehicle = start_px4(folder, instance, script=script, speedup=speedup,
+                        parameters=parameters)
+    try:
+        url = vehicle.onboard_url
+        link = connect(url, timeout_s=60.0)
+        quiet_streams(link)
+        link.close()                 # the upload opens the port itself
+        upload_with_retries(mission, url)
+        link = connect(url, timeout_s=60.0)
+        try:
+            link.port.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
+            start_mission(link)
+            horizon_s = scenario.slot_s * (scenario.num_slots + 1)
+            record = record_mission(link, home, last_item=last_waypoint - 1,
+                                    timeout_s=2 * horizon_s + 300)
+        finally:
+            link.close()
+    finally:
+        vehicle.stop()
+    record.reached = reached_by_row(items, {seq + 1: when for seq, when in
+                                            record.reached.items()})
+    start_s = q0_reached_s(items, record.reached) - items[Q0_SEQ].params[0]
+    report = evaluate_flight(vehicle_plan.flown, vehicle_plan.schedule.flight.track(),
+                             record.times_s, record.positions_m, start_s)
+    return SitlFlight(report, record.reached[last_waypoint] - start_s, record)
+
+
+__all__ = ['PX4_HOME', 'PX4_SPEEDUP', 'Px4Sitl', 'fly_px4_mission', 'px4_run_script',
+           'runnable_copy', 'start_px4', 'why_px4_not_runnable']

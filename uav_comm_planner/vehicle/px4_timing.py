@@ -1,0 +1,252 @@
+"""How long PX4 takes to fly a mission leg, and where it is meanwhile.
+
+PX4 (v1.16, multicopter, AUTO.MISSION) does not plan a leg ahead as ArduCopter does. Every
+cycle its trajectory generator (FlightTaskAuto with PositionSmoothing) asks for a speed
+towards the current waypoint and follows it with a jerk-limited velocity profile:
+
+- **The speed asked for** is the cruise V (MPC_XY_CRUISE, or the mission's DO_CHANGE_SPEED),
+  cut to the fastest speed from which the vehicle can still slow down to the speed wanted at
+  the waypoint in the distance d left: v(d, v_e) = (-b + sqrt(b^2 + 8 A d + 4 v_e^2)) / 2 with
+  b = 4 A^2 / J (TrajMath's computeMaxSpeedFromDistance), A = MPC_ACC_HOR, J = MPC_JERK_AUTO.
+  Near a stop v(d, 0) ~ J d / (2 A): the last metres decay exponentially with the time
+  constant 2 A / J (1.5 s at PX4's defaults).
+- **At a fly-through waypoint** (no hold) the speed wanted there is
+  sqrt(P A R tan(alpha / 2)), alpha the interior angle of the turn, R the acceptance radius
+  (NAV_ACC_RAD, 2 m), P = MPC_XY_TRAJ_P (0.5), and no more than the vehicle can stop from on
+  the next segment; the next waypoint becomes the target as soon as the vehicle is within R.
+  A turn of 10 degrees at R = 2 m caps the speed at 5.9 m/s, one of 20 at 4.1. A turn whose
+  cap is above the cruise costs nothing on the SITL (legs of 15 turns of 1-11 degrees at
+  5 m/s were flown at the cruise): the vehicle brakes only for the next turn it cannot take
+  at the cruise, or for the stop.
+- **The velocity profile** changes the velocity with jerk J up to the acceleration A, per
+  axis of the local frame, the axes synchronised: along a leg at heading h the acceleration
+  and jerk reach A / c and J / c, c = max(|cos h|, |sin h|).
+- **The cruise it holds** is below V: PX4 slows the trajectory's clock by 1 - e / E when the
+  vehicle is a distance e behind it (E = MPC_XY_ERR_MAX, 2 m; PositionSmoothing's time
+  stretch). The vehicle trails the trajectory by about ``TRACKING_LAG_S`` x its speed, so it
+  cruises at V (1 - TRACKING_LAG_S V / E): 4.94 at 5 m/s, 9.78 at 10 m/s, as on the SITL.
+- **A hold** (the waypoint's param1) starts counting when the vehicle enters the acceptance
+  radius, still braking (mission_block's is_mission_item_reached_or_completed): it enters it
+  at 2.3-3 m/s, ahead of the braking curve (``BRAKING_LEAD_S2``); when the hold ends the next
+  leg starts, after ``START_DELAY_S`` (the vehicle moving off more slowly than its
+  trajectory). PX4 reports the waypoint reached then, and a fly-through waypoint (hold 0) on
+  entering the radius.
+
+:func:`px4_profile` simulates this along a leg's polyline (the distance flown against time,
+from rest at its first vertex to rest at its last) at ``STEP_S``; it gives the leg's duration
+and ``hold_start_s``, when the hold at its end starts counting. The constants PX4's source
+does not fix are fitted to flights on PX4 v1.16 SITL (SIH quadrotor), named where defined.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+import math
+
+import numpy as np
+
+from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.timing import slowest_speed_for
+
+#: NAV_ACC_RAD, metres: PX4's acceptance radius for multicopters (a waypoint's param2 = 0).
+ACCEPTANCE_RADIUS_M = 2.0
+#: MPC_XY_TRAJ_P: the share of MPC_ACC_HOR a fly-through turn is flown with.
+TRAJECTORY_GAIN = 0.5
+#: MPC_XY_ERR_MAX, metres: the lag at which PX4 stops the trajectory's clock.
+MAX_POSITION_ERROR_M = 2.0
+#: Seconds the vehicle trails the trajectory by (its lag e = TRACKING_LAG_S x speed), fitted
+#: to the cruise PX4 SITL holds along straight legs: 4.90-4.95 m/s at 5, 9.74-9.83 at 10.
+TRACKING_LAG_S = 0.0045
+#: The vehicle brakes later than its trajectory and runs ahead of it: it enters a waypoint's
+#: acceptance radius when the trajectory is still BRAKING_LEAD_S2 x V^2 further out (V the
+#: leg's cruise; s^2/m), fitted to PX4 SITL: it enters the radius at 2.3-3 m/s where the
+#: braking curve alone gives 1.2.
+BRAKING_LEAD_S2 = 0.03
+#: Seconds from the end of a hold to the start of the next leg, fitted to PX4 SITL: the vehicle
+#: moves off more slowly than its trajectory (its first 80 m from rest took 0.9-2.0 s longer
+#: than the limits give, at 5 and at 10 m/s alike), taken as a delay; with it, legs of
+#: 120-890 m reach their ends within -0.5..+0.3 s (median) of the model.
+START_DELAY_S = 1.7
+#: The simulation's step, seconds (PX4's position controller runs at 50 Hz or faster).
+STEP_S = 0.02
+#: The leg ends (the vehicle at rest) when it is this close to its last vertex, metres.
+REST_DISTANCE_M = 0.1
+
+
+def stopping_speed(distance_m: float, end_speed_mps: float, accel: float, jerk: float) -> float:
+    """The fastest speed from which the vehicle slows to ``end_speed_mps`` within
+    ``distance_m`` (PX4's braking curve, module docstring)."""
+    b = 4.0 * accel * accel / jerk
+    return 0.5 * (-b + math.sqrt(b * b + 8.0 * accel * max(distance_m, 0.0)
+                                 + 4.0 * end_speed_mps * end_speed_mps))
+
+
+def corner_speed(interior_rad: float, accel: float, radius_m: float = ACCEPTANCE_RADIUS_M,
+                 gain: float = TRAJECTORY_GAIN) -> float:
+    """The speed PX4 flies a fly-through waypoint at: sqrt(P A R tan(alpha / 2))."""
+    alpha = min(max(interior_rad, 0.0), math.pi - 1e-6)
+    return math.sqrt(gain * accel * radius_m * math.tan(alpha / 2.0))
+
+
+def _velocity_step(a: float, v: float, target: float, accel: float, jerk: float,
+                   dt: float) -> tuple[float, float, float]:
+    """(a, v, ds) after ``dt`` of the time-optimal jerk-limited change of the velocity from
+    (a, v) towards ``target``: jerk +-J up to the acceleration A, constant acceleration,
+    jerk -+J down to zero acceleration as the velocity reaches the target."""
+    # The velocity reached if the acceleration is brought to zero at once.
+    settle = v + a * abs(a) / (2.0 * jerk)
+    direction = 1.0 if target > settle else -1.0 if target < settle else (
+        1.0 if a > 0 else -1.0 if a < 0 else 0.0)
+    if direction == 0.0:
+        return 0.0, v, v * dt
+    j = direction * jerk
+    dv = target - v
+    # Peak acceleration of the triangle, then the trapezoid if it exceeds A.
+    peak_sq = 0.5 * (2.0 * j * dv + a * a) if j * dv + 0.5 * a * a >= 0 else 0.0
+    peak = direction * min(math.sqrt(max(peak_sq, 0.0)), accel)
+    t1 = max((peak - a) / j, 0.0)
+    t3 = max(peak / j, 0.0)
+    v1 = v + a * t1 + 0.5 * j * t1 * t1
+    v3_gain = peak * t3 - 0.5 * j * t3 * t3
+    t2 = max((target - v1 - v3_gain) / peak, 0.0) if abs(peak) > 1e-12 else 0.0
+    ds = 0.0
+    left = dt
+    for duration, piece_jerk in ((t1, j), (t2, 0.0), (t3, -j), (math.inf, None)):
+        if left <= 0.0:
+            break
+        if piece_jerk is None:       # at the target velocity
+            a = 0.0
+            piece_jerk = 0.0
+        x = min(left, duration)
+        ds += v * x + 0.5 * a * x * x + piece_jerk * x ** 3 / 6.0
+        v += a * x + 0.5 * piece_jerk * x * x
+        a += piece_jerk * x
+        left -= x
+    return a, v, ds
+
+
+@dataclass(frozen=True)
+class SampledProfile:
+    """Distance flown along a leg against time, sampled: ``times_s`` (K,), ``distances_m``
+    (K,) from the leg's start; ``duration_s`` until at rest at the end, ``hold_start_s`` when
+    the vehicle enters the acceptance radius of the leg's last vertex (the hold there starts
+    counting)."""
+
+    times_s: np.ndarray
+    distances_m: np.ndarray
+    duration_s: float
+    length_m: float
+    hold_start_s: float
+
+    def distance(self, t: np.ndarray) -> np.ndarray:
+        """Metres flown at times ``t`` (s from the leg's start), clipped to [0, length]."""
+        return np.clip(np.interp(np.asarray(t, dtype=float), self.times_s, self.distances_m),
+                       0.0, self.length_m)
+
+
+def px4_profile(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -> SampledProfile:
+    """PX4's flight along ``vertices`` (V, 2) from rest to rest at cruise ``speed_mps``, fly-
+    through waypoints at the inner vertices (module docstring)."""
+    vertices = np.asarray(vertices, dtype=float)
+    key = (vertices.round(6).tobytes(), len(vertices), round(float(speed_mps), 6),
+           float(limits.max_accel_mpss), float(limits.max_jerk_mpsss))
+    return _simulate(*key)
+
+
+@lru_cache(maxsize=4096)
+def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
+              jerk: float) -> SampledProfile:
+    vertices = np.frombuffer(vertex_bytes).reshape(count, 2)
+    steps = np.diff(vertices, axis=0)
+    lengths = np.linalg.norm(steps, axis=1)
+    keep = np.concatenate([[True], lengths > 1e-9])
+    vertices = vertices[keep]
+    steps = np.diff(vertices, axis=0)
+    lengths = np.linalg.norm(steps, axis=1)
+    if len(lengths) == 0:
+        zero = np.zeros(1)
+        return SampledProfile(zero, zero, 0.0, 0.0, 0.0)
+    arc = np.concatenate([[0.0], np.cumsum(lengths)])
+    total = float(arc[-1])
+    units = steps / lengths[:, None]
+    # Per segment: the along-track limits (axes synchronised) and the speed wanted at its end.
+    scale = 1.0 / np.maximum(np.abs(units).max(axis=1), 1e-9)
+    ends = np.zeros(len(lengths))
+    for k in range(len(lengths) - 1):
+        interior = math.acos(float(np.clip(-units[k] @ units[k + 1], -1.0, 1.0)))
+        after = stopping_speed(float(lengths[k + 1]), 0.0, accel, jerk)
+        if lengths[k + 1] > ACCEPTANCE_RADIUS_M:
+            ends[k] = min(corner_speed(interior, accel), after, speed)
+    b = 4.0 * accel * accel / jerk
+    times, distances = [0.0], [0.0]
+    t = s = v = a = 0.0               # the trajectory: along-track distance, speed, accel
+    x = u = 0.0                       # the vehicle following it
+    k = 0                             # flying towards vertex k + 1
+    hold_start = None
+    dt = STEP_S
+    while True:
+        reach = ACCEPTANCE_RADIUS_M + BRAKING_LEAD_S2 * speed * speed
+        while k < len(lengths) - 1 and arc[k + 1] - x <= reach:
+            k += 1
+        if hold_start is None and k == len(lengths) - 1 and total - x <= reach:
+            hold_start = t
+        # Turns PX4 flies at the cruise cost nothing; brake for the next one it cannot.
+        slow = next(j for j in range(k, len(lengths)) if ends[j] < speed or j == len(lengths) - 1)
+        left = arc[slow + 1] - s
+        if (hold_start is not None and abs(total - x) <= REST_DISTANCE_M and abs(u) < 0.05
+                and abs(v) < 0.05):
+            break
+        wanted = min(speed, stopping_speed(left, ends[slow], accel, jerk))
+        behind = TRACKING_LAG_S * v
+        x = s - behind
+        stretch = 1.0 - min(max(behind / MAX_POSITION_ERROR_M, 0.0), 1.0)
+        if (wanted >= speed and abs(v - speed) < 1e-6 and a == 0.0 and abs(u - v) < 1e-4
+                and abs(s - x) < 1e-3):
+            # Cruising, settled: jump to where the braking curve falls below the cruise.
+            brake_at = (speed * speed + speed * b - ends[slow] ** 2) / (2.0 * accel)
+            jump = left - brake_at - 2.0 * speed * dt
+            if jump > speed * dt:
+                t += jump / (speed * stretch)
+                s += jump
+                x += jump
+                times.append(t)
+                distances.append(x)
+                continue
+        a, v, ds = _velocity_step(a, v, wanted, accel * scale[k], jerk * scale[k],
+                                  dt * stretch)
+        s = min(s + ds, total)
+        u = v * stretch
+        x = s - TRACKING_LAG_S * v
+        t += dt
+        times.append(t)
+        distances.append(x)
+        if t > 1e6:
+            raise ArithmeticError(f'PX4 leg of {total:g} m at {speed:g} m/s does not end')
+    return SampledProfile(np.array(times), np.clip(np.array(distances), 0.0, total), t, total,
+                          hold_start)
+
+
+def px4_leg_time(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -> float:
+    """Seconds PX4 moves along ``vertices`` from rest to rest at cruise ``speed_mps``."""
+    return px4_profile(vertices, speed_mps, limits).duration_s
+
+
+def px4_reach_time(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -> float:
+    """Seconds from rest at the first of ``vertices`` into the acceptance radius of the last,
+    at cruise ``speed_mps``: when PX4 reports the leg's end reached."""
+    return px4_profile(vertices, speed_mps, limits).hold_start_s
+
+
+def px4_speed_for_time(vertices: np.ndarray, duration_s: float, max_speed_mps: float,
+                       limits: VehicleLimits) -> float:
+    """The cruise (to 0.005 m/s) that reaches the end of ``vertices`` from rest
+    (:func:`px4_reach_time`) in ``duration_s`` or less; ``max_speed_mps`` when even that is
+    too slow."""
+    steps = max(1, math.ceil(math.log2(max_speed_mps / 0.005)))
+    return slowest_speed_for(lambda speed: px4_reach_time(vertices, speed, limits), duration_s,
+                             max_speed_mps, iterations=steps)
+
+
+__all__ = ['ACCEPTANCE_RADIUS_M', 'SampledProfile', 'corner_speed', 'px4_leg_time',
+           'px4_profile', 'px4_reach_time', 'px4_speed_for_time', 'stopping_speed']
