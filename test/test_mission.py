@@ -191,7 +191,7 @@ def test_a_plan_faster_than_the_vehicle_is_refused_before_any_file(home, tmp_pat
 
 
 def test_a_vehicle_plan_exports_its_own_schedule_for_its_firmware(home, tmp_path):
-    vehicle_plan = plan_for_vehicle(multirotor_case_one(), firmware='px4')
+    vehicle_plan = plan_for_vehicle(multirotor_case_one(), LIMITS['px4'], firmware='px4')
     written(vehicle_plan, tmp_path, home, name='m.plan', firmware='px4')
     with pytest.raises(MissionExportError, match='timed for px4, not ardupilot'):
         export_mission(vehicle_plan, tmp_path / 'm.waypoints', home)
@@ -460,7 +460,7 @@ def test_command_line_writes_a_px4_plan_that_returns_to_launch(tmp_path, capsys)
     status = cli.main(['plan', '--case', 'II', '--speed', '10', '--horizon', '400',
                        '--slots', '100', '--mission', str(target),
                        '--home=-35.363261,149.165230,584', '--mission-end', 'rtl',
-                       '--firmware', 'px4'])
+                       '--firmware', 'px4', '--wp-speed', '10'])
     assert status == 0
     document = json.loads(target.read_text())
     assert document['mission']['firmwareType'] == 12
@@ -496,8 +496,25 @@ def test_px4_exports_a_plan_whose_slots_are_shorter_than_the_merge_radius(tmp_pa
     target = tmp_path / 'm.plan'
     assert cli.main(['plan', '--nodes', '40,60;120,-30;200,50', '--speed', '10', '--slots',
                      '400', '--horizon', '80', '--goal', '250,0', '--mission', str(target),
-                     '--firmware', 'px4']) == 0
+                     '--firmware', 'px4', '--wp-speed', '10']) == 0
     items = json.loads(target.read_text())['mission']['items']
     speeds = [item['params'][1] for item in items if item['command'] == CHANGE_SPEED]
     assert speeds and max(speeds) <= 10.0
     assert 'as the vehicle flies it' in capsys.readouterr().out
+
+
+def test_a_px4_plan_without_limits_takes_px4s_default_limits(tmp_path, capsys):
+    """MPC_XY_CRUISE 5, MPC_ACC_HOR 3, MPC_JERK_AUTO 4 (PX4 v1.16), not ArduCopter's defaults;
+    a file or a flag still beats them."""
+    from uav_comm_planner.mission.request import vehicle_limits
+    from uav_comm_planner.tools import cli
+    px4 = vehicle_limits(firmware='px4')
+    assert (px4.max_speed_mps, px4.max_accel_mpss, px4.max_jerk_mpsss) == (5.0, 3.0, 4.0)
+    assert vehicle_limits({'max_jerk_mpsss': 2.0}, firmware='px4').max_jerk_mpsss == 2.0
+    ardupilot = vehicle_limits(firmware='ardupilot')
+    assert (ardupilot.max_speed_mps, ardupilot.max_accel_mpss) == (10.0, 2.5)
+    assert cli.main(['plan', '--case', 'I', '--speed', '5', '--horizon', '500', '--slots', '100',
+                     '--firmware', 'px4', '--mission', str(tmp_path / 'm.plan')]) == 0
+    out = capsys.readouterr().out
+    assert 'cruise 5 m/s (the waypoint speed' in out
+    assert 'acceleration 3 m/s/s, jerk 4 m/s/s/s' in out

@@ -29,12 +29,13 @@ def vehicle_limits(explicit: Mapping[str, float] | None = None,
                    parameter_file: str | os.PathLike | None = None, *,
                    firmware: str = 'ardupilot') -> VehicleLimits:
     """The vehicle's limits: ``explicit`` values (by :class:`VehicleLimits` field name) over
-    the limits ``parameter_file`` sets for ``firmware`` over the defaults.
+    the limits ``parameter_file`` sets for ``firmware`` over the firmware's defaults
+    (:attr:`~uav_comm_planner.vehicle.firmware.Firmware.default_limits`).
 
     Raises :class:`~uav_comm_planner.errors.InvalidScenarioError` for an unreadable or
     malformed file, an unknown field or an invalid value.
     """
-    limits = VehicleLimits()
+    limits = VehicleLimits.for_firmware(firmware)
     if parameter_file:
         limits = read_parameter_file(parameter_file, firmware=firmware, base=limits)
     limits = replace(limits, **dict(explicit or {}))

@@ -230,7 +230,9 @@ DESCRIPTIONS = {
     'wind_replan_mps': 'replan when the smoothed wind estimate is farther than this from the '
                        'wind of the plan in force (m/s)',
     'vehicle_max_speed_mps': 'waypoint speed of the vehicle (WPNAV_SPEED / 100, MPC_XY_CRUISE; '
-                             'm/s)',
+                             'm/s); a vehicle_* limit not set explicitly comes from '
+                             'vehicle_params_file, else the firmware\'s default (PX4: 5 m/s, '
+                             '3 m/s/s, 4 m/s/s/s)',
     'vehicle_max_accel_mpss': 'waypoint acceleration (WPNAV_ACCEL / 100, MPC_ACC_HOR; m/s/s)',
     'vehicle_max_jerk_mpsss': 'waypoint jerk (WPNAV_JERK, MPC_JERK_AUTO; m/s/s/s)',
     'vehicle_airframe_speed_mps': 'top speed the airframe reaches, if below the waypoint '

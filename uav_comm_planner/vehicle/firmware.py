@@ -35,7 +35,11 @@ class Firmware:
     factor to SI units);
     timing: how its legs are timed, a key of
     :data:`~uav_comm_planner.vehicle.leg_models.LEG_MODELS` (ArduPilot's S-curve planned
-    ahead, or PX4's trajectory generator).
+    ahead, or PX4's trajectory generator);
+    default_limits: the limits (VehicleLimits field -> SI value) the firmware ships with,
+    where they differ from :class:`~uav_comm_planner.vehicle.limits.VehicleLimits`' own
+    (which are ArduCopter's): a plan for this firmware without a parameter file or explicit
+    limits uses them.
     """
 
     autopilot: int
@@ -44,6 +48,7 @@ class Firmware:
     waypoint_yaw: float
     parameters: Mapping[str, tuple[str, float]]
     timing: str
+    default_limits: Mapping[str, float]
 
 
 FIRMWARES = {
@@ -54,14 +59,16 @@ FIRMWARES = {
                     'WPNAV_ACCEL': ('max_accel_mpss', 0.01),
                     'WPNAV_JERK': ('max_jerk_mpsss', 1.0),
                     'ATC_INPUT_TC': ('jerk_time_s', 2.0)},
-        timing='scurve'),
+        timing='scurve', default_limits={}),
     'px4': Firmware(
         autopilot=MAV.MAV_AUTOPILOT_PX4, hold_resolution_s=0.01, max_hold_s=1e9,
         waypoint_yaw=math.nan,
         parameters={'MPC_XY_CRUISE': ('max_speed_mps', 1.0),
                     'MPC_ACC_HOR': ('max_accel_mpss', 1.0),
                     'MPC_JERK_AUTO': ('max_jerk_mpsss', 1.0)},
-        timing='px4'),
+        # PX4 v1.16's MPC_XY_CRUISE, MPC_ACC_HOR and MPC_JERK_AUTO defaults.
+        timing='px4', default_limits={'max_speed_mps': 5.0, 'max_accel_mpss': 3.0,
+                                      'max_jerk_mpsss': 4.0}),
 }
 
 

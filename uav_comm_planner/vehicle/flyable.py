@@ -347,11 +347,12 @@ def flown_result(ideal: PlanResult, schedule: Schedule) -> PlanResult:
         offsets=ideal.offsets)
 
 
-def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits(),
+def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
                      settings: SolverSettings | None = None, *, firmware: str = 'ardupilot',
                      planner: Callable[[Scenario, SolverSettings | None], PlanResult] = plan,
                      ) -> VehiclePlan:
-    """Plan ``scenario`` for a vehicle with ``limits``: the mission and what it delivers.
+    """Plan ``scenario`` for a vehicle with ``limits`` (None: ``firmware``'s defaults,
+    :meth:`VehicleLimits.for_firmware`): the mission and what it delivers.
 
     In wind (``scenario.wind_speed_mps`` > 0) the plan keeps the vehicle's airspeed
     (:attr:`VehicleLimits.airspeed_mps`, unless the scenario gives its own) and every leg is
@@ -369,6 +370,7 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits = VehicleLimits()
     straight line fits the horizon (saying the horizon it needs).
     """
     firmware_named(firmware)                 # an unknown name is refused before any solve
+    limits = VehicleLimits.for_firmware(firmware) if limits is None else limits
     check_speed(scenario, limits)
     scenario = in_wind(scenario, limits)
     first_error = None

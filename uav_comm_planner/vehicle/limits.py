@@ -120,6 +120,11 @@ class VehicleLimits:
         """The fastest the vehicle flies a waypoint leg: min(max_speed, airframe_speed)."""
         return min(self.max_speed_mps, self.airframe_speed_mps)
 
+    @classmethod
+    def for_firmware(cls, firmware: str) -> 'VehicleLimits':
+        """The limits ``firmware`` ships with (ArduCopter's are this class's defaults)."""
+        return cls(**firmware_named(firmware).default_limits)
+
     def describe_cruise(self) -> str:
         if self.airframe_speed_mps < self.max_speed_mps:
             return f'{self.airframe_speed_mps:g} m/s (the airframe\'s top speed)'
