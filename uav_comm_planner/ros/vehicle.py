@@ -6,11 +6,17 @@ A :class:`VehicleAdapter` takes the node (as tf2_ros's TransformListener does): 
 ``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge`,
 whose thread hands positions, mission progress and link events to the executor through an
 :class:`~uav_comm_planner.ros.handoff.ExecutorHandoff`; positions go on to ``on_position``.
+
+Unless the home parameters were set, the vehicle's home (HOME_POSITION) is the planning
+frame's origin: a plan's mission items are built for it before the upload, and a plan made
+before the vehicle told it waits for it. A lost link, a telemetry gap and a mission refused
+for another place are each one line on the log (a loss and a refusal also on
+``planner_status``).
 """
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, Collection
 
 from geometry_msgs.msg import PoseStamped
 import numpy as np
@@ -28,20 +34,24 @@ from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, StreamJob, TargetStream
 from uav_comm_planner.vehicle.mavlink.items import MissionItem, NAV_WAYPOINT, Q0_SEQ
-from uav_comm_planner.vehicle.mavlink.telemetry import (Event, LinkEvent,
-                                                        MissionProgressReport, Position,
+from uav_comm_planner.vehicle.mavlink.telemetry import (Event, HomeReport, LinkEvent,
+                                                        MISSION_MODES, MissionProgressReport,
+                                                        ModeReport, Position,
                                                         TELEMETRY_RATE_HZ, VehicleBridge, Wind)
 from uav_comm_planner.vehicle.stream import resume_item, stream_reference, StreamReference
 
 TOPIC_VEHICLE_POSE = 'vehicle_pose'
+#: The home parameters: set, they anchor the planning frame; else the vehicle's home does.
+HOME_PARAMETERS = frozenset({'home_latitude_deg', 'home_longitude_deg', 'home_altitude_m'})
 #: Link events kept for the executor at most (the oldest go first).
 EVENTS_KEPT = 10_000
 #: Reliable, so that subscribers of either reliability hear the vehicle's pose.
 VEHICLE_POSE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                               durability=DurabilityPolicy.VOLATILE)
 
-#: on_position(time_s, east_m, north_m, up_m): the vehicle's position on the executor.
-PositionCallback = Callable[[float, float, float, float], None]
+#: on_position(time_s, east_m, north_m, up_m): the vehicle's position on the executor; whether
+#: it passed the node's check (an outlier is not published on vehicle_pose).
+PositionCallback = Callable[[float, float, float, float], bool]
 #: report(message, is_error): a line for the node's log.
 Reporter = Callable[[str, bool], None]
 #: Telemetry (and so target) rate with flight_mode stream, per second of autopilot time.
@@ -57,7 +67,11 @@ class VehicleAdapter:
     ``last_error`` is the link's latest error ('' when none; a link error ends when the link is
     up again, a failed upload when an upload is verified).
     ``frame_id`` gives the frame of the poses published on ``vehicle_pose``, a topic that
-    exists only while a link runs.
+    exists only while a link runs. ``mode`` is the vehicle's flight mode (None before its
+    heartbeat), ``speed_mps`` its speed at the latest position, ``home`` the planning frame's
+    origin (None while the vehicle's home is followed and not told yet), ``link_up`` whether
+    the link is up now; ``telemetry_gaps`` counts the gaps said, ``last_gap_s`` the latest's
+    length.
     """
 
     def __init__(self, node: Node, on_position: PositionCallback, report: Reporter, *,
@@ -85,6 +99,20 @@ class VehicleAdapter:
         self.uploads_verified = 0
         self.last_error = ''
         self._upload_failed = False
+        self.mode: str | None = None
+        self.speed_mps = float('nan')
+        self.home: Home | None = None
+        self.link_up = False
+        self._held: PlanOutcome | None = None
+        #: Telemetry gaps said so far, and the latest one's length (autopilot seconds).
+        self.telemetry_gaps = 0
+        self.last_gap_s = 0.0
+
+    @property
+    def flying_mission(self) -> bool:
+        """Whether the vehicle's mode flies the mission or the node's targets (AUTO or
+        GUIDED; PX4's MISSION or OFFBOARD)."""
+        return self.mode in MISSION_MODES
 
     @property
     def linked(self) -> bool:
@@ -98,32 +126,46 @@ class VehicleAdapter:
         """Seconds on the node's clock since the latest position (None before any)."""
         return None if self._position_ns is None else (now_ns - self._position_ns) / 1e9
 
-    def connect(self, output: NodeSettings) -> None:
-        """(Re)start the link for ``output.mavlink_url``; stop it when the URL is empty."""
+    def connect(self, output: NodeSettings, explicit: Collection[str] = ()) -> None:
+        """(Re)start the link for ``output.mavlink_url``; stop it when the URL is empty. The
+        vehicle's home is the planning frame's origin unless a home parameter is among the
+        parameters set ``explicit``; then ``output.home`` is."""
+        follow_home = not HOME_PARAMETERS & set(explicit)
         self.stop()
-        self.time_s = self._position_ns = None
+        self.time_s = self._position_ns = self.mode = self._held = None
         self.last_error = ''
-        self._upload_failed = False
+        self._upload_failed = self.link_up = False
+        self.home = None if follow_home else output.home
         if output.mavlink_url:
             self._pose = self._node.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE,
                                                      VEHICLE_POSE_QOS)
             self.stream = TargetStream(output.home, self._events.put)
             rate = (STREAM_TELEMETRY_RATE_HZ if output.flight_mode == 'stream'
                     else TELEMETRY_RATE_HZ)
-            self._bridge = VehicleBridge(output.mavlink_url, output.home, self._events.put,
-                                         rate_hz=rate, stream=self.stream)
-            self._report(f'vehicle link: connecting to {output.mavlink_url}', False)
+            self._bridge = VehicleBridge(output.mavlink_url, self.home, self._events.put,
+                                         rate_hz=rate, stream=self.stream,
+                                         home_limit_m=output.home_distance_limit_m)
+            origin = "the vehicle's home" if follow_home else 'the home parameters'
+            self._report(f'vehicle link: connecting to {output.mavlink_url} (planning frame '
+                         f'origin: {origin})', False)
 
     def upload(self, outcome: PlanOutcome) -> None:
         """Put the plan's mission items on the vehicle; a plan made in flight is flown from
         its q0 item."""
         plan = outcome.plan
+        self._pending_tag = outcome.request.start_ns
+        if self.home is None:
+            self._held = outcome            # uploaded once the vehicle tells its home
+            return
+        request = plan.request
+        if request.home != self.home:
+            plan = plan.for_output(home=self.home, end=request.end, firmware=request.firmware)
         if plan.items is None:
+            self._pending_tag = None
             self._report(f'mission upload skipped, the plan cannot be flown: '
                          f'{plan.items_error}', True)
             return
         in_flight = plan.request.in_flight is not None
-        self._pending_tag = outcome.request.start_ns
         self._bridge.upload(plan.items, current_seq=Q0_SEQ if in_flight else None,
                             tag=outcome.request.start_ns)
 
@@ -203,11 +245,17 @@ class VehicleAdapter:
         for event in events:
             if isinstance(event, Position):
                 self.time_s = event.time_s
+                self.speed_mps = event.speed_mps
                 self._position_ns = self._node.get_clock().now().nanoseconds
-                self._publish_pose(event)
-                self._on_position(event.time_s, event.east_m, event.north_m, event.up_m)
+                if self._on_position(event.time_s, event.east_m, event.north_m, event.up_m):
+                    self._publish_pose(event)
             elif isinstance(event, MissionProgressReport):
                 self.mission_item = event.seq
+            elif isinstance(event, ModeReport):
+                self.mode = event.mode
+                self._node.get_logger().info(f'vehicle mode {event.mode}')
+            elif isinstance(event, HomeReport):
+                self._on_home(event)
             elif isinstance(event, LinkEvent):
                 self._on_link_event(event)
             elif isinstance(event, Wind):
@@ -217,7 +265,29 @@ class VehicleAdapter:
                 self.stream_events.append(event.message)
                 self._report(event.message, event.kind == 'error')
 
+    def _on_home(self, event: HomeReport) -> None:
+        home = event.home
+        where = f'({home.latitude_deg:.7f}, {home.longitude_deg:.7f}, {home.altitude_m:.1f} m)'
+        if not event.adopted:
+            self._node.get_logger().info(f'vehicle home {where}')
+            return
+        self.home = home
+        self._node.get_logger().info(f"planning frame origin: the vehicle's home {where}")
+        held, self._held = self._held, None
+        if held is not None:
+            self.upload(held)
+
     def _on_link_event(self, event: LinkEvent) -> None:
+        if event.kind == 'gap':
+            self.telemetry_gaps += 1
+            self.last_gap_s = event.seconds
+            self._node.get_logger().warning(event.message)
+            return
+        if event.kind == 'lost':
+            self.link_up = False
+            self.last_error = event.message
+            self._report(event.message, True)
+            return
         if event.kind == 'error':
             if event.tag is not None and event.tag == self._pending_tag:
                 self._pending_tag = None
@@ -227,6 +297,8 @@ class VehicleAdapter:
             return
         # A verified upload ends any error; the link up again ends a link error, not a failed
         # upload (the plan in force is still not on the vehicle).
+        if event.kind == 'connected':
+            self.link_up = True
         if event.kind == 'uploaded' or (event.kind == 'connected' and not self._upload_failed):
             self.last_error = ''
             self._upload_failed = False
@@ -255,4 +327,4 @@ def _enu(item: MissionItem, home: Home) -> np.ndarray:
     return np.array([float(east[0]), float(north[0])])
 
 
-__all__ = ['TOPIC_VEHICLE_POSE', 'VEHICLE_POSE_QOS', 'VehicleAdapter']
+__all__ = ['HOME_PARAMETERS', 'TOPIC_VEHICLE_POSE', 'VEHICLE_POSE_QOS', 'VehicleAdapter']
