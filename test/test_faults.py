@@ -93,7 +93,7 @@ def test_a_silent_link_is_found_within_3_s_and_the_gap_is_said():
             bridge.stop()
     (lost_at, lost), = events.links('lost')
     print(f'silence found {lost_at - quiet_at:.2f} s after the vehicle went quiet')
-    assert SILENCE_S <= lost_at - quiet_at < 3.0
+    assert SILENCE_S - 0.1 <= lost_at - quiet_at < 3.0     # heard last just before quiet
     assert 'nothing heard from the vehicle' in lost.message
     (_, gap), = events.links('gap')
     assert gap.seconds >= SILENCE_S and 'the link was down' in gap.message

@@ -29,15 +29,16 @@ from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.ros.handoff import ExecutorHandoff
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.ros.planning import PlanOutcome
+from uav_comm_planner.ros.vehicle_state import VehicleState
 from uav_comm_planner.ros.wind import WindTracker
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, StreamJob, TargetStream
 from uav_comm_planner.vehicle.mavlink.items import MissionItem, NAV_WAYPOINT, Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.telemetry import (Event, HomeReport, LinkEvent,
-                                                        MISSION_MODES, MissionProgressReport,
-                                                        ModeReport, Position,
-                                                        TELEMETRY_RATE_HZ, VehicleBridge, Wind)
+                                                        MissionProgressReport, ModeReport,
+                                                        Position, TELEMETRY_RATE_HZ,
+                                                        VehicleBridge, Wind)
 from uav_comm_planner.vehicle.stream import resume_item, stream_reference, StreamReference
 
 TOPIC_VEHICLE_POSE = 'vehicle_pose'
@@ -58,7 +59,7 @@ Reporter = Callable[[str, bool], None]
 STREAM_TELEMETRY_RATE_HZ = 20.0
 
 
-class VehicleAdapter:
+class VehicleAdapter(VehicleState):
     """The vehicle link of ``node``, (re)made by :meth:`connect` from the node settings.
 
     ``time_s`` is the vehicle's time of its latest position (None before any);
@@ -67,11 +68,7 @@ class VehicleAdapter:
     ``last_error`` is the link's latest error ('' when none; a link error ends when the link is
     up again, a failed upload when an upload is verified).
     ``frame_id`` gives the frame of the poses published on ``vehicle_pose``, a topic that
-    exists only while a link runs. ``mode`` is the vehicle's flight mode (None before its
-    heartbeat), ``speed_mps`` its speed at the latest position, ``home`` the planning frame's
-    origin (None while the vehicle's home is followed and not told yet), ``link_up`` whether
-    the link is up now; ``telemetry_gaps`` counts the gaps said, ``last_gap_s`` the latest's
-    length.
+    exists only while a link runs; mode, speed, home, link state: :class:`VehicleState`.
     """
 
     def __init__(self, node: Node, on_position: PositionCallback, report: Reporter, *,
@@ -99,20 +96,7 @@ class VehicleAdapter:
         self.uploads_verified = 0
         self.last_error = ''
         self._upload_failed = False
-        self.mode: str | None = None
-        self.speed_mps = float('nan')
-        self.home: Home | None = None
-        self.link_up = False
-        self._held: PlanOutcome | None = None
-        #: Telemetry gaps said so far, and the latest one's length (autopilot seconds).
-        self.telemetry_gaps = 0
-        self.last_gap_s = 0.0
-
-    @property
-    def flying_mission(self) -> bool:
-        """Whether the vehicle's mode flies the mission or the node's targets (AUTO or
-        GUIDED; PX4's MISSION or OFFBOARD)."""
-        return self.mode in MISSION_MODES
+        self._reset_state(None)
 
     @property
     def linked(self) -> bool:
@@ -127,15 +111,14 @@ class VehicleAdapter:
         return None if self._position_ns is None else (now_ns - self._position_ns) / 1e9
 
     def connect(self, output: NodeSettings, explicit: Collection[str] = ()) -> None:
-        """(Re)start the link for ``output.mavlink_url``; stop it when the URL is empty. The
-        vehicle's home is the planning frame's origin unless a home parameter is among the
-        parameters set ``explicit``; then ``output.home`` is."""
+        """(Re)start the link for ``output.mavlink_url`` (none when empty); the frame's origin
+        is the vehicle's home unless a home parameter is among those set ``explicit``."""
         follow_home = not HOME_PARAMETERS & set(explicit)
         self.stop()
-        self.time_s = self._position_ns = self.mode = self._held = None
+        self.time_s = self._position_ns = None
         self.last_error = ''
-        self._upload_failed = self.link_up = False
-        self.home = None if follow_home else output.home
+        self._upload_failed = False
+        self._reset_state(None if follow_home else output.home)
         if output.mavlink_url:
             self._pose = self._node.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE,
                                                      VEHICLE_POSE_QOS)
@@ -148,26 +131,6 @@ class VehicleAdapter:
             origin = "the vehicle's home" if follow_home else 'the home parameters'
             self._report(f'vehicle link: connecting to {output.mavlink_url} (planning frame '
                          f'origin: {origin})', False)
-
-    def upload(self, outcome: PlanOutcome) -> None:
-        """Put the plan's mission items on the vehicle; a plan made in flight is flown from
-        its q0 item."""
-        plan = outcome.plan
-        self._pending_tag = outcome.request.start_ns
-        if self.home is None:
-            self._held = outcome            # uploaded once the vehicle tells its home
-            return
-        request = plan.request
-        if request.home != self.home:
-            plan = plan.for_output(home=self.home, end=request.end, firmware=request.firmware)
-        if plan.items is None:
-            self._pending_tag = None
-            self._report(f'mission upload skipped, the plan cannot be flown: '
-                         f'{plan.items_error}', True)
-            return
-        in_flight = plan.request.in_flight is not None
-        self._bridge.upload(plan.items, current_seq=Q0_SEQ if in_flight else None,
-                            tag=outcome.request.start_ns)
 
     @property
     def stream_reference(self) -> StreamReference | None:
@@ -252,8 +215,7 @@ class VehicleAdapter:
             elif isinstance(event, MissionProgressReport):
                 self.mission_item = event.seq
             elif isinstance(event, ModeReport):
-                self.mode = event.mode
-                self._node.get_logger().info(f'vehicle mode {event.mode}')
+                self._on_mode(event)
             elif isinstance(event, HomeReport):
                 self._on_home(event)
             elif isinstance(event, LinkEvent):
@@ -265,28 +227,8 @@ class VehicleAdapter:
                 self.stream_events.append(event.message)
                 self._report(event.message, event.kind == 'error')
 
-    def _on_home(self, event: HomeReport) -> None:
-        home = event.home
-        where = f'({home.latitude_deg:.7f}, {home.longitude_deg:.7f}, {home.altitude_m:.1f} m)'
-        if not event.adopted:
-            self._node.get_logger().info(f'vehicle home {where}')
-            return
-        self.home = home
-        self._node.get_logger().info(f"planning frame origin: the vehicle's home {where}")
-        held, self._held = self._held, None
-        if held is not None:
-            self.upload(held)
-
     def _on_link_event(self, event: LinkEvent) -> None:
-        if event.kind == 'gap':
-            self.telemetry_gaps += 1
-            self.last_gap_s = event.seconds
-            self._node.get_logger().warning(event.message)
-            return
-        if event.kind == 'lost':
-            self.link_up = False
-            self.last_error = event.message
-            self._report(event.message, True)
+        if self._on_fault(event):
             return
         if event.kind == 'error':
             if event.tag is not None and event.tag == self._pending_tag:
@@ -297,8 +239,6 @@ class VehicleAdapter:
             return
         # A verified upload ends any error; the link up again ends a link error, not a failed
         # upload (the plan in force is still not on the vehicle).
-        if event.kind == 'connected':
-            self.link_up = True
         if event.kind == 'uploaded' or (event.kind == 'connected' and not self._upload_failed):
             self.last_error = ''
             self._upload_failed = False

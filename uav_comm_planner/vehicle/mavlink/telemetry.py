@@ -43,7 +43,7 @@ from pymavlink import mavutil
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, TargetStream
-from uav_comm_planner.vehicle.mavlink.home import (distance_m, HOME_DISTANCE_LIMIT_M, home_of,
+from uav_comm_planner.vehicle.mavlink.home import (HOME_DISTANCE_LIMIT_M, home_of,
                                                    mission_far_from_vehicle, position_of,
                                                    request_home)
 from uav_comm_planner.vehicle.mavlink.items import DEGREES_E7, MissionItem
@@ -357,9 +357,7 @@ class VehicleBridge:
 
     def _heard_home(self, message) -> None:
         home = home_of(message)
-        if home is None or (self.vehicle_home is not None and distance_m(
-                (home.latitude_deg, home.longitude_deg),
-                (self.vehicle_home.latitude_deg, self.vehicle_home.longitude_deg)) < 0.5):
+        if home is None or home == self.vehicle_home:
             return
         self.vehicle_home = home
         adopted = self.home is None
@@ -370,8 +368,7 @@ class VehicleBridge:
         self._on_event(HomeReport(home, adopted))
 
     def _next_job(self) -> _Upload | None:
-        """The waiting upload, once the vehicle has told where it is (its home or position)
-        so that its mission can be checked."""
+        """The waiting upload, once the vehicle has told its home or position (the check)."""
         known = self.vehicle_home is not None or self._vehicle_position is not None
         if not (known or math.isinf(self._home_limit_m)):
             return None
