@@ -275,7 +275,8 @@ def test_a_33_m_gps_glitch_for_0_2_s_replans_nothing(flight):
             set_glitch(link, GLITCH_M)
         elif 'at' in glitch and 'off' not in glitch and recorder.raw \
                 and recorder.raw[-1][1] - recorder.rows[-1][2] > GLITCH_M / 2:
-            # Cleared at the first glitched fix: the GPS (5 Hz) sends one fix off, 0.2 s.
+            # Cleared at the first glitched fix seen: one fix of the 5 Hz GPS off (0.2 s), or
+            # two when the test's telemetry lags the autopilot on a loaded machine.
             glitch['off'] = now
             set_glitch(link, 0.0)
     recorder = f.fly(during)
