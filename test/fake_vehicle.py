@@ -15,6 +15,11 @@ It listens on a free TCP port (``url``), takes one connection at a time and, by 
 - ``slow``: the mission protocol done right, each answer ``delay_s`` late;
 - ``garbage``: heartbeats among seeded random bytes and random MAVLink messages, answering
   mission messages with random seqs, counts and results.
+
+Every behaviour that answers tells its ``home`` (HOME_POSITION) when asked. With
+``positions`` it also sends GLOBAL_POSITION_INT at home at 10 Hz (its boot time is the wall
+clock since it started). :meth:`hang_up` closes the connection it serves (the link sees EOF);
+while ``quiet`` is set it sends nothing and answers nothing (a silent link).
 """
 
 from __future__ import annotations
@@ -35,10 +40,18 @@ HEARTBEAT_S = 0.1
 class FakeVehicle:
     """A vehicle on ``url`` (module docstring); :meth:`close` stops it and joins its thread."""
 
-    def __init__(self, behaviour: str = 'good', *, seed: int = 0, delay_s: float = 0.3) -> None:
+    def __init__(self, behaviour: str = 'good', *, seed: int = 0, delay_s: float = 0.3,
+                 home: tuple[float, float, float] = (47.0, 8.0, 400.0),
+                 positions: bool = False) -> None:
         if behaviour not in BEHAVIOURS:
             raise ValueError(f'unknown behaviour {behaviour!r}')
         self.behaviour = behaviour
+        self.home = home
+        self.positions = positions
+        self.quiet = False
+        self.connections = 0
+        self._hang_up = threading.Event()
+        self._booted = time.monotonic()
         self.delay_s = delay_s
         self.random = random.Random(seed)
         self.stored: list = []
@@ -63,6 +76,10 @@ class FakeVehicle:
     def url(self) -> str:
         return f'tcp:127.0.0.1:{self.port}'
 
+    def hang_up(self) -> None:
+        """Close the connection being served (the next one is served as before)."""
+        self._hang_up.set()
+
     def close(self) -> None:
         self._stop.set()
         self._thread.join(5.0)
@@ -80,6 +97,8 @@ class FakeVehicle:
                 connection, _ = self._server.accept()
             except (socket.timeout, OSError):
                 continue
+            self.connections += 1
+            self._hang_up.clear()
             with connection:
                 connection.settimeout(0.02)
                 try:
@@ -92,9 +111,21 @@ class FakeVehicle:
         mav.robust_parsing = True
         self._mav, self._connection = mav, connection
         self._expected = 0
-        next_beat = 0.0
-        while not self._stop.is_set():
+        next_beat = next_position = 0.0
+        while not self._stop.is_set() and not self._hang_up.is_set():
             now = time.monotonic()
+            if self.quiet:
+                try:
+                    connection.recv(4096)       # read and dropped
+                except socket.timeout:
+                    pass
+                continue
+            if self.positions and now >= next_position:
+                latitude, longitude, altitude = self.home
+                self._send(mav.global_position_int_encode(
+                    int((now - self._booted) * 1000), round(latitude * 1e7),
+                    round(longitude * 1e7), round(altitude * 1000), 10_000, 0, 0, 0, 0))
+                next_position = now + 0.1
             if self.behaviour != 'mute' and now >= next_beat:
                 self._send(mav.heartbeat_encode(MAV.MAV_TYPE_QUADROTOR,
                                                 MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 0))
@@ -145,7 +176,15 @@ class FakeVehicle:
                 self._garbage()
             return
         mav = self._mav
-        if kind == 'MISSION_COUNT':
+        if kind == 'COMMAND_LONG' and (
+                message.command == MAV.MAV_CMD_GET_HOME_POSITION
+                or (message.command == MAV.MAV_CMD_REQUEST_MESSAGE
+                    and int(message.param1) == MAV.MAVLINK_MSG_ID_HOME_POSITION)):
+            latitude, longitude, altitude = self.home
+            self._send(mav.home_position_encode(round(latitude * 1e7), round(longitude * 1e7),
+                                                round(altitude * 1000), 0, 0, 0,
+                                                [1, 0, 0, 0], 0, 0, 0))
+        elif kind == 'MISSION_COUNT':
             if behaviour == 'wrong_ack':
                 refusals = [r for r in MAV.enums['MAV_MISSION_RESULT'] if r != 0]
                 self._send(mav.mission_ack_encode(255, 0, self.random.choice(refusals), 0))

@@ -33,6 +33,10 @@ class InvalidLinkUrlError(VehicleLinkError, ValueError):
     """A vehicle link URL that is not one the planner opens (scheme, host, port, device)."""
 
 
+class MissionTooFarError(VehicleLinkError):
+    """A mission whose home or first waypoint is too far from the vehicle to be its mission."""
+
+
 class ComputeBudgetError(InvalidScenarioError):
     """A problem larger than the compute budget (nodes x slots) was refused before any work."""
 

@@ -27,6 +27,7 @@ Notation: p (N, k) watts, positions (k, 2) metres, D (N,) bits.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 from typing import Callable, Sequence
 
 import numpy as np
@@ -143,6 +144,34 @@ def rest_of_mission(mission: Scenario, position_m: Sequence[float],
                            horizon_s=remaining * mission.slot_s, power_budget_w=budget_left)
 
 
+def lengthened(mission: Scenario, position_m: Sequence[float], flown: FlownSlots, *,
+               extra_slots: int = 0) -> Scenario:
+    """``mission`` with the fewest more slots of its delta that let its rest reach qF from
+    ``position_m`` after the slots ``flown`` at the speed limit (the straight line at the
+    fastest ground speed towards qF), plus ``extra_slots``; ``mission`` itself when its rest
+    reaches qF already and no extra slot is asked. A mission that cannot keep qF in time is
+    promised over a longer horizon (its whole-mission rates averaged over it) instead of
+    being refused; but never lengthened by more than its own slots at once (qF farther than
+    that stays refused by :func:`rest_of_mission`, goal unreachable)."""
+    remaining = mission.num_slots - flown.num_slots
+    distance = math.dist(position_m, mission.goal_m)
+    needed = 1
+    if distance > 0.0:
+        direction = (np.asarray(mission.goal_m, float) - np.asarray(position_m, float)) / distance
+        fastest = mission.fastest_ground_speed_mps(direction)
+        if fastest > 0.0:
+            # The rest of M' slots flies M' + 1 legs of delta seconds (the scenario's check).
+            step = fastest * mission.slot_s
+            needed = max(math.ceil(distance / step) - 1, 1)
+            while distance > (needed + 1) * step * (1 + 1e-12):
+                needed += 1
+    extra = max(needed - remaining, 0) + extra_slots
+    if extra == 0 or remaining < 1 or extra > mission.num_slots:
+        return mission
+    slots = mission.num_slots + extra
+    return mission.replace(num_slots=slots, horizon_s=slots * mission.slot_s)
+
+
 @dataclass(frozen=True)
 class RecedingPlan:
     """A replan of the rest of a mission and what it promises for the whole mission.
@@ -246,5 +275,6 @@ def mission_rates_flown(mission: Scenario, power_w: np.ndarray,
 
 
 __all__ = ['PREVIOUS_PLAN_START', 'FlownSlots', 'RecedingPlan', 'RecedingProblem',
-           'delivered_bits', 'mission_rates_flown', 'power_for_nodes', 'receding_problem',
+           'delivered_bits', 'lengthened', 'mission_rates_flown', 'power_for_nodes',
+           'receding_problem',
            'replan', 'rest_of_mission']

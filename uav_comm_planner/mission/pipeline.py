@@ -5,7 +5,9 @@ call, so that the same request gives the same plan and the same items on either 
 
 1. the optimiser (the core's :func:`~uav_comm_planner.core.optimizer.plan`, or any function
    of the same signature) plans the whole mission, or the rest of a mission in flight by the
-   receding horizon (:mod:`uav_comm_planner.core.receding`);
+   receding horizon (:mod:`uav_comm_planner.core.receding`); a rest that cannot keep qF in
+   time is lengthened by whole slots until it can (the mission's promise slows, stated over
+   the longer horizon, instead of the replan being refused);
 2. for a vehicle-aware request, :func:`~uav_comm_planner.vehicle.flyable.plan_for_vehicle`
    times it for the vehicle and the plan returned is the plan as flown;
 3. the mission items are built from that plan, once; writing a mission file or uploading it
@@ -15,14 +17,15 @@ call, so that the same request gives the same plan and the same items on either 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+import math
 import os
 from pathlib import Path
 from typing import Callable
 
 from uav_comm_planner.core.optimizer import plan, PlanResult
-from uav_comm_planner.core.receding import receding_problem, RecedingPlan
+from uav_comm_planner.core.receding import lengthened, receding_problem, RecedingPlan
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
-from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.errors import InfeasibleHorizonError, PlannerError
 from uav_comm_planner.files import OutputFolder
 from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
@@ -94,28 +97,55 @@ def plan_mission(request: MissionRequest, *, planner: Planner = plan,
     """Plan ``request`` (module docstring); ``should_stop`` is passed on to the planner, which
     asks it between steps. Raises the planner's errors
     (:class:`~uav_comm_planner.errors.PlannerError` and its subclasses)."""
-    scenario = request.planned_scenario
-    receding = None
-    problem = None
-    options: dict = {'should_stop': should_stop}
-    if request.in_flight is not None:
-        rest = request.in_flight
-        problem = receding_problem(scenario, rest.position_m, rest.flown,
-                                   previous_q=rest.previous_q)
-        scenario = problem.rest
-        options.update(problem.plan_options)
-    optimiser = _bound(planner, **options)
-    vehicle_plan = None
-    if request.vehicle_aware:
-        vehicle_plan = plan_for_vehicle(scenario, request.vehicle, request.settings,
-                                        firmware=request.firmware, planner=optimiser)
-        result = vehicle_plan.flown
+    if request.in_flight is None:
+        result, vehicle_plan = _plan_scenario(request, request.planned_scenario, planner,
+                                              {'should_stop': should_stop})
+        receding = None
     else:
-        result = optimiser(scenario, request.settings)
-    if problem is not None:
-        receding = problem.outcome(result)
+        result, vehicle_plan, receding = _plan_rest(request, planner, should_stop)
     items = _items(request, vehicle_plan or result) if request.items else {}
     return MissionPlan(request, result, vehicle_plan, receding, **items)
+
+
+#: A rest the vehicle cannot fly in time is lengthened this many times at most, each time by
+#: a tenth of its slots (at least one) more.
+LENGTHEN_ATTEMPTS = 5
+
+
+def _plan_scenario(request: MissionRequest, scenario: Scenario, planner: Planner,
+                   options: dict) -> tuple[PlanResult, VehiclePlan | None]:
+    optimiser = _bound(planner, **options)
+    if not request.vehicle_aware:
+        return optimiser(scenario, request.settings), None
+    vehicle_plan = plan_for_vehicle(scenario, request.vehicle, request.settings,
+                                    firmware=request.firmware, planner=optimiser)
+    return vehicle_plan.flown, vehicle_plan
+
+
+def _plan_rest(request: MissionRequest, planner: Planner,
+               should_stop: Callable[[], bool] | None
+               ) -> tuple[PlanResult, VehiclePlan | None, RecedingPlan]:
+    """The rest of a mission in flight; when qF cannot be kept in time (by the speed limit,
+    or by the vehicle's timing), the mission is lengthened by whole slots until it can, and
+    the plan promises the whole mission over that longer horizon."""
+    rest = request.in_flight
+    mission = lengthened(rest.mission(request.planned_scenario), rest.position_m, rest.flown)
+    attempts = 0
+    while True:
+        problem = receding_problem(mission, rest.position_m, rest.flown,
+                                   previous_q=rest.previous_q)
+        try:
+            result, vehicle_plan = _plan_scenario(
+                request, problem.rest, planner,
+                {'should_stop': should_stop, **problem.plan_options})
+        except InfeasibleHorizonError:
+            attempts += 1
+            if attempts > LENGTHEN_ATTEMPTS:
+                raise
+            more = max(1, math.ceil(problem.rest.num_slots / 10))
+            mission = lengthened(mission, rest.position_m, rest.flown, extra_slots=more)
+            continue
+        return result, vehicle_plan, problem.outcome(result)
 
 
 def _items(request: MissionRequest, planned: VehiclePlan | PlanResult) -> dict:

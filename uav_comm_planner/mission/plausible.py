@@ -22,8 +22,10 @@ from uav_comm_planner.core.scenario import MAX_COORDINATE_M
 MAX_HEIGHT_M = 100_000.0
 #: The UAV may be reported this much faster than its top ground speed (gusts, estimate lag).
 SPEED_MARGIN = 2.0
-#: Position noise allowed between two samples whatever their time apart, metres.
-POSITION_NOISE_M = 50.0
+#: Position noise allowed between two samples whatever their time apart, metres: an
+#: autopilot's fused estimate moves by centimetres between its 10 Hz samples, so a jump of a
+#: glitching GPS fix (tens of metres) stands out.
+POSITION_NOISE_M = 10.0
 #: Samples in a row, consistent with each other, that confirm a jump of the position.
 CONFIRMING_SAMPLES = 3
 

@@ -94,7 +94,8 @@ class InFlight:
     mission's nodes); previous_q: (M - k, 2) metres, the rest of the plan in force, one more
     start; mission_id and segment: which mission, and which of its plans
     (:attr:`~uav_comm_planner.mission.progress.MissionProgress.segments`) was in force, cut
-    after ``slots_kept`` of its slots when the replan takes over.
+    after ``slots_kept`` of its slots when the replan takes over; mission_slots: the
+    mission's slots so far when an earlier replan lengthened it (0: the scenario's own).
     """
 
     position_m: tuple[float, float]
@@ -103,6 +104,18 @@ class InFlight:
     mission_id: int
     segment: int
     slots_kept: int
+    mission_slots: int = 0
+
+    def mission(self, scenario: Scenario) -> Scenario:
+        """``scenario`` as long as the mission in flight is (lengthened by earlier replans)."""
+        return with_slots(scenario, self.mission_slots)
+
+
+def with_slots(scenario: Scenario, slots: int) -> Scenario:
+    """``scenario`` lengthened to ``slots`` slots of its delta; itself when it has as many."""
+    if slots <= scenario.num_slots:
+        return scenario
+    return scenario.replace(num_slots=slots, horizon_s=slots * scenario.slot_s)
 
 
 @dataclass(frozen=True)

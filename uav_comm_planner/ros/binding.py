@@ -38,6 +38,12 @@ class ParameterBinding:
         node.add_on_set_parameters_callback(self._check)
         node.add_post_set_parameters_callback(self._changed)
 
+    @property
+    def explicit(self) -> frozenset[str]:
+        """The parameters set explicitly: given at start-up (other than the default) or set
+        since."""
+        return frozenset(self._explicit)
+
     def _values(self, changes: Sequence[Parameter] = ()) -> dict[str, object]:
         values = {name: self._node.get_parameter(name).value for name in self._names}
         values.update({p.name: p.value for p in changes if p.name in self._names})

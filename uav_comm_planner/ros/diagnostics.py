@@ -11,7 +11,8 @@ vehicle:
   stays in force, ERROR when there is none); the values carry the numbers (min throughput,
   baselines, slots, the coarse-slot figures, the full reason of the last refusal);
 - ``vehicle link``: off without ``mavlink_url``; else the telemetry's age, the mission item,
-  the uploads verified, the last link error;
+  the uploads verified, the last link error (ERROR while the link is down), whether the link
+  is up, the vehicle's mode, the telemetry gaps said and the planning frame's origin;
 - ``mission clock``: waiting for the UAV at q0, running (slot, time left) or over.
 
 A message is one line and is never shortened: the reason of a refusal ends with its fix.
@@ -154,7 +155,10 @@ class NodeDiagnostics:
         values = {'mavlink_url': url, 'uploads_verified': vehicle.uploads_verified,
                   'upload_pending': vehicle.upload_pending,
                   'mission_item': '' if vehicle.mission_item is None else vehicle.mission_item,
-                  'last_error': vehicle.last_error}
+                  'last_error': vehicle.last_error, 'link_up': vehicle.link_up,
+                  'mode': vehicle.mode or '', 'telemetry_gaps': vehicle.telemetry_gaps,
+                  'frame_origin': '' if vehicle.home is None else
+                  f'{vehicle.home.latitude_deg:.7f}, {vehicle.home.longitude_deg:.7f}'}
         age_s = vehicle.telemetry_age_s(node.now_ns())
         if age_s is not None:
             values['telemetry_age_s'] = f'{age_s:.3f}'

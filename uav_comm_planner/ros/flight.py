@@ -3,10 +3,14 @@
 A :class:`MissionFlight` takes the node (as tf2_ros's TransformListener does) and keeps the
 mission's :class:`~uav_comm_planner.mission.progress.MissionProgress` and the UAV's
 :class:`~uav_comm_planner.mission.progress.PoseTrack`. The mission clock starts when the UAV
-reaches the plan's q0 (within :data:`START_RADIUS_M`, with a link only once the plan is
-uploaded) or on ``~/start``. While it runs, new inputs replan the rest of the mission from the
-UAV's position (the receding horizon), and a position off the plan does too, within the
-``replan_*`` parameters' limits.
+reaches the plan's q0 (within :data:`START_RADIUS_M`) or on ``~/start``; with a link, only
+once the plan is uploaded, from the vehicle's telemetry, when the vehicle holds q0: within
+:data:`START_RADIUS_M` of it and :data:`START_HEIGHT_M` of the planned altitude, slower than
+:data:`HOLD_SPEED_MPS`, in a mode that flies the mission (AUTO or GUIDED; never during the
+climb, never in BRAKE or LOITER). While it runs, new inputs replan the rest of the mission
+from the UAV's position (the receding horizon), and a position off the plan does too, within
+the ``replan_*`` parameters' limits, once the UAV has been off the plan for
+:data:`OFF_PLAN_CONFIRM_S` (a short glitch of the position estimate never replans).
 """
 
 from __future__ import annotations
@@ -17,12 +21,12 @@ from typing import Protocol
 
 import numpy as np
 
-from uav_comm_planner.core.receding import rest_of_mission
+from uav_comm_planner.core.receding import lengthened, rest_of_mission
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.mission.plausible import PositionGate
 from uav_comm_planner.mission.progress import (MissionProgress, off_plan, planned_position,
                                                PoseTrack)
-from uav_comm_planner.mission.request import InFlight
+from uav_comm_planner.mission.request import InFlight, with_slots
 from uav_comm_planner.ros.messages import nodes_text
 from uav_comm_planner.ros.params import PlannerConfig
 from uav_comm_planner.ros.planning import PlanOutcome
@@ -31,8 +35,17 @@ from uav_comm_planner.ros.vehicle import VehicleAdapter
 #: The UAV is at q0, and the mission clock starts, within this distance of it (metres);
 #: ArduCopter counts a waypoint reached within WPNAV_RADIUS, 2 m by default.
 START_RADIUS_M = 2.5
+#: With a link, the vehicle holds q0 within this height of the planned altitude (metres)...
+START_HEIGHT_M = 1.0
+#: ... and slower than this (m/s, vertical speed included).
+HOLD_SPEED_MPS = 0.5
+#: The source name of the vehicle's telemetry.
+SOURCE_TELEMETRY = 'vehicle'
 #: A source's refused positions are reported at most once in this many seconds (wall clock).
 REFUSAL_REPORT_S = 1.0
+#: Samples off the plan replan only once the last sample on it is this old (mission clock
+#: seconds): a stream must stay off the plan this long, a lone pose replans at once.
+OFF_PLAN_CONFIRM_S = 1.0
 
 
 class FlightHost(Protocol):
@@ -63,24 +76,27 @@ class MissionFlight:
         self._unreported: dict[str, int] = {}
         self._reported_at: dict[str, float] = {}
         self._last_pose_replan_s = -math.inf
+        self._on_plan_s = -math.inf
 
     def on_position(self, time_s: float, x_m: float, y_m: float, *, source: str,
-                    height_m: float | None = None) -> None:
+                    height_m: float | None = None) -> bool:
         """The UAV at (x, y) metres (``height_m`` above the ground, when known) at ``time_s``
         on the mission clock's time base: starts the clock at q0, replans when off the plan.
 
         Every sample passes the plausibility check (:mod:`uav_comm_planner.mission.plausible`)
         first; a refused one never reaches the track nor the clock and is reported in one
         line (at most once every :data:`REFUSAL_REPORT_S` per source, with the count). No
-        error of a sample ends the node: it is refused with its reason."""
+        error of a sample ends the node: it is refused with its reason. Returns whether the
+        sample passed the check."""
         reason = self.gate.check((time_s, x_m, y_m), self._top_speed_mps(), height_m)
         if reason is not None:
             self._refuse_position(source, reason)
-            return
+            return False
         try:
             self._take_position(time_s, x_m, y_m, source=source, height_m=height_m)
         except (PlannerError, ArithmeticError, ValueError) as exc:
             self._refuse_position(source, f'cannot use it: {exc}')
+        return True
 
     def _top_speed_mps(self) -> float:
         """The fastest the UAV may move over the ground: the planning speed or the vehicle's
@@ -109,12 +125,8 @@ class MissionFlight:
         if segment is None:
             return
         if segment.start_s is None:
-            scenario = segment.result.scenario
-            climb = 0.0 if height_m is None else height_m - scenario.altitude_m
-            uploaded = not node.vehicle.linked or not node.vehicle.upload_pending
-            if uploaded and math.hypot(math.dist(scenario.start_m, (x_m, y_m)),
-                                       climb) <= START_RADIUS_M:
-                self.start_clock(time_s, f'the UAV reached q0 ({source})')
+            if self._at_start(segment.result.scenario, (x_m, y_m), height_m, source):
+                self.start_clock(time_s, f'the UAV holds q0 ({source})')
             return
         if self.progress.over(time_s):
             return
@@ -126,11 +138,29 @@ class MissionFlight:
             return              # too late in the mission for a replan to be flown
         reason = off_plan(segment.result, elapsed, (x_m, y_m),
                           distance_m=output.replan_distance_m, delay_s=output.replan_delay_s)
-        if not reason or time_s - self._last_pose_replan_s < output.replan_interval_s:
+        if not reason:
+            self._on_plan_s = time_s
+            return
+        if (time_s - self._last_pose_replan_s < output.replan_interval_s
+                or time_s - self._on_plan_s < OFF_PLAN_CONFIRM_S):
             return
         self._last_pose_replan_s = time_s
         node.get_logger().info(f'{source}: the UAV is {reason}; replanning the rest')
         self._request_rest(source, time_s, (x_m, y_m))
+
+    def _at_start(self, scenario, position: tuple[float, float], height_m: float | None,
+                  source: str) -> bool:
+        """Whether the sample starts the plan's clock (module docstring)."""
+        vehicle = self._node.vehicle
+        horizontal = math.dist(scenario.start_m, position)
+        if not vehicle.linked:
+            climb = 0.0 if height_m is None else height_m - scenario.altitude_m
+            return math.hypot(horizontal, climb) <= START_RADIUS_M
+        return (not vehicle.upload_pending and height_m is not None
+                and source == SOURCE_TELEMETRY and vehicle.flying_mission
+                and horizontal <= START_RADIUS_M
+                and abs(height_m - scenario.altitude_m) <= START_HEIGHT_M
+                and vehicle.speed_mps <= HOLD_SPEED_MPS)
 
     def start_clock(self, time_s: float, why: str) -> None:
         """Start the plan's clock at ``time_s``; with ``flight_mode`` stream and a link, the
@@ -145,9 +175,10 @@ class MissionFlight:
         """Whether a mission is in flight that a replan should continue."""
         mission = self.progress.mission
         scenario = self._node.config.scenario
+        # The same mission: its slots as the parameters say, or more (a replan lengthened it).
         return (self.progress.started and not self.progress.over(time_s)
-                and mission is not None and mission.num_slots == scenario.num_slots
-                and mission.horizon_s == scenario.horizon_s)
+                and mission is not None and mission.num_slots >= scenario.num_slots
+                and math.isclose(mission.slot_s, scenario.slot_s, rel_tol=1e-12))
 
     def request_update(self, reason: str) -> None:
         """New inputs: replan the rest of the mission in flight, else the whole mission."""
@@ -172,12 +203,13 @@ class MissionFlight:
 
     def _request_rest(self, reason: str, time_s: float, position: tuple[float, float]) -> None:
         """Replan the rest of the mission in flight from ``position`` at ``time_s``."""
-        mission = self._node.config.scenario
+        slots = self.progress.mission.num_slots
+        mission = with_slots(self._node.config.scenario, slots)
         segment = self.progress.current
         begun = segment.slots_begun(time_s) if segment.start_s is not None else 0
         try:
             flown = self.progress.flown_slots(time_s, mission.ground_nodes_m, self.track)
-            rest_of_mission(mission, position, flown)
+            rest_of_mission(lengthened(mission, position, flown), position, flown)
         except PlannerError as exc:
             self._node.refuse(reason, f'{reason} refused: {exc}',
                               nodes=nodes_text(mission.ground_nodes_m))
@@ -186,7 +218,7 @@ class MissionFlight:
         self._node.submit(reason, InFlight(
             position_m=(float(position[0]), float(position[1])), flown=flown,
             previous_q=previous, mission_id=self.progress.mission_id,
-            segment=len(self.progress.segments) - 1, slots_kept=begun))
+            segment=len(self.progress.segments) - 1, slots_kept=begun, mission_slots=slots))
 
     def take(self, outcome: PlanOutcome) -> bool:
         """Make ``outcome`` the plan in force of the mission; False if it came too late."""
@@ -196,11 +228,19 @@ class MissionFlight:
         if rest is None:
             self.progress.begin(request.scenario, outcome.result)
             return True
+        mission = outcome.receding.mission
+        before = self.progress.mission
         if not self.progress.take_over(rest.mission_id, rest.segment, rest.slots_kept,
-                                       request.scenario, outcome.result):
+                                       mission, outcome.result):
             node.get_logger().info(f'{request.reason}: a newer plan is flown already; this '
                                    f'replan is dropped')
             return False
+        if before is not None and mission.num_slots > before.num_slots:
+            node.get_logger().warning(
+                f'{request.reason}: the rest cannot keep qF in time; the mission is lengthened '
+                f'from {before.num_slots} to {mission.num_slots} slots ({mission.horizon_s:g} '
+                f's) and promises a whole-mission min throughput of '
+                f'{outcome.receding.mission_min_throughput:.4g} bit/s over them')
         if not request.output.mavlink_url:
             # The UAV was at the new q0 when the replan was asked; without a link to say when
             # it flies the new plan, the plan is in force from now.
@@ -208,4 +248,5 @@ class MissionFlight:
         return True
 
 
-__all__ = ['FlightHost', 'MissionFlight', 'REFUSAL_REPORT_S', 'START_RADIUS_M']
+__all__ = ['FlightHost', 'HOLD_SPEED_MPS', 'MissionFlight', 'OFF_PLAN_CONFIRM_S',
+           'REFUSAL_REPORT_S', 'SOURCE_TELEMETRY', 'START_HEIGHT_M', 'START_RADIUS_M']

@@ -58,26 +58,25 @@ from uav_comm_planner.mission.pipeline import Planner
 from uav_comm_planner.mission.request import InFlight, MissionRequest
 from uav_comm_planner.ros.binding import ParameterBinding
 from uav_comm_planner.ros.diagnostics import NodeDiagnostics
-from uav_comm_planner.ros.flight import MissionFlight
+from uav_comm_planner.ros.flight import MissionFlight, SOURCE_TELEMETRY
 from uav_comm_planner.ros.messages import ground_nodes_of, nodes_text
 from uav_comm_planner.ros.params import flat_pairs, OUTPUT_ONLY, PlannerConfig
 from uav_comm_planner.ros.planning import (open_mission_folder, PlanningWorker, PlanOutcome,
                                            PlanRequest)
 from uav_comm_planner.ros.publishing import PlanPublisher, summary_line
 from uav_comm_planner.ros.services import PlannerServices
-from uav_comm_planner.ros.vehicle import VehicleAdapter
+from uav_comm_planner.ros.vehicle import HOME_PARAMETERS, VehicleAdapter
 
 NODE_NAME = 'uav_comm_planner'
 
 TOPIC_GROUND_NODES = 'ground_nodes'
 TOPIC_UAV_POSE = 'uav_pose'
 #: Name of the telemetry as a position source.
-SOURCE_VEHICLE = 'vehicle'
+SOURCE_VEHICLE = SOURCE_TELEMETRY
 #: Name of the vehicle link's errors on planner_status.
 SOURCE_VEHICLE_LINK = 'vehicle link'
 #: Parameters that remake the vehicle link when they change (a stream running falls back).
-LINK_PARAMETERS = frozenset({'mavlink_url', 'home_latitude_deg', 'home_longitude_deg',
-                             'home_altitude_m', 'flight_mode'})
+LINK_PARAMETERS = HOME_PARAMETERS | {'mavlink_url', 'home_distance_limit_m', 'flight_mode'}
 
 #: Volatile so that both volatile and transient-local publishers can send node sets.
 GROUND_NODES_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -134,7 +133,7 @@ class PlannerNode(Node):
         self.mission_folder = open_mission_folder(self.config.node)
         self._trigger_services = PlannerServices(self)
         self._worker = PlanningWorker(self, planner, self._deliver, folder=self.mission_folder)
-        self.vehicle.connect(self.config.node)
+        self.vehicle.connect(self.config.node, self._binding.explicit)
         self.flight.request_plan('start')
 
     @property
@@ -192,7 +191,7 @@ class PlannerNode(Node):
                     # A plan for the vehicle is timed for its firmware (hold resolution).
                     or (name == 'mission_firmware' and self.config.node.vehicle_aware)]
         if LINK_PARAMETERS & set(names):
-            self.vehicle.connect(self.config.node)
+            self.vehicle.connect(self.config.node, self._binding.explicit)
         if not planning:
             self.get_logger().info(
                 f'parameters {", ".join(names)} set; they apply to the next plan (no replan)')
@@ -206,9 +205,8 @@ class PlannerNode(Node):
             self.flight.on_position(self.clock_s(), message.pose.position.x,
                                     message.pose.position.y, source=TOPIC_UAV_POSE)
 
-    def _on_vehicle_position(self, time_s: float, east_m: float, north_m: float,
-                             up_m: float) -> None:
-        self.flight.on_position(time_s, east_m, north_m, source=SOURCE_VEHICLE, height_m=up_m)
+    def _on_vehicle_position(self, time_s: float, x: float, y: float, up_m: float) -> bool:
+        return self.flight.on_position(time_s, x, y, source=SOURCE_VEHICLE, height_m=up_m)
 
     def _on_vehicle_report(self, message: str, is_error: bool) -> None:
         if is_error:

@@ -68,7 +68,10 @@ class NodeSettings:
     too); when the stream stops the vehicle goes on in AUTO or holds (``stream_fallback``).
     The autopilot's wind estimate is smoothed with the time constant ``wind_time_constant_s``
     and replaces ``wind_speed_mps`` / ``wind_from_deg`` in every plan; it replans when it is
-    farther than ``wind_replan_mps`` from the wind of the plan in force.
+    farther than ``wind_replan_mps`` from the wind of the plan in force. With a link, the
+    vehicle's home is the planning frame's origin unless the home parameters are set, and a
+    mission whose home or first waypoint is farther than ``home_distance_limit_m`` from the
+    vehicle's home (or position) is refused before it is uploaded.
     """
 
     frame_id: str = 'map'
@@ -89,6 +92,7 @@ class NodeSettings:
     stream_fallback: str = 'auto'
     wind_time_constant_s: float = 20.0
     wind_replan_mps: float = 1.5
+    home_distance_limit_m: float = 1000.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.vehicle_aware, bool):
@@ -102,7 +106,7 @@ class NodeSettings:
         if not self.frame_id.strip():
             raise InvalidScenarioError('frame_id must not be empty, e.g. "map"')
         for name in ('replan_distance_m', 'replan_delay_s', 'replan_interval_s',
-                     'wind_time_constant_s', 'wind_replan_mps'):
+                     'wind_time_constant_s', 'wind_replan_mps', 'home_distance_limit_m'):
             value = getattr(self, name)
             if (isinstance(value, bool) or not isinstance(value, (int, float))
                     or not math.isfinite(value) or value <= 0):
@@ -215,6 +219,8 @@ DESCRIPTIONS = {
     'replan_delay_s': 'replan from uav_pose when the UAV is this far behind or ahead of the '
                       'planned time (s)',
     'replan_interval_s': 'at most one replan from uav_pose in this many seconds',
+    'home_distance_limit_m': "refuse to upload a mission whose home or first waypoint is "
+                             "farther than this from the vehicle's home (or position) (m)",
     'vehicle_aware': 'plan for the vehicle_* limits and publish the plan as the vehicle flies '
                      'it (S-curve legs, holds shortened by starts and stops)',
     'vehicle_params_file': 'ground-station parameter file (NAME,VALUE lines) whose WPNAV_* / '
@@ -248,7 +254,7 @@ OUTPUT_ONLY = frozenset({
     'frame_id', 'mission_file', 'home_latitude_deg', 'home_longitude_deg', 'home_altitude_m',
     'mission_end', 'mission_firmware', 'mavlink_url', 'replan_distance_m', 'replan_delay_s',
     'replan_interval_s', 'flight_mode', 'stream_fallback', 'wind_time_constant_s',
-    'wind_replan_mps'})
+    'wind_replan_mps', 'home_distance_limit_m'})
 
 #: Inclusive (low, high) limits shown to tools; the dataclasses check the exact domain.
 RANGES = {
@@ -276,6 +282,7 @@ RANGES = {
     'replan_interval_s': (0.0, 1.0e6),
     'wind_time_constant_s': (0.0, 1.0e6),
     'wind_replan_mps': (0.0, 100.0),
+    'home_distance_limit_m': (0.0, 1.0e7),
 }
 #: Parameters that only the node's start-up (overrides, a parameter file) may set: the
 #: limits on the work a plan may take and where mission files go.

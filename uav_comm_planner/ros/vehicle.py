@@ -6,11 +6,17 @@ A :class:`VehicleAdapter` takes the node (as tf2_ros's TransformListener does): 
 ``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge`,
 whose thread hands positions, mission progress and link events to the executor through an
 :class:`~uav_comm_planner.ros.handoff.ExecutorHandoff`; positions go on to ``on_position``.
+
+Unless the home parameters were set, the vehicle's home (HOME_POSITION) is the planning
+frame's origin: a plan's mission items are built for it before the upload, and a plan made
+before the vehicle told it waits for it. A lost link, a telemetry gap and a mission refused
+for another place are each one line on the log (a loss and a refusal also on
+``planner_status``).
 """
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, Collection
 
 from geometry_msgs.msg import PoseStamped
 import numpy as np
@@ -23,32 +29,37 @@ from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.ros.handoff import ExecutorHandoff
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.ros.planning import PlanOutcome
+from uav_comm_planner.ros.vehicle_state import VehicleState
 from uav_comm_planner.ros.wind import WindTracker
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, StreamJob, TargetStream
 from uav_comm_planner.vehicle.mavlink.items import MissionItem, NAV_WAYPOINT, Q0_SEQ
-from uav_comm_planner.vehicle.mavlink.telemetry import (Event, LinkEvent,
-                                                        MissionProgressReport, Position,
-                                                        TELEMETRY_RATE_HZ, VehicleBridge, Wind)
+from uav_comm_planner.vehicle.mavlink.telemetry import (Event, HomeReport, LinkEvent,
+                                                        MissionProgressReport, ModeReport,
+                                                        Position, TELEMETRY_RATE_HZ,
+                                                        VehicleBridge, Wind)
 from uav_comm_planner.vehicle.stream import resume_item, stream_reference, StreamReference
 
 TOPIC_VEHICLE_POSE = 'vehicle_pose'
+#: The home parameters: set, they anchor the planning frame; else the vehicle's home does.
+HOME_PARAMETERS = frozenset({'home_latitude_deg', 'home_longitude_deg', 'home_altitude_m'})
 #: Link events kept for the executor at most (the oldest go first).
 EVENTS_KEPT = 10_000
 #: Reliable, so that subscribers of either reliability hear the vehicle's pose.
 VEHICLE_POSE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                               durability=DurabilityPolicy.VOLATILE)
 
-#: on_position(time_s, east_m, north_m, up_m): the vehicle's position on the executor.
-PositionCallback = Callable[[float, float, float, float], None]
+#: on_position(time_s, east_m, north_m, up_m): the vehicle's position on the executor; whether
+#: it passed the node's check (an outlier is not published on vehicle_pose).
+PositionCallback = Callable[[float, float, float, float], bool]
 #: report(message, is_error): a line for the node's log.
 Reporter = Callable[[str, bool], None]
 #: Telemetry (and so target) rate with flight_mode stream, per second of autopilot time.
 STREAM_TELEMETRY_RATE_HZ = 20.0
 
 
-class VehicleAdapter:
+class VehicleAdapter(VehicleState):
     """The vehicle link of ``node``, (re)made by :meth:`connect` from the node settings.
 
     ``time_s`` is the vehicle's time of its latest position (None before any);
@@ -57,7 +68,7 @@ class VehicleAdapter:
     ``last_error`` is the link's latest error ('' when none; a link error ends when the link is
     up again, a failed upload when an upload is verified).
     ``frame_id`` gives the frame of the poses published on ``vehicle_pose``, a topic that
-    exists only while a link runs.
+    exists only while a link runs; mode, speed, home, link state: :class:`VehicleState`.
     """
 
     def __init__(self, node: Node, on_position: PositionCallback, report: Reporter, *,
@@ -85,6 +96,7 @@ class VehicleAdapter:
         self.uploads_verified = 0
         self.last_error = ''
         self._upload_failed = False
+        self._reset_state(None)
 
     @property
     def linked(self) -> bool:
@@ -98,34 +110,27 @@ class VehicleAdapter:
         """Seconds on the node's clock since the latest position (None before any)."""
         return None if self._position_ns is None else (now_ns - self._position_ns) / 1e9
 
-    def connect(self, output: NodeSettings) -> None:
-        """(Re)start the link for ``output.mavlink_url``; stop it when the URL is empty."""
+    def connect(self, output: NodeSettings, explicit: Collection[str] = ()) -> None:
+        """(Re)start the link for ``output.mavlink_url`` (none when empty); the frame's origin
+        is the vehicle's home unless a home parameter is among those set ``explicit``."""
+        follow_home = not HOME_PARAMETERS & set(explicit)
         self.stop()
         self.time_s = self._position_ns = None
         self.last_error = ''
         self._upload_failed = False
+        self._reset_state(None if follow_home else output.home)
         if output.mavlink_url:
             self._pose = self._node.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE,
                                                      VEHICLE_POSE_QOS)
             self.stream = TargetStream(output.home, self._events.put)
             rate = (STREAM_TELEMETRY_RATE_HZ if output.flight_mode == 'stream'
                     else TELEMETRY_RATE_HZ)
-            self._bridge = VehicleBridge(output.mavlink_url, output.home, self._events.put,
-                                         rate_hz=rate, stream=self.stream)
-            self._report(f'vehicle link: connecting to {output.mavlink_url}', False)
-
-    def upload(self, outcome: PlanOutcome) -> None:
-        """Put the plan's mission items on the vehicle; a plan made in flight is flown from
-        its q0 item."""
-        plan = outcome.plan
-        if plan.items is None:
-            self._report(f'mission upload skipped, the plan cannot be flown: '
-                         f'{plan.items_error}', True)
-            return
-        in_flight = plan.request.in_flight is not None
-        self._pending_tag = outcome.request.start_ns
-        self._bridge.upload(plan.items, current_seq=Q0_SEQ if in_flight else None,
-                            tag=outcome.request.start_ns)
+            self._bridge = VehicleBridge(output.mavlink_url, self.home, self._events.put,
+                                         rate_hz=rate, stream=self.stream,
+                                         home_limit_m=output.home_distance_limit_m)
+            origin = "the vehicle's home" if follow_home else 'the home parameters'
+            self._report(f'vehicle link: connecting to {output.mavlink_url} (planning frame '
+                         f'origin: {origin})', False)
 
     @property
     def stream_reference(self) -> StreamReference | None:
@@ -203,11 +208,16 @@ class VehicleAdapter:
         for event in events:
             if isinstance(event, Position):
                 self.time_s = event.time_s
+                self.speed_mps = event.speed_mps
                 self._position_ns = self._node.get_clock().now().nanoseconds
-                self._publish_pose(event)
-                self._on_position(event.time_s, event.east_m, event.north_m, event.up_m)
+                if self._on_position(event.time_s, event.east_m, event.north_m, event.up_m):
+                    self._publish_pose(event)
             elif isinstance(event, MissionProgressReport):
                 self.mission_item = event.seq
+            elif isinstance(event, ModeReport):
+                self._on_mode(event)
+            elif isinstance(event, HomeReport):
+                self._on_home(event)
             elif isinstance(event, LinkEvent):
                 self._on_link_event(event)
             elif isinstance(event, Wind):
@@ -218,6 +228,8 @@ class VehicleAdapter:
                 self._report(event.message, event.kind == 'error')
 
     def _on_link_event(self, event: LinkEvent) -> None:
+        if self._on_fault(event):
+            return
         if event.kind == 'error':
             if event.tag is not None and event.tag == self._pending_tag:
                 self._pending_tag = None
@@ -255,4 +267,4 @@ def _enu(item: MissionItem, home: Home) -> np.ndarray:
     return np.array([float(east[0]), float(north[0])])
 
 
-__all__ = ['TOPIC_VEHICLE_POSE', 'VEHICLE_POSE_QOS', 'VehicleAdapter']
+__all__ = ['HOME_PARAMETERS', 'TOPIC_VEHICLE_POSE', 'VEHICLE_POSE_QOS', 'VehicleAdapter']

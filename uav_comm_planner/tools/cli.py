@@ -408,7 +408,8 @@ def _command_upload(args: argparse.Namespace) -> int:
 
     count = upload_file(args.mission, args.connect,
                         settings=LinkSettings(timeout_s=args.timeout, retries=args.retries),
-                        connect_timeout_s=args.connect_timeout)
+                        connect_timeout_s=args.connect_timeout,
+                        home_limit_m=args.max_home_distance)
     print(f'{args.mission}: {count} items uploaded to {args.connect} and read back identical')
     return 0
 
@@ -474,6 +475,10 @@ def build_parser() -> argparse.ArgumentParser:
                                help='resends of an unanswered message (default 5)')
     upload_parser.add_argument('--connect-timeout', type=float, default=30.0, metavar='S',
                                help='seconds to wait for the heartbeat (default 30)')
+    upload_parser.add_argument('--max-home-distance', type=float, default=1000.0, metavar='M',
+                               help="refuse a mission whose home or first waypoint is farther "
+                                    "than this from the vehicle's home (or position), metres "
+                                    "(default 1000; inf: no check)")
     upload_parser.set_defaults(handler=_command_upload)
 
     bench_parser = commands.add_parser('bench', help=bench.DESCRIPTION,

@@ -90,7 +90,8 @@ def result_name(result: int) -> str:
 
 class _TimedTcp(mavutil.mavtcp):
     """pymavlink's TCP link, its connect bounded by a timeout (pymavlink's own blocks for as
-    long as the kernel retries, minutes for a host that never answers)."""
+    long as the kernel retries, minutes for a host that never answers), and a connection the
+    vehicle closes or resets an OSError (pymavlink's own prints a line and reads nothing)."""
 
     def __init__(self, device: str, timeout_s: float, **options) -> None:
         self._connect_timeout_s = timeout_s
@@ -102,6 +103,14 @@ class _TimedTcp(mavutil.mavtcp):
         self.port.setblocking(False)
         mavutil.set_close_on_exec(self.port.fileno())
         self.port.setsockopt(socket.SOL_TCP, socket.TCP_NODELAY, 1)
+
+    def handle_eof(self) -> None:
+        # pymavlink prints "EOF on TCP socket" and returns no data, at every read, for ever:
+        # a closed link is an error here, raised once.
+        raise ConnectionAbortedError('the vehicle closed the TCP connection (EOF)')
+
+    def handle_disconnect(self) -> None:
+        raise ConnectionResetError('the TCP connection to the vehicle was reset')
 
 
 def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255,

@@ -2,14 +2,28 @@
 
 A :class:`VehicleBridge` owns the connection (pymavlink's are not thread-safe) and runs on a
 daemon thread, never on the caller's: it connects (waiting for a heartbeat, again after a lost
-link), asks for GLOBAL_POSITION_INT and MISSION_CURRENT at ``rate_hz`` (autopilot time), turns
-each position into the planning frame through ``home`` and hands the caller
-:class:`Position`, :class:`MissionProgressReport` and :class:`LinkEvent` objects through
-``on_event``, which must be quick and thread-safe (a queue push). Uploads are queued with
-:meth:`VehicleBridge.upload`; the newest waiting mission replaces an older one that has not
-started. An upload is verified by reading the mission back
-(:func:`~uav_comm_planner.vehicle.mavlink.link.upload_and_verify`) and, when asked, followed by
-MISSION_SET_CURRENT so that a vehicle in flight goes on from that item instead of restarting.
+link), asks for GLOBAL_POSITION_INT and MISSION_CURRENT at ``rate_hz`` (autopilot time) and
+for HOME_POSITION, turns each position into the planning frame through ``home`` and hands the
+caller :class:`Position`, :class:`MissionProgressReport`, :class:`ModeReport`,
+:class:`HomeReport` and :class:`LinkEvent` objects through ``on_event``, which must be quick
+and thread-safe (a queue push). Uploads are queued with :meth:`VehicleBridge.upload`; the
+newest waiting mission replaces an older one that has not started. An upload is verified by
+reading the mission back (:func:`~uav_comm_planner.vehicle.mavlink.link.upload_and_verify`)
+and, when asked, followed by MISSION_SET_CURRENT so that a vehicle in flight goes on from that
+item instead of restarting. A mission whose home or first waypoint is farther than
+``home_limit_m`` from the vehicle's home (or position) is refused before it is uploaded
+(:mod:`.home`); one queued before the vehicle has told either waits for it.
+
+Without ``home`` the bridge follows the vehicle: the first HOME_POSITION it hears is the
+planning frame's origin, and no position is handed on before it.
+
+Faults of the link: a connection the vehicle closes (EOF) or resets, and a link on which
+nothing arrives for :data:`SILENCE_S` (wall clock, counted only while the thread reads, so a
+stalled process is not taken for a silent vehicle), end the connection; the thread connects
+again with backoff. Each change of state is one event: 'lost' once when the link goes down
+(whatever the reconnection attempts meet then), 'connected' when it is up again. A mission
+whose upload the loss cut is uploaded again once the link is back. A gap of more than
+:data:`TELEMETRY_GAP_S` of autopilot time between two positions is one 'gap' event.
 
 Times are the autopilot's (``time_boot_ms`` / 1000, seconds), never the wall clock.
 """
@@ -29,6 +43,9 @@ from pymavlink import mavutil
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, TargetStream
+from uav_comm_planner.vehicle.mavlink.home import (HOME_DISTANCE_LIMIT_M, home_of,
+                                                   mission_far_from_vehicle, position_of,
+                                                   request_home)
 from uav_comm_planner.vehicle.mavlink.items import DEGREES_E7, MissionItem
 from uav_comm_planner.vehicle.mavlink.link import (connect, has_home_row, LinkSettings,
                                                    upload_and_verify)
@@ -38,8 +55,18 @@ MAV = mavutil.mavlink
 TELEMETRY_RATE_HZ = 10.0
 #: Pause before connecting again after a lost or refused link, seconds (wall clock).
 RECONNECT_PAUSE_S = 1.0
-#: The pause doubles after each failure in a row, up to this many seconds.
-MAX_RECONNECT_PAUSE_S = 30.0
+#: The pause doubles after each failure in a row, up to this many seconds: a vehicle in flight
+#: whose link comes back is found again within this.
+MAX_RECONNECT_PAUSE_S = 8.0
+#: Nothing heard from the vehicle for this long (wall clock, while reading) ends the
+#: connection: a vehicle sends its heartbeat at 1 Hz and positions at ``rate_hz``.
+SILENCE_S = 2.0
+#: Positions further apart than this (autopilot seconds) are a gap in the telemetry, said once.
+TELEMETRY_GAP_S = 2.0
+#: HOME_POSITION is asked for again this often (wall clock) until the vehicle has told it.
+HOME_REQUEST_S = 1.0
+#: A mission waiting this long (wall clock) for the vehicle's home or position is said once.
+HOME_WAIT_REPORT_S = 10.0
 #: How long MISSION_SET_CURRENT waits for MISSION_CURRENT to confirm, per try (wall clock).
 SET_CURRENT_TIMEOUT_S = 1.0
 SET_CURRENT_TRIES = 5
@@ -49,12 +76,14 @@ WIND_RATE_HZ = 2.0
 
 @dataclass(frozen=True)
 class Position:
-    """The vehicle at east, north metres from home, ``up_m`` above home, at ``time_s``."""
+    """The vehicle at east, north metres from home, ``up_m`` above home, at ``time_s``,
+    moving at ``speed_mps`` (the norm of its velocity, vertical included; NaN unknown)."""
 
     time_s: float
     east_m: float
     north_m: float
     up_m: float
+    speed_mps: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -66,13 +95,33 @@ class MissionProgressReport:
 
 
 @dataclass(frozen=True)
+class ModeReport:
+    """The vehicle's flight mode as its heartbeat names it ('AUTO', 'GUIDED', 'BRAKE' on
+    ArduCopter; 'MISSION', 'OFFBOARD' on PX4) at ``time_s`` (its latest position's time)."""
+
+    time_s: float
+    mode: str
+
+
+@dataclass(frozen=True)
+class HomeReport:
+    """The vehicle's home; ``adopted`` when it became the planning frame's origin."""
+
+    home: Home
+    adopted: bool
+
+
+@dataclass(frozen=True)
 class LinkEvent:
-    """Something the link did: ``kind`` is 'connected', 'uploaded', 'error'; ``tag`` names the
-    upload it concerns (what :meth:`VehicleBridge.upload` was given)."""
+    """Something the link did: ``kind`` is 'connected', 'uploaded', 'error' (an upload or a
+    connect refused), 'lost' (the link went down), 'gap' (a telemetry gap of ``seconds`` of
+    autopilot time); ``tag`` names the upload it concerns (what :meth:`VehicleBridge.upload`
+    was given)."""
 
     kind: str
     message: str
     tag: object = None
+    seconds: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -86,7 +135,11 @@ class Wind:
     north_mps: float
 
 
-Event = Position | MissionProgressReport | LinkEvent | Wind | StreamEvent
+Event = (Position | MissionProgressReport | ModeReport | HomeReport | LinkEvent | Wind
+         | StreamEvent)
+
+#: Heartbeat modes in which the vehicle flies its mission or the node's targets.
+MISSION_MODES = frozenset({'AUTO', 'GUIDED', 'MISSION', 'OFFBOARD'})
 
 
 @dataclass(frozen=True)
@@ -147,11 +200,13 @@ def global_position_enu(latitude_e7: ArrayLike, longitude_e7: ArrayLike,
 
 
 class VehicleBridge:
-    """Telemetry and mission uploads for one vehicle at ``url``, on a thread of its own."""
+    """Telemetry and mission uploads for one vehicle at ``url``, on a thread of its own
+    (module docstring); ``home`` None follows the vehicle's home."""
 
-    def __init__(self, url: str, home: Home, on_event: Callable[[Event], None], *,
+    def __init__(self, url: str, home: Home | None, on_event: Callable[[Event], None], *,
                  settings: LinkSettings = LinkSettings(), rate_hz: float = TELEMETRY_RATE_HZ,
-                 connect_timeout_s: float = 30.0, stream: TargetStream | None = None) -> None:
+                 connect_timeout_s: float = 30.0, stream: TargetStream | None = None,
+                 home_limit_m: float = HOME_DISTANCE_LIMIT_M) -> None:
         self.url = url
         self.home = home
         self._on_event = on_event
@@ -160,9 +215,15 @@ class VehicleBridge:
         self._connect_timeout_s = connect_timeout_s
         #: The streamed trajectory, run on this thread at every position (None: no stream).
         self.stream = stream
+        self._home_limit_m = home_limit_m
         self._lock = threading.Lock()
         self._waiting: _Upload | None = None
         self._stop = threading.Event()
+        #: What the vehicle told of itself: its home, its latest latitude and longitude.
+        self.vehicle_home: Home | None = None
+        self._vehicle_position: tuple[float, float] | None = None
+        self._last_position_s = math.nan
+        self._gap_cause = ''
         self._thread = threading.Thread(target=self._run, name='uav_comm_planner.vehicle',
                                         daemon=True)
         self._thread.start()
@@ -180,7 +241,8 @@ class VehicleBridge:
         self._thread.join(timeout_s)
 
     def _run(self) -> None:
-        refused = ''
+        down = ''           # what was said of the link being down ('' while up or never up)
+        down_since = None
         failures = 0
         while not self._stop.is_set():
             # Backoff: a vehicle that stays away is asked less and less often.
@@ -189,23 +251,22 @@ class VehicleBridge:
                 link = connect(self.url, timeout_s=self._connect_timeout_s,
                                should_stop=self._stop.is_set)
             except VehicleLinkError as exc:
-                if str(exc) != refused:            # said once, not at every retry
-                    refused = str(exc)
+                if not down:            # said once, not at every retry
+                    down = str(exc)
                     self._on_event(LinkEvent('error', f'{exc}; retrying'))
                 failures += 1
                 self._stop.wait(pause_s)
                 continue
-            refused = ''
             try:
-                self._on_event(LinkEvent('connected', f'vehicle link up on {self.url}'))
-                failures = 0
+                again = '' if down_since is None else \
+                    f' again after {time.monotonic() - down_since:.1f} s down'
+                self._on_event(LinkEvent('connected', f'vehicle link up{again} on {self.url}'))
+                down, down_since, failures = '', None, 0
                 self._serve(link)
-            except VehicleLinkError as exc:
-                self._on_event(LinkEvent('error', f'vehicle link: {exc}'))
-                failures += 1
-                self._stop.wait(pause_s)
-            except (OSError, ConnectionError) as exc:
-                self._on_event(LinkEvent('error', f'vehicle link lost: {exc}'))
+            except (VehicleLinkError, OSError) as exc:
+                down, down_since = str(exc), time.monotonic()
+                self._gap_cause = ' (the link was down)'
+                self._on_event(LinkEvent('lost', f'vehicle link lost: {exc}; reconnecting'))
                 failures += 1
                 self._stop.wait(pause_s)
             finally:
@@ -214,44 +275,113 @@ class VehicleBridge:
     def _serve(self, link) -> None:
         request_telemetry(link, self._rate_hz)
         request_wind(link, WIND_RATE_HZ)
+        heard = asked = time.monotonic()
+        request_home(link)
         latest_time_s = 0.0
+        mode = None
+        waiting_since = None
         while not self._stop.is_set():
-            with self._lock:
-                job, self._waiting = self._waiting, None
+            now = time.monotonic()
+            if self.vehicle_home is None and now - asked >= HOME_REQUEST_S:
+                request_home(link)
+                asked = now
+            job = self._next_job()
+            if job is None and self._waiting is not None:
+                if waiting_since is None:
+                    waiting_since = now
+                elif now - waiting_since > HOME_WAIT_REPORT_S:
+                    waiting_since = math.inf        # said once
+                    self._on_event(LinkEvent(
+                        'error', f'the mission waits: the vehicle has told neither its home '
+                                 f'nor its position for {HOME_WAIT_REPORT_S:g} s'))
             if job is not None:
+                waiting_since = None
                 self._upload(link, job)
                 request_telemetry(link, self._rate_hz)
+                heard = time.monotonic()
+                self._gap_cause = ' (the link read no telemetry during an upload)'
                 continue
-            message = link.recv_match(type=['GLOBAL_POSITION_INT', 'MISSION_CURRENT',
-                                            'HEARTBEAT', 'WIND', 'WIND_COV'],
-                                      blocking=True, timeout=0.05)
+            message = link.recv_match(blocking=True, timeout=0.05)
             if message is None:
+                if time.monotonic() - heard > SILENCE_S:
+                    raise VehicleLinkError(f'nothing heard from the vehicle for '
+                                           f'{SILENCE_S:g} s')
                 continue
             kind = message.get_type()
+            if kind == 'BAD_DATA' or message.get_srcSystem() != link.target_system:
+                continue
+            heard = time.monotonic()
             if kind in ('WIND', 'WIND_COV'):
                 wind = wind_of(message, latest_time_s)
                 if wind is not None:
                     self._on_event(wind)
-                continue
-            if kind == 'HEARTBEAT':
-                if self.stream is not None and message.get_srcSystem() == link.target_system:
-                    self.stream.on_heartbeat(message)
-                continue
-            if kind == 'GLOBAL_POSITION_INT':
-                latest_time_s = message.time_boot_ms / 1000.0
-                if message.lat == 0 and message.lon == 0:
-                    continue            # no position yet: autopilots send 0, 0 before a fix
-                east, north, up = global_position_enu(message.lat, message.lon,
-                                                      message.relative_alt, self.home)
-                self._on_event(Position(latest_time_s, float(east), float(north), float(up)))
+            elif kind == 'HEARTBEAT':
                 if self.stream is not None:
+                    self.stream.on_heartbeat(message)
+                if link.probably_vehicle_heartbeat(message) \
+                        and (name := mavutil.mode_string_v10(message)) != mode:
+                    mode = name
+                    self._on_event(ModeReport(latest_time_s, mode))
+            elif kind == 'GLOBAL_POSITION_INT':
+                latest_time_s = message.time_boot_ms / 1000.0
+                if self._position(message, latest_time_s) and self.stream is not None:
                     self.stream.tick(link, latest_time_s)
-            else:
+            elif kind == 'MISSION_CURRENT':
                 self._on_event(MissionProgressReport(latest_time_s, int(message.seq)))
+            elif kind == 'HOME_POSITION':
+                self._heard_home(message)
         if self.stream is not None:
             self.stream.close(link)
 
+    def _position(self, message, time_s: float) -> bool:
+        """Hand the position on; whether the vehicle has a position (a fix) at all."""
+        where = position_of(message)
+        if where is None:
+            return False        # no position yet: autopilots send 0, 0 before a fix
+        self._vehicle_position = where
+        previous_s, self._last_position_s = self._last_position_s, time_s
+        if time_s - previous_s > TELEMETRY_GAP_S:
+            self._on_event(LinkEvent('gap', f'telemetry gap: no position from the vehicle '
+                                            f'for {time_s - previous_s:.1f} s of autopilot '
+                                            f'time ({previous_s:.1f} s to {time_s:.1f} s)'
+                                            f'{self._gap_cause}',
+                                     seconds=time_s - previous_s))
+        self._gap_cause = ''
+        if self.home is None:
+            return True         # following the vehicle's home: not told yet
+        east, north, up = global_position_enu(message.lat, message.lon, message.relative_alt,
+                                              self.home)
+        speed = math.sqrt(message.vx ** 2 + message.vy ** 2 + message.vz ** 2) / 100.0
+        self._on_event(Position(time_s, float(east), float(north), float(up), speed))
+        return True
+
+    def _heard_home(self, message) -> None:
+        home = home_of(message)
+        if home is None or home == self.vehicle_home:
+            return
+        self.vehicle_home = home
+        adopted = self.home is None
+        if adopted:
+            self.home = home
+            if self.stream is not None:
+                self.stream.home = home     # its targets are in the same frame
+        self._on_event(HomeReport(home, adopted))
+
+    def _next_job(self) -> _Upload | None:
+        """The waiting upload, once the vehicle has told its home or position (the check)."""
+        known = self.vehicle_home is not None or self._vehicle_position is not None
+        if not (known or math.isinf(self._home_limit_m)):
+            return None
+        with self._lock:
+            job, self._waiting = self._waiting, None
+        return job
+
     def _upload(self, link, job: _Upload) -> None:
+        reason = mission_far_from_vehicle(job.items, self.vehicle_home, self._vehicle_position,
+                                          self._home_limit_m)
+        if reason:
+            self._on_event(LinkEvent('error', f'mission upload refused: {reason}', job.tag))
+            return
         try:
             upload_and_verify(link, job.items, self._settings)
             note = ''
@@ -261,9 +391,11 @@ class VehicleBridge:
                 set_current(link, current)
                 note = f'; current item {current}'
         except VehicleLinkError as exc:
-            self._on_event(LinkEvent('error', f'mission upload failed: {exc}', job.tag))
             if 'link lost' in str(exc):
+                with self._lock:            # uploaded again once the link is back
+                    self._waiting = self._waiting or job
                 raise
+            self._on_event(LinkEvent('error', f'mission upload failed: {exc}', job.tag))
             return
         self._on_event(LinkEvent('uploaded', f'mission of {len(job.items)} items uploaded '
                                              f'and read back{note}', job.tag))
@@ -282,5 +414,6 @@ def set_current(link, seq: int) -> None:
                            f'{SET_CURRENT_TRIES} tries of {SET_CURRENT_TIMEOUT_S:g} s')
 
 
-__all__ = ['LinkEvent', 'MissionProgressReport', 'Position', 'VehicleBridge', 'Wind',
-           'global_position_enu', 'request_telemetry', 'request_wind', 'set_current', 'wind_of']
+__all__ = ['HomeReport', 'LinkEvent', 'MISSION_MODES', 'MissionProgressReport', 'ModeReport',
+           'Position', 'VehicleBridge', 'Wind', 'global_position_enu', 'request_telemetry',
+           'request_wind', 'set_current', 'wind_of']
