@@ -43,3 +43,7 @@ class ComputeBudgetError(InvalidScenarioError):
 
 class PlanCancelledError(PlannerError):
     """A plan was given up between two steps because its caller asked it to stop."""
+
+
+class FenceFileError(MissionFileError):
+    """A fence file could not be read: missing, malformed, or holding a zone that is not one."""

@@ -404,13 +404,18 @@ def _command_bench(args: argparse.Namespace) -> int:
 
 def _command_upload(args: argparse.Namespace) -> int:
     from uav_comm_planner.vehicle.mavlink.link import LinkSettings
-    from uav_comm_planner.vehicle.mavlink.upload import upload_file
+    from uav_comm_planner.vehicle.mavlink.upload import upload_files
 
-    count = upload_file(args.mission, args.connect,
+    done = upload_files(args.connect, mission=args.mission, fence=args.fence,
                         settings=LinkSettings(timeout_s=args.timeout, retries=args.retries),
                         connect_timeout_s=args.connect_timeout,
                         home_limit_m=args.max_home_distance)
-    print(f'{args.mission}: {count} items uploaded to {args.connect} and read back identical')
+    if args.fence is not None:
+        print(f'{args.fence}: {done.fence_items} fence items uploaded to {args.connect} and '
+              f'read back identical')
+    if args.mission is not None:
+        print(f'{args.mission}: {done.mission_items} items uploaded to {args.connect} and '
+              f'read back identical')
     return 0
 
 
@@ -464,8 +469,13 @@ def build_parser() -> argparse.ArgumentParser:
     sweep_parser.set_defaults(handler=_command_sweep)
 
     upload_parser = commands.add_parser(
-        'upload', help='upload a mission over MAVLink and verify it by reading it back')
-    upload_parser.add_argument('mission', type=Path, metavar='MISSION.waypoints|MISSION.plan')
+        'upload', help='upload a mission and/or a fence over MAVLink and verify them by reading '
+                       'them back')
+    upload_parser.add_argument('mission', type=Path, nargs='?',
+                               metavar='MISSION.waypoints|MISSION.plan')
+    upload_parser.add_argument('--fence', type=Path, metavar='FENCE.plan|FENCE.geojson',
+                               help="the geofence to upload first: a .plan file's geoFence or "
+                                    'a GeoJSON FeatureCollection (docs/fences.md)')
     upload_parser.add_argument('--connect', required=True, metavar='URL',
                                help='pymavlink URL: tcp:127.0.0.1:5760, udpin:0.0.0.0:14550, '
                                     '/dev/ttyACM0,115200')

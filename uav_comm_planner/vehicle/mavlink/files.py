@@ -2,7 +2,9 @@
 
 ``.waypoints`` (QGroundControl, Mission Planner, MAVProxy) is written and read through
 pymavlink's mavwp; ``.plan`` is QGroundControl's JSON (file version 1, mission version 2), its
-planned home position standing for row 0 and its simple items for the other rows.
+planned home position standing for row 0 and its simple items for the other rows, and its
+``geoFence`` holding the plan's zones (:mod:`uav_comm_planner.vehicle.fence`; a
+``.waypoints`` file has no place for them).
 :func:`export_mission` writes a plan's mission (:mod:`.items`) atomically; the readers return
 the rows a link uploads (:mod:`.upload`). A file that cannot be written is a
 :class:`~uav_comm_planner.errors.MissionExportError`, one that cannot be read a
@@ -21,8 +23,10 @@ from typing import Callable, Sequence
 from pymavlink import mavutil, mavwp
 
 from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import MissionExportError, MissionFileError
 from uav_comm_planner.files import OutputFolder, read_text_file, write_with
+from uav_comm_planner.vehicle.fence import fence_from_zones, GeoFence
 from uav_comm_planner.vehicle.flyable import VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
@@ -63,8 +67,9 @@ def _json_number(value: float) -> float | None:
 
 
 def plan_document(items: Sequence[MissionItem], home: Home, *,
-                  firmware: str = 'ardupilot') -> dict:
-    """The QGroundControl .plan JSON object (file version 1, mission version 2)."""
+                  firmware: str = 'ardupilot', zones: Zones | None = None) -> dict:
+    """The QGroundControl .plan JSON object (file version 1, mission version 2), its
+    geoFence holding ``zones`` (anchored at ``home``) when given."""
     autopilot = mission_firmware(firmware).autopilot
     speeds = [item.params[1] for item in items if item.command == DO_CHANGE_SPEED]
     default_speed = speeds[0] if speeds else QGC_DEFAULT_HOVER_SPEED_MPS
@@ -82,7 +87,8 @@ def plan_document(items: Sequence[MissionItem], home: Home, *,
             'plannedHomePosition': [home.latitude_deg, home.longitude_deg, home.altitude_m],
             'items': [_plan_item(item, seq) for seq, item in enumerate(items[1:], start=1)],
         },
-        'geoFence': {'circles': [], 'polygons': [], 'version': 2},
+        'geoFence': (fence_from_zones(zones, home) if zones is not None
+                     else GeoFence()).plan_section(),
         'rallyPoints': {'points': [], 'version': 2},
     }
 
@@ -103,25 +109,27 @@ def _plan_item(item: MissionItem, seq: int) -> dict:
 
 
 def write_plan(items: Sequence[MissionItem], path: Path, home: Home, *,
-               firmware: str = 'ardupilot') -> None:
-    """Write a QGroundControl .plan file."""
-    text = json.dumps(plan_document(items, home, firmware=firmware), indent=4, allow_nan=False)
+               firmware: str = 'ardupilot', zones: Zones | None = None) -> None:
+    """Write a QGroundControl .plan file (with ``zones`` as its geoFence)."""
+    text = json.dumps(plan_document(items, home, firmware=firmware, zones=zones), indent=4,
+                      allow_nan=False)
     path.write_text(text + '\n', encoding='utf-8')
 
 
 def export_mission(plan: PlanResult | VehiclePlan, path: str | os.PathLike, home: Home, *,
                    end: str = 'land', firmware: str = 'ardupilot',
-                   limits: VehicleLimits | None = None) -> Path:
+                   limits: VehicleLimits | None = None, zones: Zones | None = None) -> Path:
     """Write the plan as a mission file, format from the extension; return the path written.
 
     ``.waypoints``: QGC WPL 110 (QGroundControl, Mission Planner, MAVProxy); ``.plan``:
-    QGroundControl JSON. The file is replaced atomically; on any failure a
-    :class:`MissionExportError` says why and a previous file at ``path`` is left as it was.
+    QGroundControl JSON, with ``zones`` as its geoFence. The file is replaced atomically; on
+    any failure a :class:`MissionExportError` says why and a previous file at ``path`` is left
+    as it was.
     """
     check_mission_path(path)
     check_home(home)
     items = build_mission_items(plan, home, end=end, firmware=firmware, limits=limits)
-    return write_mission_file(items, path, home, firmware=firmware)
+    return write_mission_file(items, path, home, firmware=firmware, zones=zones)
 
 
 def check_mission_path(path: str | os.PathLike) -> None:
@@ -134,17 +142,19 @@ def check_mission_path(path: str | os.PathLike) -> None:
 
 
 def write_mission_file(items: Sequence[MissionItem], path: str | os.PathLike, home: Home, *,
-                       firmware: str = 'ardupilot', folder: OutputFolder | None = None) -> Path:
+                       firmware: str = 'ardupilot', folder: OutputFolder | None = None,
+                       zones: Zones | None = None) -> Path:
     """Write mission ``items`` (:func:`~.items.build_mission_items`) as the file ``path``, its
-    format from the extension, atomically (as :func:`export_mission`); return the path
-    written. With ``folder`` (opened once, :class:`~uav_comm_planner.files.OutputFolder`)
-    ``path`` is a bare name inside it, written relative to the folder's descriptor."""
+    format from the extension, atomically (as :func:`export_mission`; a .plan's geoFence holds
+    ``zones``); return the path written. With ``folder`` (opened once,
+    :class:`~uav_comm_planner.files.OutputFolder`) ``path`` is a bare name inside it, written
+    relative to the folder's descriptor."""
     check_mission_path(path)
     check_home(home)
     target = Path(path)
     if target.suffix.lower() == '.plan':
         def writer(temporary: Path) -> None:
-            write_plan(items, temporary, home, firmware=firmware)
+            write_plan(items, temporary, home, firmware=firmware, zones=zones)
     else:
         def writer(temporary: Path) -> None:
             write_waypoints(items, temporary)

@@ -70,6 +70,13 @@ INT_FRAMES = {MAV.MAV_FRAME_GLOBAL_INT: MAV.MAV_FRAME_GLOBAL,
               MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT,
               MAV.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT: MAV.MAV_FRAME_GLOBAL_TERRAIN_ALT}
 
+#: The fence's items (mission type MAV_MISSION_TYPE_FENCE): positions whose frame the
+#: autopilots do not keep.
+FENCE_COMMANDS = (MAV.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+                  MAV.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+                  MAV.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
+                  MAV.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION)
+
 MISSION_ENDS = ('land', 'rtl')
 #: The mission index of q0, after home (0) and the takeoff (1): the plan's clock starts when
 #: the vehicle holds there, and a plan made in flight is flown from it.
@@ -205,14 +212,15 @@ def _hold_parts(hold_s: float, max_hold_s: float) -> list[float]:
 # MAVLink messages: the rows a link sends and reads back, and the rows of a .waypoints file.
 
 def item_int_message(item: MissionItem, seq: int, mav: MAV.MAVLink, target_system: int,
-                     target_component: int) -> MAV.MAVLink_message:
-    """``item`` as the MISSION_ITEM_INT of row ``seq`` (latitude and longitude in 1e-7 degree),
-    encoded by ``mav``: the link's own encoder, whose dialect follows the protocol version the
-    vehicle speaks."""
+                     target_component: int, *,
+                     mission_type: int = MISSION_TYPE) -> MAV.MAVLink_message:
+    """``item`` as the MISSION_ITEM_INT of row ``seq`` (latitude and longitude in 1e-7 degree)
+    of a mission or, by ``mission_type``, a fence, encoded by ``mav``: the link's own encoder,
+    whose dialect follows the protocol version the vehicle speaks."""
     return mav.mission_item_int_encode(
         target_system, target_component, seq, item.frame, item.command, int(item.current),
         int(item.autocontinue), *item.params, int(round(item.x * DEGREES_E7)),
-        int(round(item.y * DEGREES_E7)), float(item.z), MISSION_TYPE)
+        int(round(item.y * DEGREES_E7)), float(item.z), mission_type)
 
 
 def item_message(item: MissionItem, seq: int) -> MAV.MAVLink_message:
@@ -243,8 +251,9 @@ def mismatches(sent: Sequence[MissionItem], stored: Sequence[MissionItem], *,
     Compared in the fields the autopilot stores: row 0, when it is home (``home_row``:
     ArduPilot; PX4's missions have none), by command only, since the autopilot replaces it
     with its own; DO commands without their frame (ArduPilot reports them in frame 0); a
-    frame and its _INT twin as the same (PX4 reads frame 3 back as 6); coordinates to 1e-7
-    degree (MISSION_ITEM_INT's resolution), the rest to float32's.
+    frame and its _INT twin as the same (PX4 reads frame 3 back as 6); fence items by their
+    position and param1 (vertex count or radius) only, which is what both autopilots keep of
+    them; coordinates to 1e-7 degree (MISSION_ITEM_INT's resolution), the rest to float32's.
     """
     if len(sent) != len(stored):
         return [f'the vehicle holds {len(stored)} items, the mission has {len(sent)}']
@@ -258,6 +267,10 @@ def mismatches(sent: Sequence[MissionItem], stored: Sequence[MissionItem], *,
 
 
 def _same_item(a: MissionItem, b: MissionItem) -> bool:
+    if a.command in FENCE_COMMANDS:
+        return (all(_same_param(p, q) for p, q in zip(a.params[:1], b.params[:1]))
+                and round(a.x * DEGREES_E7) == round(b.x * DEGREES_E7)
+                and round(a.y * DEGREES_E7) == round(b.y * DEGREES_E7))
     if a.command >= FRAMELESS_COMMANDS_BELOW or a.frame == MAV.MAV_FRAME_MISSION:
         positional = False
     else:
@@ -287,6 +300,6 @@ def _describe(item: MissionItem) -> str:
 
 
 __all__ = [
-    'MissionItem', 'build_mission_items', 'check_home', 'from_message', 'item_int_message',
-    'item_message', 'mismatches', 'mission_firmware', 'Q0_SEQ',
+    'FENCE_COMMANDS', 'MissionItem', 'build_mission_items', 'check_home', 'from_message',
+    'item_int_message', 'item_message', 'mismatches', 'mission_firmware', 'Q0_SEQ',
 ]

@@ -1,8 +1,9 @@
-"""The MAVLink link to a vehicle: connect, upload a mission and read it back.
+"""The MAVLink link to a vehicle: connect, upload a mission or a fence and read it back.
 
 Speaks the MAVLink mission protocol (MISSION_COUNT, MISSION_REQUEST_INT, MISSION_ITEM_INT,
-MISSION_ACK) over any connection pymavlink opens: ``tcp:127.0.0.1:5760``,
-``udpin:0.0.0.0:14550``, ``/dev/ttyACM0,115200``. Every item request has a timeout; a silent
+MISSION_ACK), for the mission or the fence (``mission_type`` MAV_MISSION_TYPE_FENCE), over any
+connection pymavlink opens: ``tcp:127.0.0.1:5760``, ``udpin:0.0.0.0:14550``,
+``/dev/ttyACM0,115200``. Every item request has a timeout; a silent
 vehicle gets the last message again, up to ``retries`` times; a refusal that the autopilot
 gives while it is still busy (ArduCopter answers MAV_MISSION_NO_SPACE to a MISSION_COUNT sent
 right after connecting) restarts the upload after a pause. Every other MAV_MISSION_RESULT is a
@@ -36,6 +37,10 @@ HEARTBEAT_POLL_S = 0.2
 #: Refusals an autopilot gives while busy (parameters or a previous transfer still loading).
 TRANSIENT_RESULTS = (MAV.MAV_MISSION_NO_SPACE, MAV.MAV_MISSION_DENIED,
                      MAV.MAV_MISSION_OPERATION_CANCELLED)
+#: What each mission type is called in messages.
+MISSION_TYPE_NAMES = {MAV.MAV_MISSION_TYPE_MISSION: 'mission',
+                      MAV.MAV_MISSION_TYPE_FENCE: 'fence',
+                      MAV.MAV_MISSION_TYPE_RALLY: 'rally points'}
 
 
 @dataclass(frozen=True)
@@ -173,9 +178,10 @@ def for_vehicle(link, items: Sequence[MissionItem]) -> Sequence[MissionItem]:
     return items if has_home_row(link) else items[1:]
 
 
-def _receive(link, types: Sequence[str], timeout_s: float, total: Deadline | None = None):
-    """The next message of one of ``types`` addressed to us, or None after ``timeout_s``
-    (cut to what is left of ``total``, which raises once it has passed)."""
+def _receive(link, types: Sequence[str], timeout_s: float, total: Deadline | None = None,
+             mission_type: int = MISSION_TYPE):
+    """The next message of one of ``types`` addressed to us about ``mission_type``, or None
+    after ``timeout_s`` (cut to what is left of ``total``, which raises once it has passed)."""
     if total is not None:
         timeout_s = total.left(timeout_s)
     deadline = time.monotonic() + timeout_s
@@ -186,7 +192,7 @@ def _receive(link, types: Sequence[str], timeout_s: float, total: Deadline | Non
             raise VehicleLinkError(f'link lost: {exc}') from exc
         if message is None:
             return None
-        if getattr(message, 'mission_type', MISSION_TYPE) != MISSION_TYPE:
+        if getattr(message, 'mission_type', MISSION_TYPE) != mission_type:
             continue
         target = getattr(message, 'target_system', None)
         if target not in (None, 0, link.source_system):
@@ -202,52 +208,58 @@ def _send(link, message) -> None:
         raise VehicleLinkError(f'link lost while sending: {exc}') from exc
 
 
+def _kind(mission_type: int) -> str:
+    return MISSION_TYPE_NAMES.get(mission_type, f'mission type {mission_type}')
+
+
 def upload_mission(link, items: Sequence[MissionItem],
                    settings: LinkSettings = LinkSettings(), *,
-                   total: Deadline | None = None) -> None:
-    """Upload ``items`` (row 0 is home) and wait for MAV_MISSION_ACCEPTED.
+                   total: Deadline | None = None, mission_type: int = MISSION_TYPE) -> None:
+    """Upload ``items`` (for the mission, row 0 is home) and wait for MAV_MISSION_ACCEPTED.
 
     Raises :class:`VehicleLinkError` on a refusal, with the MAV_MISSION_RESULT's name and the
     item it concerns, when the vehicle stays silent through every retry, asks for items out of
     range or over and over (a loop), or when ``total`` (by default ``settings.deadline_s``)
     passes.
     """
+    kind = _kind(mission_type)
     if not items:
-        raise VehicleLinkError('an empty mission cannot be uploaded')
+        raise VehicleLinkError(f'an empty {kind} cannot be uploaded')
     if len(items) > MAX_ITEMS:
-        raise VehicleLinkError(f'a mission of {len(items)} items is more than MAVLink carries '
+        raise VehicleLinkError(f'a {kind} of {len(items)} items is more than MAVLink carries '
                                f'({MAX_ITEMS})')
-    total = total or Deadline(settings.deadline_s, 'the mission upload')
+    total = total or Deadline(settings.deadline_s, f'the {kind} upload')
     for attempt in range(settings.busy_retries + 1):
-        result, seq = _upload_once(link, items, settings, total)
+        result, seq = _upload_once(link, items, settings, total, mission_type)
         if result == MAV.MAV_MISSION_ACCEPTED:
             return
         if result not in TRANSIENT_RESULTS or attempt == settings.busy_retries:
             where = f' at item {seq}' if seq is not None else ''
-            raise VehicleLinkError(f'the vehicle refused the mission{where}: '
+            raise VehicleLinkError(f'the vehicle refused the {kind}{where}: '
                                    f'{result_name(result)}')
         time.sleep(total.left(settings.busy_pause_s))
 
 
 def _upload_once(link, items: Sequence[MissionItem], settings: LinkSettings,
-                 total: Deadline) -> tuple[int, int | None]:
+                 total: Deadline, mission_type: int) -> tuple[int, int | None]:
     """One transfer: the vehicle's final MAV_MISSION_RESULT and the last item it asked for."""
     count = link.mav.mission_count_encode(link.target_system, link.target_component,
-                                          len(items), MISSION_TYPE)
+                                          len(items), mission_type)
     last_sent = count
     requested: int | None = None
     silent = 0
     # Each item may be asked for again when our answer was lost, up to `retries` times.
     most_requests = len(items) * (settings.retries + 1)
     requests = 0
+    kind = _kind(mission_type)
     _send(link, count)
     while True:
         message = _receive(link, ('MISSION_REQUEST_INT', 'MISSION_REQUEST', 'MISSION_ACK'),
-                           settings.timeout_s, total)
+                           settings.timeout_s, total, mission_type)
         if message is None:
             silent += 1
             if silent > settings.retries:
-                at = 'the mission count' if requested is None else f'item {requested}'
+                at = f'the {kind} count' if requested is None else f'item {requested}'
                 raise VehicleLinkError(f'the vehicle stopped answering after {at} '
                                        f'({settings.retries} retries of '
                                        f'{settings.timeout_s:g} s)')
@@ -259,52 +271,56 @@ def _upload_once(link, items: Sequence[MissionItem], settings: LinkSettings,
         requested = message.seq
         if not 0 <= requested < len(items):
             raise VehicleLinkError(f'the vehicle asked for item {requested} of a '
-                                   f'{len(items)}-item mission')
+                                   f'{len(items)}-item {kind}')
         requests += 1
         if requests > most_requests:
             raise VehicleLinkError(f'the vehicle keeps asking for items ({requests} requests '
-                                   f'for a {len(items)}-item mission, the last for item '
+                                   f'for a {len(items)}-item {kind}, the last for item '
                                    f'{requested}): it loops')
         last_sent = item_int_message(items[requested], requested, link.mav,
-                                     link.target_system, link.target_component)
+                                     link.target_system, link.target_component,
+                                     mission_type=mission_type)
         _send(link, last_sent)
 
 
 def download_mission(link, settings: LinkSettings = LinkSettings(), *,
-                     expected: int | None = None,
-                     total: Deadline | None = None) -> list[MissionItem]:
-    """Read the vehicle's mission, row 0 (home) first; with ``expected``, a vehicle that
-    reports another item count is refused before any item is asked for."""
-    total = total or Deadline(settings.deadline_s, 'the mission read-back')
+                     expected: int | None = None, total: Deadline | None = None,
+                     mission_type: int = MISSION_TYPE) -> list[MissionItem]:
+    """Read the vehicle's mission (row 0, home, first) or, by ``mission_type``, its fence;
+    with ``expected``, a vehicle that reports another item count is refused before any item
+    is asked for."""
+    kind = _kind(mission_type)
+    total = total or Deadline(settings.deadline_s, f'the {kind} read-back')
     request_list = link.mav.mission_request_list_encode(link.target_system,
-                                                        link.target_component, MISSION_TYPE)
-    count = _ask(link, request_list, ('MISSION_COUNT',), settings, 'the mission count',
-                 total=total).count
+                                                        link.target_component, mission_type)
+    count = _ask(link, request_list, ('MISSION_COUNT',), settings, f'the {kind} count',
+                 total=total, mission_type=mission_type).count
     if expected is not None and count != expected:
-        raise VehicleLinkError(f'the vehicle does not hold the mission uploaded: it reports '
+        raise VehicleLinkError(f'the vehicle does not hold the {kind} uploaded: it reports '
                                f'{count} items, {expected} were uploaded')
     items = []
     for seq in range(count):
         request = link.mav.mission_request_int_encode(link.target_system,
-                                                      link.target_component, seq, MISSION_TYPE)
+                                                      link.target_component, seq, mission_type)
         message = _ask(link, request, ('MISSION_ITEM_INT',), settings, f'item {seq}',
-                       seq=seq, total=total)
+                       seq=seq, total=total, mission_type=mission_type)
         try:
             items.append(from_message(message))
         except (TypeError, ValueError, OverflowError) as exc:
             raise VehicleLinkError(f'the vehicle sent item {seq} out of range: {exc}') from None
     _send(link, link.mav.mission_ack_encode(link.target_system, link.target_component,
-                                            MAV.MAV_MISSION_ACCEPTED, MISSION_TYPE))
+                                            MAV.MAV_MISSION_ACCEPTED, mission_type))
     return items
 
 
 def _ask(link, request, types: Sequence[str], settings: LinkSettings, what: str, *,
-         seq: int | None = None, total: Deadline | None = None):
+         seq: int | None = None, total: Deadline | None = None,
+         mission_type: int = MISSION_TYPE):
     for _ in range(settings.retries + 1):
         _send(link, request)
         deadline = time.monotonic() + settings.timeout_s
         while (left := deadline - time.monotonic()) > 0:
-            message = _receive(link, (*types, 'MISSION_ACK'), left, total)
+            message = _receive(link, (*types, 'MISSION_ACK'), left, total, mission_type)
             if message is None:
                 break
             if message.get_type() == 'MISSION_ACK':
@@ -319,14 +335,20 @@ def _ask(link, request, types: Sequence[str], settings: LinkSettings, what: str,
 
 
 def upload_and_verify(link, items: Sequence[MissionItem],
-                      settings: LinkSettings = LinkSettings()) -> None:
-    """Upload ``items`` (row 0 is home; PX4 gets them without it, :func:`for_vehicle`), read
-    them back, and raise :class:`VehicleLinkError` unless the vehicle holds them."""
-    total = Deadline(settings.deadline_s, 'the mission upload and its read-back')
-    items = for_vehicle(link, items)
-    upload_mission(link, items, settings, total=total)
-    wrong = mismatches(items, download_mission(link, settings, expected=len(items),
-                                               total=total), home_row=has_home_row(link))
+                      settings: LinkSettings = LinkSettings(), *,
+                      mission_type: int = MISSION_TYPE) -> None:
+    """Upload ``items``, read them back, and raise :class:`VehicleLinkError` unless the
+    vehicle holds them. A mission's row 0 is home (PX4 gets it without, :func:`for_vehicle`);
+    a fence (``mission_type`` MAV_MISSION_TYPE_FENCE) has no home row on either autopilot."""
+    kind = _kind(mission_type)
+    total = Deadline(settings.deadline_s, f'the {kind} upload and its read-back')
+    mission = mission_type == MISSION_TYPE
+    if mission:
+        items = for_vehicle(link, items)
+    upload_mission(link, items, settings, total=total, mission_type=mission_type)
+    stored = download_mission(link, settings, expected=len(items), total=total,
+                              mission_type=mission_type)
+    wrong = mismatches(items, stored, home_row=mission and has_home_row(link))
     if wrong:
-        raise VehicleLinkError('the vehicle does not hold the mission uploaded: '
+        raise VehicleLinkError(f'the vehicle does not hold the {kind} uploaded: '
                                + '; '.join(wrong[:3]))

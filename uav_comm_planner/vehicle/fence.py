@@ -1,0 +1,359 @@
+"""Geofence files: QGroundControl's ``.plan`` ``geoFence`` and GeoJSON, read, written, and
+turned into the planner's :class:`~uav_comm_planner.core.zones.Zones`.
+
+A :class:`GeoFence` holds a fence as ground stations and autopilots hold it, on WGS84:
+polygons (vertices latitude, longitude in degrees) and circles (centre latitude, longitude,
+radius metres), each an inclusion (stay inside) or an exclusion (stay out). It is read from
+
+- a QGroundControl ``.plan`` file's ``geoFence`` section (version 2: ``polygons`` of
+  ``{"inclusion": bool, "polygon": [[lat, lon], ...]}`` and ``circles`` of
+  ``{"inclusion": bool, "circle": {"center": [lat, lon], "radius": metres}}``), or
+- a GeoJSON FeatureCollection (``.geojson`` or ``.json``) whose features carry the property
+  ``"fence": "inclusion"`` or ``"fence": "exclusion"``: a ``Polygon`` (one ring, longitude
+  first as GeoJSON orders it, closed or not) or a ``Point`` with ``"radius_m"`` (a circle).
+
+:meth:`GeoFence.zones` anchors it at home (:mod:`.geodesy`): the one inclusion polygon is the
+operating area; an inclusion circle becomes the regular polygon of
+:data:`CIRCLE_SIDES` sides inscribed in it (staying inside the polygon keeps inside the
+circle); exclusions are keep-out polygons and circles. A fence with more than one inclusion
+zone is refused: the planner takes one operating area. :func:`fence_from_zones` goes back, and
+:meth:`GeoFence.plan_section` is the ``geoFence`` a ``.plan`` file carries. Every bad file is a
+:class:`~uav_comm_planner.errors.FenceFileError` naming the file and the place.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from uav_comm_planner.core.zones import (KeepOutCircle, KeepOutPolygon, MAX_POLYGON_VERTICES,
+                                         OperatingArea, Zones)
+from uav_comm_planner.errors import FenceFileError, InvalidScenarioError
+from uav_comm_planner.files import read_text_file
+from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, geodetic_to_enu, Home
+
+#: Sides of the polygon inscribed in an inclusion circle (its edges stay within
+#: r (1 - cos(pi / 64)), 0.12 % of the radius, of the circle).
+CIRCLE_SIDES = 64
+#: A fence file larger than this is refused before it is read.
+MAX_FENCE_FILE_BYTES = 16 * 1024 * 1024
+#: Zones a fence may hold (each polygon vertex and each circle is one MAVLink fence item).
+MAX_FENCE_ZONES = 100
+#: Degrees are written with this many decimals (1e-8 degree, about 1 mm), as .plan missions.
+DEGREE_DECIMALS = 8
+FENCE_PROPERTY = 'fence'
+RADIUS_PROPERTY = 'radius_m'
+GEOJSON_SUFFIXES = ('.geojson', '.json')
+#: Zones farther from home than this are refused: the planning frame is the tangent plane at
+#: home, about 0.8 km above the ground at 100 km, where a fence stops meaning the ground.
+MAX_FENCE_DISTANCE_M = 100e3
+
+
+@dataclass(frozen=True)
+class FencePolygon:
+    """A polygon of the fence: vertices (K, 2) latitude, longitude degrees, not closed."""
+
+    inclusion: bool
+    vertices_deg: tuple[tuple[float, float], ...]
+
+
+@dataclass(frozen=True)
+class FenceCircle:
+    """A circle of the fence: centre latitude, longitude degrees, radius metres."""
+
+    inclusion: bool
+    center_deg: tuple[float, float]
+    radius_m: float
+
+
+@dataclass(frozen=True)
+class GeoFence:
+    """A geofence on WGS84: its polygons and circles, inclusions and exclusions."""
+
+    polygons: tuple[FencePolygon, ...] = ()
+    circles: tuple[FenceCircle, ...] = ()
+
+    @property
+    def empty(self) -> bool:
+        return not self.polygons and not self.circles
+
+    def zones(self, home: Home, *, margin_m: float = Zones.margin_m) -> Zones:
+        """The fence in the planning frame anchored at ``home``, as :class:`Zones` keeping
+        ``margin_m`` from every edge. Raises InvalidScenarioError for a zone that is not
+        one (a polygon that crosses itself, a radius <= 0) or a second inclusion zone."""
+        inclusions = [z for z in (*self.polygons, *self.circles) if z.inclusion]
+        if len(inclusions) > 1:
+            raise InvalidScenarioError(
+                f'the fence has {len(inclusions)} inclusion zones; the planner takes one '
+                f'operating area: keep one inclusion polygon or circle')
+        area = None
+        keep_out: list = []
+        for index, polygon in enumerate(self.polygons):
+            vertices = _to_metres(np.array(polygon.vertices_deg), home)
+            what = f'polygon {index + 1}'
+            if polygon.inclusion:
+                area = _zone(what, OperatingArea, vertices)
+            else:
+                keep_out.append(_zone(what, KeepOutPolygon, vertices))
+        for index, circle in enumerate(self.circles):
+            center = _to_metres(np.array([circle.center_deg]), home)[0]
+            what = f'circle {index + 1}'
+            if circle.inclusion:
+                angles = 2 * np.pi * np.arange(CIRCLE_SIDES) / CIRCLE_SIDES
+                ring = center + circle.radius_m * np.column_stack([np.cos(angles),
+                                                                  np.sin(angles)])
+                area = _zone(what, OperatingArea, ring)
+            else:
+                keep_out.append(_zone(what, KeepOutCircle, tuple(center), circle.radius_m))
+        return Zones(area, tuple(keep_out), margin_m)
+
+    def plan_section(self) -> dict:
+        """The ``geoFence`` object of a QGroundControl .plan file (version 2)."""
+        return {
+            'circles': [{'circle': {'center': list(c.center_deg), 'radius': c.radius_m},
+                         'inclusion': c.inclusion, 'version': 1} for c in self.circles],
+            'polygons': [{'inclusion': p.inclusion, 'polygon': [list(v) for v in
+                                                                p.vertices_deg],
+                          'version': 1} for p in self.polygons],
+            'version': 2,
+        }
+
+
+def _zone(what: str, kind, *args):
+    try:
+        return kind(*args)
+    except InvalidScenarioError as exc:
+        raise InvalidScenarioError(f'fence {what}: {exc}') from None
+
+
+def _to_metres(degrees: np.ndarray, home: Home) -> np.ndarray:
+    east, north, _ = geodetic_to_enu(degrees[:, 0], degrees[:, 1], home.altitude_m, home)
+    return np.column_stack([east, north])
+
+
+def _to_degrees(points_m: np.ndarray, home: Home) -> tuple[tuple[float, float], ...]:
+    farthest = float(np.max(np.linalg.norm(points_m, axis=1)))
+    if farthest > MAX_FENCE_DISTANCE_M:
+        raise InvalidScenarioError(
+            f'a zone reaches {farthest:.6g} m from home, farther than a fence goes '
+            f'({MAX_FENCE_DISTANCE_M:g} m): give the zones in metres from home')
+    latitude, longitude, _ = enu_to_geodetic(points_m[:, 0], points_m[:, 1], 0.0, home)
+    return tuple((round(float(a), DEGREE_DECIMALS), round(float(b), DEGREE_DECIMALS))
+                 for a, b in zip(np.atleast_1d(latitude), np.atleast_1d(longitude)))
+
+
+def fence_from_zones(zones: Zones, home: Home) -> GeoFence:
+    """The geofence of ``zones`` anchored at ``home``: the operating area an inclusion polygon,
+    the keep-out zones exclusion polygons and circles (the margin is the planner's own and
+    stays out of the fence)."""
+    polygons = []
+    if zones.area is not None:
+        polygons.append(FencePolygon(True, _to_degrees(np.asarray(zones.area.vertices_m), home)))
+    circles = []
+    for zone in zones.keep_out:
+        if isinstance(zone, KeepOutCircle):
+            center = _to_degrees(np.array([zone.center_m]), home)[0]
+            circles.append(FenceCircle(False, center, zone.radius_m))
+        else:
+            polygons.append(FencePolygon(False, _to_degrees(np.asarray(zone.vertices_m), home)))
+    return GeoFence(tuple(polygons), tuple(circles))
+
+
+# Reading.
+
+class _Place(Exception):
+    """A bad value at a place in the file (``where``: e.g. "polygons[1].polygon[3]")."""
+
+    def __init__(self, where: str, why: str) -> None:
+        super().__init__(f'{where}: {why}')
+
+
+def _latitude_longitude(value: object, where: str, *, lon_first: bool = False
+                        ) -> tuple[float, float]:
+    if (not isinstance(value, (list, tuple)) or len(value) < 2
+            or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value)):
+        order = '[longitude, latitude]' if lon_first else '[latitude, longitude]'
+        raise _Place(where, f'must be {order} in degrees, got {_short(value)}')
+    latitude, longitude = (value[1], value[0]) if lon_first else (value[0], value[1])
+    latitude, longitude = float(latitude), float(longitude)
+    if not (math.isfinite(latitude) and abs(latitude) <= 90.0):
+        raise _Place(where, f'latitude {latitude!r} is not in [-90, 90] degrees')
+    if not (math.isfinite(longitude) and abs(longitude) <= 180.0):
+        raise _Place(where, f'longitude {longitude!r} is not in [-180, 180] degrees')
+    return latitude, longitude
+
+
+def _ring(points: object, where: str, *, lon_first: bool = False
+          ) -> tuple[tuple[float, float], ...]:
+    if not isinstance(points, list):
+        raise _Place(where, f'must be a list of vertices, got {_short(points)}')
+    if len(points) > MAX_POLYGON_VERTICES + 1:
+        raise _Place(where, f'has {len(points)} vertices, more than {MAX_POLYGON_VERTICES}')
+    vertices = [_latitude_longitude(p, f'{where}[{i}]', lon_first=lon_first)
+                for i, p in enumerate(points)]
+    if len(vertices) > 1 and vertices[0] == vertices[-1]:
+        vertices = vertices[:-1]  # a closed ring (GeoJSON's rule) repeats its first vertex
+    if len(vertices) < 3:
+        raise _Place(where, f'has {len(vertices)} distinct vertices; a polygon needs 3')
+    return tuple(vertices)
+
+
+def _radius(value: object, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+            math.isfinite(value) and value > 0):
+        raise _Place(where, f'must be a positive number of metres, got {_short(value)}')
+    return float(value)
+
+
+def _inclusion(value: object, where: str) -> bool:
+    if not isinstance(value, bool):
+        raise _Place(where, f'must be true or false, got {_short(value)}')
+    return value
+
+
+def _member(entry: object, key: str, where: str) -> object:
+    if not isinstance(entry, dict):
+        raise _Place(where, f'must be an object, got {_short(entry)}')
+    if key not in entry:
+        raise _Place(where, f'has no "{key}"')
+    return entry[key]
+
+
+def _list(value: object, where: str) -> list:
+    if not isinstance(value, list):
+        raise _Place(where, f'must be a list, got {_short(value)}')
+    if len(value) > MAX_FENCE_ZONES:
+        raise _Place(where, f'holds {len(value)} zones, more than {MAX_FENCE_ZONES}')
+    return value
+
+
+def plan_fence(document: object) -> GeoFence:
+    """The geofence of a parsed .plan document (its ``geoFence``; none: an empty fence)."""
+    if not isinstance(document, dict):
+        raise _Place('the file', 'is not a JSON object')
+    section = document.get('geoFence')
+    if section is None:
+        return GeoFence()
+    if not isinstance(section, dict):
+        raise _Place('geoFence', f'must be an object, got {_short(section)}')
+    version = section.get('version', 2)
+    if version != 2:
+        raise _Place('geoFence.version', f'is {_short(version)}; version 2 is read')
+    polygons = tuple(
+        FencePolygon(_inclusion(_member(p, 'inclusion', f'geoFence.polygons[{i}]'),
+                                f'geoFence.polygons[{i}].inclusion'),
+                     _ring(_member(p, 'polygon', f'geoFence.polygons[{i}]'),
+                           f'geoFence.polygons[{i}].polygon'))
+        for i, p in enumerate(_list(section.get('polygons', []), 'geoFence.polygons')))
+    circles = []
+    for i, entry in enumerate(_list(section.get('circles', []), 'geoFence.circles')):
+        where = f'geoFence.circles[{i}]'
+        circle = _member(entry, 'circle', where)
+        circles.append(FenceCircle(
+            _inclusion(_member(entry, 'inclusion', where), f'{where}.inclusion'),
+            _latitude_longitude(_member(circle, 'center', f'{where}.circle'),
+                                f'{where}.circle.center'),
+            _radius(_member(circle, 'radius', f'{where}.circle'), f'{where}.circle.radius')))
+    return GeoFence(polygons, tuple(circles))
+
+
+def geojson_fence(document: object) -> GeoFence:
+    """The geofence of a parsed GeoJSON FeatureCollection (module docstring)."""
+    if not isinstance(document, dict) or document.get('type') != 'FeatureCollection':
+        raise _Place('the file', 'is not a GeoJSON FeatureCollection')
+    polygons, circles = [], []
+    for i, feature in enumerate(_list(_member(document, 'features', 'the FeatureCollection'),
+                                      'features')):
+        where = f'features[{i}]'
+        properties = _member(feature, 'properties', where)
+        kind = _member(properties, FENCE_PROPERTY, f'{where}.properties')
+        if kind not in ('inclusion', 'exclusion'):
+            raise _Place(f'{where}.properties.{FENCE_PROPERTY}',
+                         f'must be "inclusion" or "exclusion", got {_short(kind)}')
+        geometry = _member(feature, 'geometry', where)
+        shape = _member(geometry, 'type', f'{where}.geometry')
+        coordinates = _member(geometry, 'coordinates', f'{where}.geometry')
+        if shape == 'Polygon':
+            if not isinstance(coordinates, list) or len(coordinates) != 1:
+                raise _Place(f'{where}.geometry.coordinates',
+                             'must hold exactly one ring (a fence polygon has no holes)')
+            polygons.append(FencePolygon(kind == 'inclusion', _ring(
+                coordinates[0], f'{where}.geometry.coordinates[0]', lon_first=True)))
+        elif shape == 'Point':
+            circles.append(FenceCircle(
+                kind == 'inclusion',
+                _latitude_longitude(coordinates, f'{where}.geometry.coordinates',
+                                    lon_first=True),
+                _radius(_member(properties, RADIUS_PROPERTY, f'{where}.properties'),
+                        f'{where}.properties.{RADIUS_PROPERTY}')))
+        else:
+            raise _Place(f'{where}.geometry.type',
+                         f'is {_short(shape)}; a fence zone is a Polygon or a Point with '
+                         f'"{RADIUS_PROPERTY}"')
+    return GeoFence(tuple(polygons), tuple(circles))
+
+
+def read_fence(path: str | os.PathLike) -> GeoFence:
+    """The geofence in ``path``: a QGroundControl ``.plan`` (its ``geoFence``) or a GeoJSON
+    FeatureCollection (``.geojson``, ``.json``). Raises FenceFileError, naming the file and
+    the place, for a file that cannot be read or holds a bad zone."""
+    target = Path(path)
+    name = repr(str(target))
+    suffix = target.suffix.lower()
+    if suffix not in ('.plan', *GEOJSON_SUFFIXES):
+        raise FenceFileError(f'unknown fence format {suffix or "(no extension)"!r} for {name}: '
+                             f'use a QGroundControl .plan or a .geojson file')
+    text = read_text_file(target, max_bytes=MAX_FENCE_FILE_BYTES, what='fence file',
+                          error=FenceFileError)
+    try:
+        document = json.loads(text)
+    except RecursionError:
+        raise FenceFileError(f'fence file {name} is nested too deeply') from None
+    except ValueError as exc:
+        raise FenceFileError(f'fence file {name} is not valid JSON: {exc}') from None
+    try:
+        return plan_fence(document) if suffix == '.plan' else geojson_fence(document)
+    except _Place as exc:
+        raise FenceFileError(f'fence file {name}: {exc}') from None
+
+
+def read_zones(path: str | os.PathLike, home: Home, *,
+               margin_m: float = Zones.margin_m) -> Zones:
+    """The zones of the fence file ``path`` anchored at ``home`` (:meth:`GeoFence.zones`);
+    every refusal is a FenceFileError naming the file."""
+    fence = read_fence(path)
+    if fence.empty:
+        raise FenceFileError(f'fence file {str(path)!r} holds no fence zone')
+    try:
+        return fence.zones(home, margin_m=margin_m)
+    except InvalidScenarioError as exc:
+        raise FenceFileError(f'fence file {str(path)!r}: {exc}') from None
+
+
+def read_checked_fence(path: str | os.PathLike) -> GeoFence:
+    """The geofence of ``path`` checked as :func:`read_zones` checks it (anchored at its own
+    first point, which needs no home), for an upload that sends it as it is."""
+    fence = read_fence(path)
+    if fence.empty:
+        raise FenceFileError(f'fence file {str(path)!r} holds no fence zone')
+    first = fence.polygons[0].vertices_deg[0] if fence.polygons else fence.circles[0].center_deg
+    try:
+        fence.zones(Home(first[0], first[1], 0.0))
+    except InvalidScenarioError as exc:
+        raise FenceFileError(f'fence file {str(path)!r}: {exc}') from None
+    return fence
+
+
+def _short(value: object, limit: int = 60) -> str:
+    text = json.dumps(value) if isinstance(value, (str, int, float, bool, type(None))) \
+        else repr(value)
+    return text if len(text) <= limit else text[:limit] + '...'
+
+
+__all__ = ['CIRCLE_SIDES', 'FenceCircle', 'FencePolygon', 'GeoFence', 'fence_from_zones',
+           'geojson_fence', 'plan_fence', 'read_checked_fence', 'read_fence', 'read_zones']
