@@ -11,7 +11,9 @@ call, so that the same request gives the same plan and the same items on either 
 2. for a vehicle-aware request, :func:`~uav_comm_planner.vehicle.flyable.plan_for_vehicle`
    times it for the vehicle and the plan returned is the plan as flown;
 3. the mission items are built from that plan, once; writing a mission file or uploading it
-   uses these items.
+   uses these items. With zones, items whose legs enter a keep-out zone or leave the
+   operating area are not built (``items_error`` gives the clearance), and a .plan file
+   carries the zones as its geoFence.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from uav_comm_planner.files import OutputFolder
 from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
+from uav_comm_planner.vehicle.mavlink.fence import mission_clearance
 from uav_comm_planner.vehicle.mavlink.files import write_mission_file
 from uav_comm_planner.vehicle.mavlink.items import build_mission_items, MissionItem
 
@@ -82,7 +85,8 @@ class MissionPlan:
         if self.items is None:
             raise PlannerError(self.items_error or 'this plan was made without mission items')
         return write_mission_file(self.items, path, self.request.home,
-                                  firmware=self.request.firmware, folder=folder)
+                                  firmware=self.request.firmware, folder=folder,
+                                  zones=self.request.planned_scenario.zones)
 
 
 def _bound(planner: Planner, **options) -> Callable[[Scenario, SolverSettings | None],
@@ -151,11 +155,19 @@ def _plan_rest(request: MissionRequest, planner: Planner,
 def _items(request: MissionRequest, planned: VehiclePlan | PlanResult) -> dict:
     """``items`` (or ``items_error``) of a :class:`MissionPlan` for ``request``."""
     try:
-        return {'items': tuple(build_mission_items(planned, request.home, end=request.end,
-                                                   firmware=request.firmware,
-                                                   limits=request.vehicle))}
+        items = tuple(build_mission_items(planned, request.home, end=request.end,
+                                          firmware=request.firmware, limits=request.vehicle))
     except PlannerError as exc:
         return {'items': None, 'items_error': str(exc)}
+    zones = request.planned_scenario.zones
+    if zones is not None and not zones.empty:
+        clearance = mission_clearance(items, request.home, zones)
+        if clearance < 0:
+            return {'items': None, 'items_error': (
+                f'the mission\'s legs enter the zones: their least clearance is '
+                f'{clearance:.2f} m (a keep-out zone entered or the operating area left); '
+                f'no mission is written or uploaded')}
+    return {'items': items}
 
 
 __all__ = ['MissionPlan', 'Planner', 'plan_mission']

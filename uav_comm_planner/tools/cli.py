@@ -19,6 +19,7 @@ from typing import Sequence
 
 from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
+from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_text_file, write_text_atomic
 from uav_comm_planner.tools import bench
@@ -307,10 +308,14 @@ def _command_plan(args: argparse.Namespace) -> int:
     from uav_comm_planner.mission.request import MissionRequest
     vehicle_aware = _vehicle_asked(args)
     limits = _vehicle_limits(args)
+    zones = None
+    if args.fence is not None:
+        from uav_comm_planner.vehicle.fence import read_zones
+        zones = read_zones(args.fence, args.home, margin_m=args.fence_margin)
     request = MissionRequest(
         _scenario(args, limits if vehicle_aware else None), _settings(args), limits,
         vehicle_aware=vehicle_aware, firmware=args.firmware, end=args.mission_end,
-        home=args.home, items=args.mission is not None)
+        home=args.home, items=args.mission is not None, zones=zones)
     planned = plan_mission(request)
     if vehicle_aware:
         print(format_plan(planned.vehicle_plan.ideal))
@@ -439,6 +444,13 @@ def build_parser() -> argparse.ArgumentParser:
                                   'metres above sea level (default %s, the PX4 and ArduPilot '
                                   "simulators' launch point in Zurich; give your own field's)"
                                   % ','.join(f'{v:.10g}' for v in DEFAULT_HOME))
+    plan_parser.add_argument('--fence', type=Path, metavar='FENCE.plan|FENCE.geojson',
+                             help="where the vehicle may fly: a .plan file's geoFence or a "
+                                  'GeoJSON FeatureCollection, anchored at --home '
+                                  '(docs/fences.md); a .plan mission carries it as its fence')
+    plan_parser.add_argument('--fence-margin', type=float, default=Zones.margin_m, metavar='M',
+                             help='clearance kept from every fence edge, metres (default '
+                                  f'{Zones.margin_m:g})')
     plan_parser.add_argument('--mission-end', choices=MISSION_ENDS, default='land',
                              help='land at the goal or return to launch (default land)')
     plan_parser.add_argument('--firmware', choices=list(FIRMWARES), default='ardupilot',

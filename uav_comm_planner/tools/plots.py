@@ -206,6 +206,8 @@ def draw_plan(result: PlanResult, *, title: str = '', as_flown: bool = False):
     scenario = result.scenario
     figure, (ax_path, ax_speed, ax_power) = plt.subplots(1, 3, figsize=(15, 5.2),
                                                          layout='constrained')
+    if scenario.zones is not None:
+        _draw_zones(ax_path, scenario.zones)
     path_xy = flown_path(result.trajectory, scenario)
     ax_path.plot(path_xy[:, 0], path_xy[:, 1], '.-', color='tab:blue', markersize=4,
                  label='UAV path')
@@ -242,6 +244,22 @@ def draw_plan(result: PlanResult, *, title: str = '', as_flown: bool = False):
     _legend_below(ax_power, columns=min(scenario.num_nodes, 5))
     figure.suptitle(title or plan_title(result, as_flown=as_flown))
     return figure
+
+
+def _draw_zones(ax, zones) -> None:
+    """The operating area's edge (green, dashed) and the keep-out zones (red, filled)."""
+    from uav_comm_planner.vehicle.fence import zone_outlines
+    labelled = set()
+    for kind, ring in zone_outlines(zones):
+        label = None if kind in labelled else {'area': 'operating area',
+                                               'keep_out': 'keep-out zone'}[kind]
+        labelled.add(kind)
+        if kind == 'area':
+            ax.plot(ring[:, 0], ring[:, 1], '--', color='tab:green', linewidth=1.2,
+                    label=label)
+        else:
+            ax.fill(ring[:, 0], ring[:, 1], color='tab:red', alpha=0.25, linewidth=1.0,
+                    edgecolor='tab:red', label=label)
 
 
 def plan_figure(result: PlanResult, path: str | os.PathLike, *, title: str = '',

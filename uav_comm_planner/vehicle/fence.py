@@ -30,6 +30,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from uav_comm_planner.core.zones import (KeepOutCircle, KeepOutPolygon, MAX_POLYGON_VERTICES,
                                          OperatingArea, Zones)
@@ -104,10 +105,8 @@ class GeoFence:
             center = _to_metres(np.array([circle.center_deg]), home)[0]
             what = f'circle {index + 1}'
             if circle.inclusion:
-                angles = 2 * np.pi * np.arange(CIRCLE_SIDES) / CIRCLE_SIDES
-                ring = center + circle.radius_m * np.column_stack([np.cos(angles),
-                                                                  np.sin(angles)])
-                area = _zone(what, OperatingArea, ring)
+                area = _zone(what, OperatingArea,
+                             circle_ring(center, circle.radius_m, CIRCLE_SIDES))
             else:
                 keep_out.append(_zone(what, KeepOutCircle, tuple(center), circle.radius_m))
         return Zones(area, tuple(keep_out), margin_m)
@@ -122,6 +121,32 @@ class GeoFence:
                           'version': 1} for p in self.polygons],
             'version': 2,
         }
+
+
+def circle_ring(center_m: ArrayLike, radius_m: float, sides: int) -> np.ndarray:
+    """The (sides, 2) vertices of the regular polygon inscribed in a circle, counter-clockwise
+    from east."""
+    angles = 2 * np.pi * np.arange(sides) / sides
+    return np.asarray(center_m, dtype=float) + radius_m * np.column_stack([np.cos(angles),
+                                                                          np.sin(angles)])
+
+
+#: Sides a keep-out circle is drawn with (figures, RViz markers).
+DRAWN_CIRCLE_SIDES = 72
+
+
+def zone_outlines(zones: Zones) -> list[tuple[str, np.ndarray]]:
+    """Each zone's outline to draw, closed (first vertex repeated): ``('area', (K, 2))`` for
+    the operating area, then ``('keep_out', (K, 2))`` for each keep-out zone, a circle as a
+    polygon of :data:`DRAWN_CIRCLE_SIDES` sides; planning-frame metres."""
+    outlines = []
+    if zones.area is not None:
+        outlines.append(('area', np.asarray(zones.area.vertices_m)))
+    for zone in zones.keep_out:
+        ring = (circle_ring(zone.center_m, zone.radius_m, DRAWN_CIRCLE_SIDES)
+                if isinstance(zone, KeepOutCircle) else np.asarray(zone.vertices_m))
+        outlines.append(('keep_out', ring))
+    return [(kind, np.vstack([ring, ring[:1]])) for kind, ring in outlines]
 
 
 def _zone(what: str, kind, *args):
@@ -355,5 +380,6 @@ def _short(value: object, limit: int = 60) -> str:
     return text if len(text) <= limit else text[:limit] + '...'
 
 
-__all__ = ['CIRCLE_SIDES', 'FenceCircle', 'FencePolygon', 'GeoFence', 'fence_from_zones',
-           'geojson_fence', 'plan_fence', 'read_checked_fence', 'read_fence', 'read_zones']
+__all__ = ['CIRCLE_SIDES', 'DRAWN_CIRCLE_SIDES', 'FenceCircle', 'FencePolygon', 'GeoFence',
+           'circle_ring', 'fence_from_zones', 'geojson_fence', 'plan_fence',
+           'read_checked_fence', 'read_fence', 'read_zones', 'zone_outlines']

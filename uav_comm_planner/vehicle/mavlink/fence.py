@@ -10,11 +10,15 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import numpy as np
 from pymavlink import mavutil
 
+from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.fence import FenceCircle, FencePolygon, GeoFence
-from uav_comm_planner.vehicle.mavlink.items import FRAME_GLOBAL, MissionItem
+from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
+from uav_comm_planner.vehicle.mavlink.items import (FRAME_GLOBAL, MissionItem, NAV_LAND,
+                                                    NAV_WAYPOINT, Q0_SEQ)
 
 MAV = mavutil.mavlink
 MISSION_TYPE_FENCE = MAV.MAV_MISSION_TYPE_FENCE
@@ -66,4 +70,19 @@ def fence_from_items(items: Sequence[MissionItem]) -> GeoFence:
     return GeoFence(tuple(polygons), tuple(circles))
 
 
-__all__ = ['MISSION_TYPE_FENCE', 'fence_from_items', 'fence_items']
+def mission_clearance(items: Sequence[MissionItem], home: Home, zones: Zones) -> float:
+    """The least clearance from ``zones`` of the path a mission's rows fly, from q0 (row
+    :data:`~.items.Q0_SEQ`) through every waypoint to the landing point, legs included
+    (:meth:`~uav_comm_planner.core.zones.Zones.path_clearance`): negative where a leg enters a
+    keep-out zone or leaves the operating area. The climb from home to q0 is not planned and
+    not counted."""
+    points = [(item.x, item.y) for item in items[Q0_SEQ:]
+              if item.command in (NAV_WAYPOINT, NAV_LAND)]
+    if not points:
+        return float('inf')
+    latitude, longitude = np.array(points).T
+    east, north, _ = geodetic_to_enu(latitude, longitude, home.altitude_m, home)
+    return zones.path_clearance(np.column_stack([east, north]))
+
+
+__all__ = ['MISSION_TYPE_FENCE', 'fence_from_items', 'fence_items', 'mission_clearance']
