@@ -22,6 +22,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from uav_comm_planner.core.model import flown_path, leg_lengths
 from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.zones import Zones
+from uav_comm_planner.vehicle.fence import zone_outlines
 
 #: A leg shorter than this fraction of V delta counts as hovering: the heading is kept and
 #: the waypoint is drawn as a hover point.
@@ -224,7 +226,31 @@ def marker_array(result: PlanResult, frame_id: str, start_ns: int) -> MarkerArra
     return MarkerArray(markers=[nodes, path, hover])
 
 
+#: Line width of the zones' outlines, metres.
+ZONE_LINE_M = 2.0
+ZONE_COLORS = {'area': (0.1, 0.7, 0.2), 'keep_out': (0.9, 0.1, 0.1)}
+
+
+def zone_markers(zones: Zones | None, frame_id: str, stamp_ns: int, *,
+                 altitude_m: float = 0.0) -> MarkerArray:
+    """RViz markers of the zones: a DELETEALL (clearing zones shown before), then one
+    LINE_STRIP per zone at ``altitude_m``, closed, namespace ``operating_area`` (green) or
+    ``keep_out`` (red, ids 0, 1, ... in the zones' order)."""
+    header = Header(frame_id=frame_id, stamp=time_msg(stamp_ns))
+    markers = [Marker(header=header, action=Marker.DELETEALL)]
+    counts: dict[str, int] = {}
+    for kind, ring in zone_outlines(zones) if zones is not None else ():
+        marker = _marker(header, 'operating_area' if kind == 'area' else 'keep_out',
+                         Marker.LINE_STRIP, ZONE_LINE_M, ZONE_COLORS[kind])
+        marker.id = counts.get(kind, 0)
+        counts[kind] = marker.id + 1
+        marker.points = _points(ring, altitude_m)
+        markers.append(marker)
+    return MarkerArray(markers=markers)
+
+
 __all__ = ['HOVER_FRACTION', 'PLANNED', 'REFUSED', 'STATUS_NAME', 'duration_msg',
            'ground_nodes_of', 'headings', 'marker_array', 'nanoseconds_of', 'node_names',
            'nodes_text', 'one_line', 'path_message', 'pose_array', 'power_message',
-           'power_plan_message', 'status_message', 'status_values', 'time_msg', 'yaw_quaternion']
+           'power_plan_message', 'status_message', 'status_values', 'time_msg', 'yaw_quaternion',
+           'zone_markers']

@@ -189,7 +189,9 @@ class PlannerNode(Node):
         """An accepted change: replan unless only output parameters changed."""
         planning = [name for name in names if name not in OUTPUT_ONLY
                     # A plan for the vehicle is timed for its firmware (hold resolution).
-                    or (name == 'mission_firmware' and self.config.node.vehicle_aware)]
+                    or (name == 'mission_firmware' and self.config.node.vehicle_aware)
+                    # A fence is anchored at home: another home moves its zones.
+                    or (name.startswith('home_') and self.config.node.fence_file)]
         if LINK_PARAMETERS & set(names):
             self.vehicle.connect(self.config.node, self._binding.explicit)
         if not planning:

@@ -26,8 +26,10 @@ from typing import Any, Collection, Mapping, Sequence
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
 from uav_comm_planner.core.scenario import paper_scenario, Point, Scenario, SolverSettings
-from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.core.zones import Zones
+from uav_comm_planner.errors import FenceFileError, InvalidScenarioError
 from uav_comm_planner.mission.request import check_goal_in_time, vehicle_limits
+from uav_comm_planner.vehicle.fence import read_zones
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.flyable import check_speed
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
@@ -93,13 +95,15 @@ class NodeSettings:
     wind_time_constant_s: float = 20.0
     wind_replan_mps: float = 1.5
     home_distance_limit_m: float = 1000.0
+    fence_file: str = ''
+    fence_margin_m: float = Zones.margin_m
 
     def __post_init__(self) -> None:
         if not isinstance(self.vehicle_aware, bool):
             raise InvalidScenarioError(f'vehicle_aware must be true or false, got '
                                        f'{self.vehicle_aware!r}')
         for name in ('frame_id', 'mission_dir', 'mission_file', 'vehicle_params_file',
-                     'mavlink_url', *CHOICES):
+                     'mavlink_url', 'fence_file', *CHOICES):
             if not isinstance(getattr(self, name), str):
                 raise InvalidScenarioError(f'{name} must be a string, got '
                                            f'{getattr(self, name)!r}')
@@ -235,6 +239,11 @@ DESCRIPTIONS = {
                             '(autopilot s)',
     'wind_replan_mps': 'replan when the smoothed wind estimate is farther than this from the '
                        'wind of the plan in force (m/s)',
+    'fence_file': 'fence file (a QGroundControl .plan geoFence or GeoJSON, docs/fences.md) '
+                  'whose zones every plan keeps to and a link uploads as the vehicle\'s fence; '
+                  'read when the node starts and again when home or fence_margin_m changes '
+                  '(read-only); empty: none',
+    'fence_margin_m': 'clearance every plan keeps from the fence\'s edges (m)',
     'vehicle_max_speed_mps': 'waypoint speed of the vehicle (WPNAV_SPEED / 100, MPC_XY_CRUISE; '
                              'm/s); a vehicle_* limit not set explicitly comes from '
                              'vehicle_params_file, else the firmware\'s default (PX4: 5 m/s, '
@@ -283,10 +292,11 @@ RANGES = {
     'wind_time_constant_s': (0.0, 1.0e6),
     'wind_replan_mps': (0.0, 100.0),
     'home_distance_limit_m': (0.0, 1.0e7),
+    'fence_margin_m': (0.0, 1.0e5),
 }
 #: Parameters that only the node's start-up (overrides, a parameter file) may set: the
 #: limits on the work a plan may take and where mission files go.
-READ_ONLY = frozenset({'max_nodes', 'max_node_slots', 'mission_dir'})
+READ_ONLY = frozenset({'max_nodes', 'max_node_slots', 'mission_dir', 'fence_file'})
 
 _SCALAR_KINDS = {bool: 'bool', int: 'int', float: 'float', str: 'str'}
 
@@ -402,8 +412,7 @@ OWNERS = (Scenario, SolverSettings, NodeSettings, VehicleLimits)
 NOT_PARAMETERS = {
     (Scenario, 'max_airspeed_mps'): 'a vehicle-aware plan takes the airspeed from the vehicle '
                                     '(vehicle_airframe_speed_mps less vehicle_gust_margin_mps)',
-    (Scenario, 'zones'): 'zones are polygons and circles read from a fence file, not a '
-                         'parameter value',
+    (Scenario, 'zones'): 'the zones come from fence_file, anchored at home',
 }
 
 
@@ -442,12 +451,33 @@ def config_from_parameters(values: Mapping[str, Any],
         # A plan for the vehicle in wind keeps the vehicle's airspeed.
         chosen[Scenario]['max_airspeed_mps'] = vehicle.airspeed_for_wind_mps(
             chosen[Scenario]['wind_speed_mps'])
-    scenario = Scenario(**chosen[Scenario])
+    scenario = Scenario(**chosen[Scenario], zones=fence_zones(node))
     settings.check(scenario)
     if node.vehicle_aware:
         check_speed(scenario, vehicle)
         check_goal_in_time(scenario, vehicle)
     return PlannerConfig(scenario, settings, node, vehicle)
+
+
+#: The zones of the fence file last read, by (file, home, margin): read once, not at every
+#: parameter change.
+_FENCE_READ: dict[tuple[str, Home, float], Zones] = {}
+
+
+def fence_zones(node: NodeSettings) -> Zones | None:
+    """The zones of ``node.fence_file`` anchored at ``node.home`` (None without a file), read
+    once per file, home and margin; a bad file is an InvalidScenarioError naming it."""
+    if not node.fence_file:
+        return None
+    key = (node.fence_file, node.home, float(node.fence_margin_m))
+    if key not in _FENCE_READ:
+        try:
+            zones = read_zones(node.fence_file, node.home, margin_m=node.fence_margin_m)
+        except FenceFileError as exc:
+            raise InvalidScenarioError(str(exc)) from None
+        _FENCE_READ.clear()
+        _FENCE_READ[key] = zones
+    return _FENCE_READ[key]
 
 
 def flat_pairs(points: Sequence[Sequence[float]]) -> list[float]:

@@ -1,10 +1,11 @@
 """The node's outputs: one publisher per topic, and the one log line per plan.
 
 Every output of one plan carries the same plan stamp: the header stamp of ``planned_path``,
-``power_plan`` (the power schedule as trajectory_msgs/JointTrajectory), ``plan_markers`` and
-the ``planner_status`` entry that announces the plan (with its min throughput). The unstamped
-``power_schedule`` (Float64MultiArray) and ``min_throughput`` (Float64) stay for existing
-subscribers; pair them by arrival only.
+``power_plan`` (the power schedule as trajectory_msgs/JointTrajectory), ``plan_markers``,
+``zone_markers`` (the zones the plan keeps to) and the ``planner_status`` entry that
+announces the plan (with its min throughput). The unstamped ``power_schedule``
+(Float64MultiArray) and ``min_throughput`` (Float64) stay for existing subscribers; pair them
+by arrival only.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from visualization_msgs.msg import MarkerArray
 
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.ros.messages import (marker_array, nodes_text, path_message, power_message,
-                                           power_plan_message, status_message)
+                                           power_plan_message, status_message, zone_markers)
 from uav_comm_planner.ros.planning import PlanOutcome
 
 TOPIC_PATH = 'planned_path'
@@ -30,6 +31,8 @@ TOPIC_POWER_PLAN = 'power_plan'
 TOPIC_MIN_THROUGHPUT = 'min_throughput'
 TOPIC_MARKERS = 'plan_markers'
 TOPIC_STATUS = 'planner_status'
+#: The zones the latest plan keeps to (operating area, keep-out zones), as line strips.
+TOPIC_ZONE_MARKERS = 'zone_markers'
 
 #: Outputs keep the latest plan for subscribers that join later.
 OUTPUT_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -51,6 +54,7 @@ class PlanPublisher:
         self._power_plan = node.create_publisher(JointTrajectory, TOPIC_POWER_PLAN, OUTPUT_QOS)
         self._throughput = node.create_publisher(Float64, TOPIC_MIN_THROUGHPUT, OUTPUT_QOS)
         self._markers = node.create_publisher(MarkerArray, TOPIC_MARKERS, OUTPUT_QOS)
+        self._zones = node.create_publisher(MarkerArray, TOPIC_ZONE_MARKERS, OUTPUT_QOS)
         self._status = node.create_publisher(DiagnosticArray, TOPIC_STATUS, STATUS_QOS)
         self._hardware_id = node.get_fully_qualified_name()
 
@@ -64,6 +68,8 @@ class PlanPublisher:
         self._power_plan.publish(power_plan_message(result, frame_id, stamp))
         self._throughput.publish(Float64(data=outcome.min_throughput))
         self._markers.publish(marker_array(result, frame_id, stamp))
+        self._zones.publish(zone_markers(result.scenario.zones, frame_id, stamp,
+                                         altitude_m=result.scenario.altitude_m))
         self._status.publish(status_message(
             stamp, request=request.reason, planned=True, message=summary_line(result),
             values=plan_values(outcome), hardware_id=self._hardware_id))

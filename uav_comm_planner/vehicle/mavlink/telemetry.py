@@ -24,6 +24,8 @@ again with backoff. Each change of state is one event: 'lost' once when the link
 (whatever the reconnection attempts meet then), 'connected' when it is up again. A mission
 whose upload the loss cut is uploaded again once the link is back. A gap of more than
 :data:`TELEMETRY_GAP_S` of autopilot time between two positions is one 'gap' event.
+An upload may carry fence items (:mod:`.fence`): they go first, each time they differ from the
+fence the vehicle was last given on this connection, and are read back too.
 
 Times are the autopilot's (``time_boot_ms`` / 1000, seconds), never the wall clock.
 """
@@ -147,6 +149,7 @@ class _Upload:
     items: tuple[MissionItem, ...]
     current_seq: int | None
     tag: object
+    fence: tuple[MissionItem, ...] | None = None
 
 
 def request_telemetry(link, rate_hz: float = TELEMETRY_RATE_HZ) -> None:
@@ -218,6 +221,7 @@ class VehicleBridge:
         self._home_limit_m = home_limit_m
         self._lock = threading.Lock()
         self._waiting: _Upload | None = None
+        self._fence_held: tuple[MissionItem, ...] | None = None
         self._stop = threading.Event()
         #: What the vehicle told of itself: its home, its latest latitude and longitude.
         self.vehicle_home: Home | None = None
@@ -229,11 +233,13 @@ class VehicleBridge:
         self._thread.start()
 
     def upload(self, items: Sequence[MissionItem], *, current_seq: int | None = None,
-               tag: object = None) -> None:
-        """Queue ``items`` for upload (replacing a waiting one); then, with ``current_seq``,
-        make that item the vehicle's current one."""
+               tag: object = None, fence: Sequence[MissionItem] | None = None) -> None:
+        """Queue ``items`` for upload (replacing a waiting one), after the fence items
+        ``fence`` when given; then, with ``current_seq``, make that item the vehicle's
+        current one."""
         with self._lock:
-            self._waiting = _Upload(tuple(items), current_seq, tag)
+            self._waiting = _Upload(tuple(items), current_seq, tag,
+                                    None if fence is None else tuple(fence))
 
     def stop(self, timeout_s: float = 5.0) -> None:
         """End the thread and close the connection."""
@@ -257,6 +263,7 @@ class VehicleBridge:
                 failures += 1
                 self._stop.wait(pause_s)
                 continue
+            self._fence_held = None      # a vehicle connected again may hold another fence
             try:
                 again = '' if down_since is None else \
                     f' again after {time.monotonic() - down_since:.1f} s down'
@@ -383,6 +390,12 @@ class VehicleBridge:
             self._on_event(LinkEvent('error', f'mission upload refused: {reason}', job.tag))
             return
         try:
+            fenced = job.fence is not None and job.fence != self._fence_held
+            if fenced:
+                self._fence_held = None
+                upload_and_verify(link, job.fence, self._settings,
+                                  mission_type=MAV.MAV_MISSION_TYPE_FENCE)
+                self._fence_held = job.fence
             upload_and_verify(link, job.items, self._settings)
             note = ''
             if job.current_seq is not None:
@@ -397,8 +410,9 @@ class VehicleBridge:
                 raise
             self._on_event(LinkEvent('error', f'mission upload failed: {exc}', job.tag))
             return
+        fence = f' after a fence of {len(job.fence)} items' if fenced else ''
         self._on_event(LinkEvent('uploaded', f'mission of {len(job.items)} items uploaded '
-                                             f'and read back{note}', job.tag))
+                                             f'and read back{fence}{note}', job.tag))
 
 
 def set_current(link, seq: int) -> None:
