@@ -24,11 +24,14 @@ from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.evaluation import evaluate_flight, FlightReport
+from uav_comm_planner.vehicle.fence import fence_from_zones
 from uav_comm_planner.vehicle.flyable import VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
+from uav_comm_planner.vehicle.mavlink.fence import fence_items, MISSION_TYPE_FENCE
 from uav_comm_planner.vehicle.mavlink.guided import set_mode
 from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT, Q0_SEQ
-from uav_comm_planner.vehicle.mavlink.link import connect, upload_and_verify
+from uav_comm_planner.vehicle.mavlink.link import (connect, download_mission,
+                                                   upload_and_verify)
 from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu, request_telemetry
 
 MAV = mavutil.mavlink
@@ -37,6 +40,10 @@ SPEEDUP = 20
 BASE_PORT = 5760
 #: Commands ArduCopter refuses while its EKF and GPS settle are retried for this long.
 READY_TIMEOUT_S = 180.0
+#: ArduCopter's fence parameters for a plan with zones: the uploaded inclusion and exclusion
+#: zones only (FENCE_TYPE 4), not the altitude (1) or home-circle (2) fences, which the
+#: plans' 100 m over kilometres would breach.
+FENCE_PARAMETERS = {'FENCE_ENABLE': 1, 'FENCE_TYPE': 4}
 
 
 def sitl_binary(path: str | os.PathLike | None = None) -> Path | None:
@@ -199,13 +206,18 @@ class FlightRecord:
     """What the vehicle did: positions east, north (K, 2) metres from home at times (K,) s.
 
     ``reached`` maps a mission item's sequence number to the autopilot time (s) at which
-    ArduCopter announced it reached it ("Reached command #N").
+    ArduCopter announced it reached it ("Reached command #N"); ``modes`` are the flight modes
+    its heartbeats reported after the switch to AUTO (an RTL or LAND there is a fence
+    breach's action), and ``fence_breaches`` the largest FENCE_STATUS breach count seen
+    (None: no FENCE_STATUS came, the fence being off).
     """
 
     times_s: np.ndarray
     positions_m: np.ndarray
     altitudes_m: np.ndarray
     reached: dict[int, float] = field(default_factory=dict)
+    modes: frozenset[int] = frozenset()
+    fence_breaches: int | None = None
 
 
 def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRecord:
@@ -214,16 +226,29 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
     ``timeout_s`` is autopilot time after the switch.
     """
     request_telemetry(link)
+    link.mav.command_long_send(link.target_system, link.target_component,
+                               MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                               MAV.MAVLINK_MSG_ID_FENCE_STATUS, 1e6, 0, 0, 0, 0, 0)
     set_mode(link, 'AUTO')
     times, latitudes_e7, longitudes_e7, altitudes_mm = [], [], [], []
     reached: dict[int, float] = {}
+    modes: set[int] = set()
+    breaches: int | None = None
     clock_s = None
     started_s = None
     while True:
-        message = link.recv_match(type=['GLOBAL_POSITION_INT', 'STATUSTEXT'], blocking=True,
-                                  timeout=10.0)
+        message = link.recv_match(type=['GLOBAL_POSITION_INT', 'STATUSTEXT', 'HEARTBEAT',
+                                        'FENCE_STATUS'], blocking=True, timeout=10.0)
         if message is None:
             raise VehicleLinkError('the vehicle went silent during the flight')
+        if message.get_type() == 'HEARTBEAT':
+            if (message.get_srcSystem(), message.get_srcComponent()) == (
+                    link.target_system, MAV.MAV_COMP_ID_AUTOPILOT1) and clock_s is not None:
+                modes.add(message.custom_mode)
+            continue
+        if message.get_type() == 'FENCE_STATUS':
+            breaches = max(breaches or 0, message.breach_count)
+            continue
         if message.get_type() == 'STATUSTEXT':
             text = message.text
             if text.startswith('Reached command #') and clock_s is not None:
@@ -240,18 +265,20 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
         longitudes_e7.append(message.lon)
         altitudes_mm.append(message.relative_alt)
     east, north, up = global_position_enu(latitudes_e7, longitudes_e7, altitudes_mm, home)
-    return FlightRecord(np.array(times), np.column_stack([east, north]), up, reached)
+    return FlightRecord(np.array(times), np.column_stack([east, north]), up, reached,
+                        frozenset(modes), breaches)
 
 
 #: ArduCopter refuses a mission right after connecting: the upload is tried this many times.
 UPLOAD_ATTEMPTS = 10
 
 
-def upload(link, items) -> None:
-    """Upload and verify, retrying while the autopilot is still busy starting up."""
+def upload(link, items, *, mission_type: int = MAV.MAV_MISSION_TYPE_MISSION) -> None:
+    """Upload and verify (the mission, or the fence by ``mission_type``), retrying while the
+    autopilot is still busy starting up."""
     for attempt in range(UPLOAD_ATTEMPTS):
         try:
-            upload_and_verify(link, items)
+            upload_and_verify(link, items, mission_type=mission_type)
             return
         except VehicleLinkError:
             if attempt == UPLOAD_ATTEMPTS - 1:
@@ -262,30 +289,45 @@ def upload(link, items) -> None:
 @dataclass(frozen=True)
 class SitlFlight:
     """A vehicle plan flown in SITL: the report against the plan, and qF's arrival time (s
-    after the plan's clock started)."""
+    after the plan's clock started); ``fence`` the fence items the vehicle held, read back
+    after their upload (empty for a plan without zones)."""
 
     report: FlightReport
     arrival_s: float
     record: FlightRecord
+    fence: tuple = ()
 
 
 def fly_plan(vehicle_plan: VehiclePlan, folder: Path, *, home: Home,
              parameters: dict[str, float] | None = None,
-             binary: str | os.PathLike | None = None) -> SitlFlight:
+             binary: str | os.PathLike | None = None,
+             instances: tuple[int, int] = (10, 59)) -> SitlFlight:
     """Fly ``vehicle_plan``'s mission on a fresh ArduCopter SITL in ``folder``.
 
-    ``parameters`` are set before the upload (FENCE_ENABLE is always 0: copter.parm's fence
-    would end a mission that goes further than 150 m). The plan's clock starts when the
-    vehicle starts holding at q0: ArduCopter announces the q0 waypoint when its hold ends.
+    ``parameters`` are set before the upload. Without zones FENCE_ENABLE is 0 (copter.parm's
+    fence would end a mission that goes further than 150 m); with zones, they are uploaded as
+    the vehicle's fence (read back) and enforced (:data:`FENCE_PARAMETERS`). The plan's clock
+    starts when the vehicle starts holding at q0: ArduCopter announces the q0 waypoint when
+    its hold ends.
     """
     scenario = vehicle_plan.ideal.scenario
     items = build_mission_items(vehicle_plan, home, firmware=vehicle_plan.schedule.firmware)
     last_waypoint = max(i for i, item in enumerate(items) if item.command == NAV_WAYPOINT)
-    vehicle = start_sitl(folder, home, binary=binary)
+    zones = scenario.zones
+    fence = (fence_items(fence_from_zones(zones, home))
+             if zones is not None and not zones.empty else [])
+    vehicle = start_sitl(folder, home, binary=binary, instances=instances)
     try:
         link = open_link(vehicle)
-        for name, value in {'FENCE_ENABLE': 0, **(parameters or {})}.items():
+        fence_off = {} if fence else {'FENCE_ENABLE': 0}
+        for name, value in {**fence_off, **(parameters or {})}.items():
             set_parameter(link, name, value)
+        held: tuple = ()
+        if fence:
+            upload(link, fence, mission_type=MISSION_TYPE_FENCE)
+            held = tuple(download_mission(link, mission_type=MISSION_TYPE_FENCE))
+            for name, value in FENCE_PARAMETERS.items():
+                set_parameter(link, name, value)
         upload(link, items)
         take_off(link, scenario.altitude_m)
         horizon_s = scenario.slot_s * (scenario.num_slots + 1)
@@ -296,4 +338,4 @@ def fly_plan(vehicle_plan: VehiclePlan, folder: Path, *, home: Home,
     start_s = record.reached[Q0_SEQ] - items[Q0_SEQ].params[0]
     report = evaluate_flight(vehicle_plan.flown, vehicle_plan.schedule.flight.track(),
                              record.times_s, record.positions_m, start_s)
-    return SitlFlight(report, record.reached[last_waypoint] - start_s, record)
+    return SitlFlight(report, record.reached[last_waypoint] - start_s, record, held)
