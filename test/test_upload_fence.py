@@ -5,13 +5,12 @@ and a fence they refuse is one error naming the item and the result."""
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
-import signal
 import subprocess
 import sys
 
 import pytest
+from test_upload_px4 import RUN_PX4
 
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, OperatingArea, Zones
 from uav_comm_planner.errors import VehicleLinkError
@@ -21,6 +20,7 @@ from uav_comm_planner.vehicle.mavlink.fence import (fence_from_items, fence_item
                                                     MISSION_TYPE_FENCE)
 from uav_comm_planner.vehicle.mavlink.items import mismatches, MissionItem
 from uav_comm_planner.vehicle.mavlink.link import connect, download_mission, upload_and_verify
+from uav_comm_planner.vehicle.px4_sitl import start_px4, why_px4_not_runnable
 from uav_comm_planner.vehicle.sitl import open_link, start_sitl, why_not_runnable
 
 CLI = [sys.executable, '-m', 'uav_comm_planner.tools.cli']
@@ -143,42 +143,23 @@ def test_a_bad_fence_file_is_one_line_and_exit_2_before_any_connection(tmp_path)
 
 # PX4.
 
-RUN_PX4 = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'px4' / 'run_px4.sh'
-
-
-def why_px4_cannot_run() -> str:
-    if not RUN_PX4.is_file():
-        return f'no PX4 SITL at {RUN_PX4}'
-    if os.uname().machine != 'x86_64':
-        return 'the PX4 SITL binary is built for x86_64'
-    return ''
-
-
 @pytest.fixture(scope='module')
 def px4(tmp_path_factory):
-    """A PX4 SITL; yields (ground-station URL, onboard URL)."""
-    from test_upload_px4 import runnable_copy
+    """A PX4 SITL, on PX4_INSTANCE when it is free; yields (ground-station URL, onboard
+    URL)."""
     order = [PX4_INSTANCE, *(n for n in range(9, -1, -1) if n != PX4_INSTANCE)]
     instance = next((n for n in order if not Path(f'/tmp/px4_lock-{n}').exists()), None)
     if instance is None:
         pytest.fail('every PX4 instance 0..9 is taken (/tmp/px4_lock-N)')
-    script = runnable_copy(tmp_path_factory.mktemp('px4_copy'))
-    work = tmp_path_factory.mktemp('px4')
-    process = subprocess.Popen(['sh', str(script), str(instance), '4', str(work)],
-                               env={**os.environ, 'PX4_PARAM_SDLOG_MODE': '-1'},
-                               stdout=open(work / 'px4.log', 'w'), stderr=subprocess.STDOUT)
+    sitl = start_px4(tmp_path_factory.mktemp('px4'), instance, script=RUN_PX4, speedup=4)
     try:
-        yield (f'udpout:127.0.0.1:{18570 + instance}', f'udpin:127.0.0.1:{14540 + instance}')
+        yield sitl.ground_station_url, sitl.onboard_url
     finally:
-        process.send_signal(signal.SIGTERM)
-        try:
-            process.wait(20)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        sitl.stop()
 
 
-px4_only = pytest.mark.skipif(bool(why_px4_cannot_run()), reason=why_px4_cannot_run())
+px4_only = pytest.mark.skipif(bool(why_px4_not_runnable(RUN_PX4)),
+                              reason=why_px4_not_runnable(RUN_PX4))
 
 
 @pytest.mark.sitl
