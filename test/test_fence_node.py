@@ -117,3 +117,34 @@ def test_the_node_uploads_the_fence_before_the_mission(harness, tmp_path):
         link.close()
     finally:
         sitl.stop()
+
+
+def test_the_file_is_read_at_start_and_a_bad_one_later_keeps_the_last_good_plan(harness,
+                                                                                tmp_path):
+    path = fence_file(tmp_path)
+    h = harness(fence_file=str(path))
+    h.published(1)
+    read_at_start = h.node.current_plan.result.scenario.zones
+    assert read_at_start is not None
+    path.write_text('{"geoFence": {"version": 2, "polygons": [{"inclusion": false}]}}')
+    # Another parameter: the fence read at start-up stands.
+    answer = h.call('set_parameters', SetParameters.Request(parameters=[
+        Parameter('power_budget_w', value=4.0).to_parameter_msg()]))
+    assert answer.results[0].successful, answer.results[0].reason
+    h.published(2)
+    good = h.node.current_plan
+    assert good.result.scenario.zones == read_at_start
+    # A new margin reads the file again: refused with the file and the place, plan kept.
+    answer = h.call('set_parameters', SetParameters.Request(parameters=[
+        Parameter('fence_margin_m', value=8.0).to_parameter_msg()]))
+    assert not answer.results[0].successful
+    assert str(path) in answer.results[0].reason
+    assert 'geoFence.polygons[0]: has no "polygon"' in answer.results[0].reason
+    assert h.node.current_plan is good
+
+
+def test_the_fence_margin_is_a_distance():
+    from uav_comm_planner.ros.params import NodeSettings
+    for bad in (-1.0, float('nan'), float('inf'), True, '5'):
+        with pytest.raises(InvalidScenarioError, match='fence_margin_m must be'):
+            NodeSettings(fence_margin_m=bad)

@@ -9,7 +9,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from uav_comm_planner.errors import PlannerError
-from uav_comm_planner.ros.params import config_from_parameters, parameter_specs, PlannerConfig
+from uav_comm_planner.ros.params import (config_from_parameters, FenceReader, parameter_specs,
+                                         PlannerConfig)
 
 
 class ParameterBinding:
@@ -27,6 +28,7 @@ class ParameterBinding:
         self._node = node
         self._on_change = on_change
         self._on_refused = on_refused
+        self._fences = FenceReader()
         specs = parameter_specs()
         node.declare_parameters('', [(spec.name, spec.default, spec.descriptor())
                                      for spec in specs])
@@ -34,7 +36,8 @@ class ParameterBinding:
         # Set explicitly: given at start-up (a value other than the default) or set since.
         self._explicit = {spec.name for spec in specs
                           if node.get_parameter(spec.name).value != spec.default}
-        self.config: PlannerConfig = config_from_parameters(self._values(), self._explicit)
+        self.config: PlannerConfig = config_from_parameters(self._values(), self._explicit,
+                                                            fences=self._fences)
         node.add_on_set_parameters_callback(self._check)
         node.add_post_set_parameters_callback(self._changed)
 
@@ -53,7 +56,8 @@ class ParameterBinding:
         """Refuse a change that does not make a valid configuration, saying why."""
         try:
             config_from_parameters(self._values(changes),
-                                   self._explicit | {p.name for p in changes})
+                                   self._explicit | {p.name for p in changes},
+                                   fences=self._fences)
         except PlannerError as exc:
             if self._on_refused is not None:
                 self._on_refused([p.name for p in changes], str(exc))
@@ -64,5 +68,6 @@ class ParameterBinding:
         names = [p.name for p in changes if p.name in self._names]
         if names:
             self._explicit.update(names)
-            self.config = config_from_parameters(self._values(), self._explicit)
+            self.config = config_from_parameters(self._values(), self._explicit,
+                                                 fences=self._fences)
             self._on_change(names)

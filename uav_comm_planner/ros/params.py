@@ -116,6 +116,11 @@ class NodeSettings:
                     or not math.isfinite(value) or value <= 0):
                 raise InvalidScenarioError(
                     f'{name} must be a positive finite number, got {value!r}')
+        margin = self.fence_margin_m
+        if (isinstance(margin, bool) or not isinstance(margin, (int, float))
+                or not math.isfinite(margin) or margin < 0):
+            raise InvalidScenarioError(
+                f'fence_margin_m must be a finite number >= 0, got {margin!r}')
         if '\0' in self.mission_dir:
             raise InvalidScenarioError('mission_dir must be a folder path')
         if self.mission_file:
@@ -423,8 +428,12 @@ def parameter_specs() -> tuple[ParameterSpec, ...]:
 
 
 def config_from_parameters(values: Mapping[str, Any],
-                           explicit: Collection[str] | None = None) -> PlannerConfig:
+                           explicit: Collection[str] | None = None, *,
+                           fences: FenceReader | None = None) -> PlannerConfig:
     """Validated settings from parameter values by ROS name; missing names take defaults.
+
+    The scenario's zones are those of ``fence_file`` (read by ``fences``, a node's
+    :class:`FenceReader`; None: read now).
 
     The vehicle's limits follow the one precedence rule
     (:func:`~uav_comm_planner.mission.request.vehicle_limits`): the ``vehicle_*`` parameters
@@ -451,7 +460,7 @@ def config_from_parameters(values: Mapping[str, Any],
         # A plan for the vehicle in wind keeps the vehicle's airspeed.
         chosen[Scenario]['max_airspeed_mps'] = vehicle.airspeed_for_wind_mps(
             chosen[Scenario]['wind_speed_mps'])
-    scenario = Scenario(**chosen[Scenario], zones=fence_zones(node))
+    scenario = Scenario(**chosen[Scenario], zones=(fences or FenceReader())(node))
     settings.check(scenario)
     if node.vehicle_aware:
         check_speed(scenario, vehicle)
@@ -459,25 +468,27 @@ def config_from_parameters(values: Mapping[str, Any],
     return PlannerConfig(scenario, settings, node, vehicle)
 
 
-#: The zones of the fence file last read, by (file, home, margin): read once, not at every
-#: parameter change.
-_FENCE_READ: dict[tuple[str, Home, float], Zones] = {}
+class FenceReader:
+    """The zones of a node's ``fence_file`` anchored at its home (None without a file), read
+    once per file, home and margin: a node keeps one, so that its file is read when it starts
+    and again only when ``home_*`` or ``fence_margin_m`` changes, not at every parameter
+    change. A bad file is an InvalidScenarioError naming it."""
 
+    def __init__(self) -> None:
+        self._key: tuple[str, Home, float] | None = None
+        self._zones: Zones | None = None
 
-def fence_zones(node: NodeSettings) -> Zones | None:
-    """The zones of ``node.fence_file`` anchored at ``node.home`` (None without a file), read
-    once per file, home and margin; a bad file is an InvalidScenarioError naming it."""
-    if not node.fence_file:
-        return None
-    key = (node.fence_file, node.home, float(node.fence_margin_m))
-    if key not in _FENCE_READ:
-        try:
-            zones = read_zones(node.fence_file, node.home, margin_m=node.fence_margin_m)
-        except FenceFileError as exc:
-            raise InvalidScenarioError(str(exc)) from None
-        _FENCE_READ.clear()
-        _FENCE_READ[key] = zones
-    return _FENCE_READ[key]
+    def __call__(self, node: NodeSettings) -> Zones | None:
+        if not node.fence_file:
+            return None
+        key = (node.fence_file, node.home, float(node.fence_margin_m))
+        if key != self._key:
+            try:
+                zones = read_zones(node.fence_file, node.home, margin_m=node.fence_margin_m)
+            except FenceFileError as exc:
+                raise InvalidScenarioError(str(exc)) from None
+            self._key, self._zones = key, zones
+        return self._zones
 
 
 def flat_pairs(points: Sequence[Sequence[float]]) -> list[float]:
@@ -485,6 +496,6 @@ def flat_pairs(points: Sequence[Sequence[float]]) -> list[float]:
     return to_parameter_value(points, 'pairs')
 
 
-__all__ = ['NodeSettings', 'OUTPUT_ONLY', 'ParameterSpec', 'PlannerConfig',
+__all__ = ['FenceReader', 'NodeSettings', 'OUTPUT_ONLY', 'ParameterSpec', 'PlannerConfig',
            'config_from_parameters', 'flat_pairs', 'from_parameter_value', 'parameter_specs',
            'to_parameter_value']
