@@ -6,20 +6,23 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+import queue
 import subprocess
 import sys
 
 import pytest
 from test_upload_px4 import RUN_PX4
 
+from uav_comm_planner import paper_scenario, plan, SolverSettings
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, OperatingArea, Zones
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.fence import fence_from_zones, read_fence
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink.fence import (fence_from_items, fence_items,
                                                     MISSION_TYPE_FENCE)
-from uav_comm_planner.vehicle.mavlink.items import mismatches, MissionItem
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, mismatches, MissionItem
 from uav_comm_planner.vehicle.mavlink.link import connect, download_mission, upload_and_verify
+from uav_comm_planner.vehicle.mavlink.telemetry import LinkEvent, VehicleBridge
 from uav_comm_planner.vehicle.px4_sitl import start_px4, why_px4_not_runnable
 from uav_comm_planner.vehicle.sitl import open_link, start_sitl, why_not_runnable
 
@@ -192,3 +195,34 @@ def test_px4_refuses_a_two_vertex_polygon_by_item(px4):
                               mission_type=MISSION_TYPE_FENCE)
     finally:
         link.close()
+
+
+@pytest.mark.sitl
+@ardupilot_only
+def test_the_vehicle_bridge_uploads_a_fence_only_when_it_changes(ardupilot):
+    link, url = ardupilot
+    result = plan(paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0, num_slots=40),
+                  SolverSettings(compute_baselines=False))
+    items = build_mission_items(result, ARDUPILOT_HOME)
+    fence = fence_items(fence_from_zones(ZONES, ARDUPILOT_HOME))
+    smaller = fence_items(fence_from_zones(Zones(ZONES.area), ARDUPILOT_HOME))
+    events: queue.Queue = queue.Queue()
+    bridge = VehicleBridge(url, ARDUPILOT_HOME, events.put)
+
+    def uploaded(tag: str) -> str:
+        while True:
+            event = events.get(timeout=120)
+            if isinstance(event, LinkEvent) and event.tag == tag:
+                assert event.kind == 'uploaded', event.message
+                return event.message
+    try:
+        bridge.upload(items, fence=fence, tag='first')
+        assert f'after a fence of {len(fence)} items' in uploaded('first')
+        bridge.upload(items, fence=fence, tag='same')
+        assert 'fence' not in uploaded('same')
+        bridge.upload(items, fence=smaller, tag='other')
+        assert f'after a fence of {len(smaller)} items' in uploaded('other')
+    finally:
+        bridge.stop()
+    stored = download_mission(link, mission_type=MISSION_TYPE_FENCE)
+    assert mismatches(smaller, stored, home_row=False) == []
