@@ -141,3 +141,11 @@ def test_zone_outlines_are_closed_rings_of_each_zone():
     circle = outlines[2][1]
     assert len(circle) == DRAWN_CIRCLE_SIDES + 1
     np.testing.assert_allclose(np.linalg.norm(circle - [1000.0, 0.0], axis=1), 100.0)
+
+
+def test_the_documented_example_fence_is_the_flight_tests_field_and_wall():
+    from test_fence_flight import AREA as FLIGHT_AREA, HOME as SITL_HOME, WALL
+    example = Path(__file__).resolve().parents[1] / 'docs' / 'fence_example.geojson'
+    zones = read_zones(example, SITL_HOME)
+    np.testing.assert_allclose(zones.area.vertices_m, FLIGHT_AREA.vertices_m, atol=1e-3)
+    np.testing.assert_allclose(zones.keep_out[0].vertices_m, WALL.vertices_m, atol=1e-3)
