@@ -60,7 +60,7 @@ from uav_comm_planner.ros.binding import ParameterBinding
 from uav_comm_planner.ros.diagnostics import NodeDiagnostics
 from uav_comm_planner.ros.flight import MissionFlight, SOURCE_TELEMETRY
 from uav_comm_planner.ros.messages import ground_nodes_of, nodes_text
-from uav_comm_planner.ros.params import flat_pairs, OUTPUT_ONLY, PlannerConfig
+from uav_comm_planner.ros.params import flat_pairs, NodeSettings, OUTPUT_ONLY, PlannerConfig
 from uav_comm_planner.ros.planning import (open_mission_folder, PlanningWorker, PlanOutcome,
                                            PlanRequest)
 from uav_comm_planner.ros.publishing import PlanPublisher, summary_line
@@ -98,6 +98,15 @@ class PlannerStats:
     plans_cancelled: int = 0
     error_count: int = 0
     last_error: str = ''
+
+
+def _replans(name: str, settings: NodeSettings) -> bool:
+    """Whether a change of parameter ``name`` calls for a new plan."""
+    return (name not in OUTPUT_ONLY
+            # A plan for the vehicle is timed for its firmware (hold resolution).
+            or (name == 'mission_firmware' and settings.vehicle_aware)
+            # A fence is anchored at home: another home moves its zones.
+            or (name.startswith('home_') and bool(settings.fence_file)))
 
 
 class PlannerNode(Node):
@@ -187,11 +196,7 @@ class PlannerNode(Node):
 
     def _on_parameters(self, names: list[str]) -> None:
         """An accepted change: replan unless only output parameters changed."""
-        planning = [name for name in names if name not in OUTPUT_ONLY
-                    # A plan for the vehicle is timed for its firmware (hold resolution).
-                    or (name == 'mission_firmware' and self.config.node.vehicle_aware)
-                    # A fence is anchored at home: another home moves its zones.
-                    or (name.startswith('home_') and self.config.node.fence_file)]
+        planning = [name for name in names if _replans(name, self.config.node)]
         if LINK_PARAMETERS & set(names):
             self.vehicle.connect(self.config.node, self._binding.explicit)
         if not planning:
