@@ -23,7 +23,7 @@ from uav_comm_planner.vehicle.fence import (DRAWN_CIRCLE_SIDES, fence_from_zones
                                             zone_outlines)
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, geodetic_to_enu, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mavlink.fence import mission_clearance
+from uav_comm_planner.vehicle.mavlink.fence import fence_items, mission_clearance
 from uav_comm_planner.vehicle.mavlink.files import read_plan
 from uav_comm_planner.vehicle.mavlink.items import NAV_LAND, NAV_WAYPOINT, Q0_SEQ
 
@@ -149,3 +149,15 @@ def test_the_documented_example_fence_is_the_flight_tests_field_and_wall():
     zones = read_zones(example, SITL_HOME)
     np.testing.assert_allclose(zones.area.vertices_m, FLIGHT_AREA.vertices_m, atol=1e-3)
     np.testing.assert_allclose(zones.keep_out[0].vertices_m, WALL.vertices_m, atol=1e-3)
+
+
+def test_a_planned_mission_carries_its_zones_fence_items():
+    zones = Zones(AREA, (ASIDE,))
+    request = MissionRequest(paper_scenario('I', **SCENARIO),
+                             SolverSettings(compute_baselines=False), VehicleLimits(),
+                             zones=zones)
+    planned = plan_mission(request)
+    assert planned.items is not None
+    assert planned.fence == tuple(fence_items(fence_from_zones(zones, HOME)))
+    assert plan_mission(MissionRequest(paper_scenario('I', **SCENARIO),
+                                       SolverSettings(compute_baselines=False))).fence is None

@@ -12,8 +12,9 @@ call, so that the same request gives the same plan and the same items on either 
    times it for the vehicle and the plan returned is the plan as flown;
 3. the mission items are built from that plan, once; writing a mission file or uploading it
    uses these items. With zones, items whose legs enter a keep-out zone or leave the
-   operating area are not built (``items_error`` gives the clearance), and a .plan file
-   carries the zones as its geoFence.
+   operating area are not built (``items_error`` gives the clearance); the zones' fence
+   items are built beside them (uploaded before the mission), and a .plan file carries the
+   zones as its geoFence.
 """
 
 from __future__ import annotations
@@ -27,12 +28,13 @@ from typing import Callable
 from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.receding import lengthened, receding_problem, RecedingPlan
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
-from uav_comm_planner.errors import InfeasibleHorizonError, PlannerError
+from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError, PlannerError
 from uav_comm_planner.files import OutputFolder
 from uav_comm_planner.mission.request import MissionRequest
+from uav_comm_planner.vehicle.fence import fence_from_zones
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
-from uav_comm_planner.vehicle.mavlink.fence import mission_clearance
+from uav_comm_planner.vehicle.mavlink.fence import fence_items, mission_clearance
 from uav_comm_planner.vehicle.mavlink.files import write_mission_file
 from uav_comm_planner.vehicle.mavlink.items import build_mission_items, MissionItem
 
@@ -49,7 +51,8 @@ class MissionPlan:
     vehicle_plan: the optimiser's plan and the mission's timing (vehicle-aware requests);
     receding: for a replan in flight, what it promises for the whole mission; items: the
     mission items (None when not asked for, or when they cannot be built: ``items_error``
-    then says why; the plan itself stands).
+    then says why; the plan itself stands); fence: the fence items of the plan's zones, with
+    the items (None without zones).
     """
 
     request: MissionRequest
@@ -58,6 +61,7 @@ class MissionPlan:
     receding: RecedingPlan | None = None
     items: tuple[MissionItem, ...] | None = None
     items_error: str = ''
+    fence: tuple[MissionItem, ...] | None = None
 
     @property
     def min_throughput(self) -> float:
@@ -153,21 +157,27 @@ def _plan_rest(request: MissionRequest, planner: Planner,
 
 
 def _items(request: MissionRequest, planned: VehiclePlan | PlanResult) -> dict:
-    """``items`` (or ``items_error``) of a :class:`MissionPlan` for ``request``."""
+    """``items`` and ``fence`` (or ``items_error``) of a :class:`MissionPlan` for
+    ``request``."""
     try:
         items = tuple(build_mission_items(planned, request.home, end=request.end,
                                           firmware=request.firmware, limits=request.vehicle))
     except PlannerError as exc:
-        return {'items': None, 'items_error': str(exc)}
+        return {'items': None, 'fence': None, 'items_error': str(exc)}
     zones = request.planned_scenario.zones
-    if zones is not None and not zones.empty:
-        clearance = mission_clearance(items, request.home, zones)
-        if clearance < 0:
-            return {'items': None, 'items_error': (
-                f'the mission\'s legs enter the zones: their least clearance is '
-                f'{clearance:.2f} m (a keep-out zone entered or the operating area left); '
-                f'no mission is written or uploaded')}
-    return {'items': items}
+    if zones is None or zones.empty:
+        return {'items': items, 'fence': None}
+    clearance = mission_clearance(items, request.home, zones)
+    if clearance < 0:
+        return {'items': None, 'fence': None, 'items_error': (
+            f'the mission\'s legs enter the zones: their least clearance is '
+            f'{clearance:.2f} m (a keep-out zone entered or the operating area left); '
+            f'no mission is written or uploaded')}
+    try:
+        fence = tuple(fence_items(fence_from_zones(zones, request.home)))
+    except InvalidScenarioError as exc:
+        return {'items': None, 'fence': None, 'items_error': f'the zones make no fence: {exc}'}
+    return {'items': items, 'fence': fence}
 
 
 __all__ = ['MissionPlan', 'Planner', 'plan_mission']

@@ -47,9 +47,9 @@ class VehicleState:
         return self.mode in MISSION_MODES
 
     def upload(self, outcome: PlanOutcome) -> None:
-        """Put the plan's mission items, built for the planning frame's origin, on the vehicle
-        (held until the vehicle tells its home when it is followed); a plan made in flight is
-        flown from its q0 item."""
+        """Put the plan's mission items (after its fence, if any), built for the planning
+        frame's origin, on the vehicle (held until the vehicle tells its home when it is
+        followed); a plan made in flight is flown from its q0 item."""
         plan = outcome.plan
         self._pending_tag = outcome.request.start_ns
         if self.home is None:
@@ -65,7 +65,7 @@ class VehicleState:
             return
         in_flight = plan.request.in_flight is not None
         self._bridge.upload(plan.items, current_seq=Q0_SEQ if in_flight else None,
-                            tag=outcome.request.start_ns)
+                            tag=outcome.request.start_ns, fence=plan.fence)
 
     def _on_mode(self, event: ModeReport) -> None:
         self.mode = event.mode
