@@ -221,7 +221,6 @@ class VehicleBridge:
         self._home_limit_m = home_limit_m
         self._lock = threading.Lock()
         self._waiting: _Upload | None = None
-        self._fence_held: tuple[MissionItem, ...] | None = None
         self._stop = threading.Event()
         #: What the vehicle told of itself: its home, its latest latitude and longitude.
         self.vehicle_home: Home | None = None
@@ -234,12 +233,10 @@ class VehicleBridge:
 
     def upload(self, items: Sequence[MissionItem], *, current_seq: int | None = None,
                tag: object = None, fence: Sequence[MissionItem] | None = None) -> None:
-        """Queue ``items`` for upload (replacing a waiting one), after the fence items
-        ``fence`` when given; then, with ``current_seq``, make that item the vehicle's
-        current one."""
+        """Queue ``items`` (after the fence items ``fence``) for upload, replacing a waiting one;
+        then, with ``current_seq``, make that item the vehicle's current one."""
         with self._lock:
-            self._waiting = _Upload(tuple(items), current_seq, tag,
-                                    None if fence is None else tuple(fence))
+            self._waiting = _Upload(tuple(items), current_seq, tag, fence and tuple(fence))
 
     def stop(self, timeout_s: float = 5.0) -> None:
         """End the thread and close the connection."""
@@ -263,7 +260,6 @@ class VehicleBridge:
                 failures += 1
                 self._stop.wait(pause_s)
                 continue
-            self._fence_held = None      # a vehicle connected again may hold another fence
             try:
                 again = '' if down_since is None else \
                     f' again after {time.monotonic() - down_since:.1f} s down'
@@ -390,14 +386,8 @@ class VehicleBridge:
             self._on_event(LinkEvent('error', f'mission upload refused: {reason}', job.tag))
             return
         try:
-            fenced = job.fence is not None and job.fence != self._fence_held
-            if fenced:
-                self._fence_held = None
-                upload_and_verify(link, job.fence, self._settings,
-                                  mission_type=MAV.MAV_MISSION_TYPE_FENCE)
-                self._fence_held = job.fence
+            fence, note = upload_fence(link, job.fence, self._settings), ''   # the fence first
             upload_and_verify(link, job.items, self._settings)
-            note = ''
             if job.current_seq is not None:
                 # Sequence numbers count the home row, which a PX4 mission has not.
                 current = job.current_seq - (0 if has_home_row(link) else 1)
@@ -410,9 +400,20 @@ class VehicleBridge:
                 raise
             self._on_event(LinkEvent('error', f'mission upload failed: {exc}', job.tag))
             return
-        fence = f' after a fence of {len(job.fence)} items' if fenced else ''
         self._on_event(LinkEvent('uploaded', f'mission of {len(job.items)} items uploaded '
                                              f'and read back{fence}{note}', job.tag))
+
+
+def upload_fence(link, fence: Sequence[MissionItem] | None, settings: LinkSettings) -> str:
+    """Upload the fence items ``fence`` (None or empty: none) on ``link`` and read them back,
+    unless they are what this connection last gave the vehicle (a vehicle connected again is
+    given them again); returns the note for the upload's event."""
+    if not fence or getattr(link, 'fence_held', None) == tuple(fence):
+        return ''
+    link.fence_held = None
+    upload_and_verify(link, fence, settings, mission_type=MAV.MAV_MISSION_TYPE_FENCE)
+    link.fence_held = tuple(fence)
+    return f' after a fence of {len(fence)} items'
 
 
 def set_current(link, seq: int) -> None:
@@ -430,4 +431,4 @@ def set_current(link, seq: int) -> None:
 
 __all__ = ['HomeReport', 'LinkEvent', 'MISSION_MODES', 'MissionProgressReport', 'ModeReport',
            'Position', 'VehicleBridge', 'Wind', 'global_position_enu', 'request_telemetry',
-           'request_wind', 'set_current', 'wind_of']
+           'request_wind', 'set_current', 'upload_fence', 'wind_of']
