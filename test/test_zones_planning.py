@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from uav_comm_planner.core.detour import (around_zones, GRAPH_CLEARANCE_M, hover_start,
-                                          outside_point, path_length, shortest_path)
+                                          outside_point, path_length, segments_clear,
+                                          shortest_path)
 from uav_comm_planner.core.fast_trajectory import trajectory_step_clarabel
 from uav_comm_planner.core.feasibility import within_speed_limit
 from uav_comm_planner.core.model import average_rates, flown_path, snr_per_watt
@@ -425,3 +426,27 @@ def test_two_nodes_served_from_one_point_share_its_hovers():
     assert q.shape == (scenario.num_slots, 2) and within_speed_limit(q, scenario)
     assert clearance_of(q, scenario) >= zones.margin_m
     check_plan(plan(scenario), scenario)
+
+
+def test_a_leg_on_the_line_through_a_zones_edge_but_far_from_it_is_clear():
+    """Collinear with an edge, 500 m short of it: clear; a hover on that line too."""
+    square = Zones(keep_out=(KeepOutPolygon([[1000, 0], [1100, 0], [1100, 100], [1000, 100]]),),
+                   margin_m=5.0)
+    assert segments_clear(square, [0.0, 0.0], [500.0, 0.0]).tolist() == [True]
+    assert segments_clear(square, [0.0, 0.0], [2000.0, 0.0]).tolist() == [False]
+    assert segments_clear(square, [0.0, -3.0], [2000.0, -3.0]).tolist() == [False]
+    wall = Zones(keep_out=(KeepOutPolygon([[800, 200], [900, 200], [900, 300], [800, 300]]),),
+                 margin_m=5.0)
+    scenario = Scenario(ground_nodes_m=((500.0, 200.0), (1500.0, -300.0)), goal_m=(2000.0, 0.0),
+                        zones=wall)
+    result = plan(scenario)
+    assert wall.path_clearance(flown_path(result.trajectory, scenario)) >= 5.0 - 1e-6
+
+
+def test_a_node_at_the_launch_point_keeps_every_slot_of_the_hover_start():
+    scenario = Scenario(ground_nodes_m=((0.0, 0.0), (1500.0, -300.0)), goal_m=(2000.0, 0.0),
+                        num_slots=50,
+                        zones=Zones(keep_out=(KeepOutCircle((1000.0, 300.0), 100.0),)))
+    assert hover_start(scenario).shape == (50, 2)
+    result = plan(scenario, SolverSettings(starts=('hover',)))
+    assert result.trajectory.shape == (50, 2)

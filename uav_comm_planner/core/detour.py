@@ -118,11 +118,13 @@ def _against_polygon(a: np.ndarray, b: np.ndarray,
     c, d = vertices[None], np.roll(vertices, -1, axis=0)[None]
     a2, b2 = a[:, None], b[:, None]
     o1, o2, o3, o4 = _orient(a2, b2, c), _orient(a2, b2, d), _orient(c, d, a2), _orient(c, d, b2)
-    # Closed segments: touching counts (a margin of 0 then still keeps off the boundary).
-    meets = ((o1 * o2 <= 0) & (o3 * o4 <= 0)).any(axis=1)
     distance = np.minimum.reduce([_point_segment(a2, c, d).min(axis=1),
                                   _point_segment(b2, c, d).min(axis=1),
                                   _point_segment(vertices[None], a2, b2).min(axis=1)])
+    # A proper crossing, or touching (distance 0: a margin of 0 then still keeps off the
+    # boundary). Orientations alone would count any segment on the line through an edge,
+    # however far from it, and any hover (a zero-length leg) on such a line.
+    meets = ((o1 * o2 < 0) & (o3 * o4 < 0)).any(axis=1) | (distance <= 0.0)
     return meets, inside_polygon(a, vertices), distance
 
 
@@ -280,9 +282,10 @@ def around_zones(scenario: Scenario) -> np.ndarray:
 
 
 def _waypoints(path: np.ndarray, counts: np.ndarray, hovers: np.ndarray) -> np.ndarray:
-    """q0, ..., qF: stretch k of ``path`` in counts[k] equal legs, then hovers[k + 1] slots
-    at its end."""
+    """q0, hovers[0] slots at q0, then stretch k of ``path`` in counts[k] equal legs and
+    hovers[k + 1] slots at its end, ..., qF."""
     waypoints = [path[0]]
+    waypoints.extend([path[0]] * int(hovers[0]))     # a stop at q0 hovers there
     for k, count in enumerate(counts):
         fractions = np.arange(1, count + 1) / count
         waypoints.extend(path[k] + fractions[:, None] * (path[k + 1] - path[k]))
