@@ -262,6 +262,13 @@ BAD_GEOJSON = [
     (geojson_with({'properties': {'fence': 'exclusion'},
                    'geometry': {'type': 'Polygon', 'coordinates': [[[200.0, 0.0], *RING]]}}),
      r'coordinates\[0\]\[0\]: longitude 200.0 is not in'),
+    # Integers beyond a double: refused like any bad number, not an OverflowError.
+    (geojson_with({'properties': {'fence': 'exclusion', 'radius_m': 10 ** 400},
+                   'geometry': {'type': 'Point', 'coordinates': RING[0]}}),
+     r'radius_m: must be a positive number of metres'),
+    (geojson_with({'properties': {'fence': 'exclusion', 'radius_m': 20},
+                   'geometry': {'type': 'Point', 'coordinates': [10 ** 400, 47.0]}}),
+     r'coordinates: .* is out of range for degrees'),
 ]
 
 

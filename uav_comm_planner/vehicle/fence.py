@@ -205,7 +205,10 @@ def _latitude_longitude(value: object, where: str, *, lon_first: bool = False
         order = '[longitude, latitude]' if lon_first else '[latitude, longitude]'
         raise _Place(where, f'must be {order} in degrees, got {_short(value)}')
     latitude, longitude = (value[1], value[0]) if lon_first else (value[0], value[1])
-    latitude, longitude = float(latitude), float(longitude)
+    try:
+        latitude, longitude = float(latitude), float(longitude)
+    except OverflowError:
+        raise _Place(where, f'{_short(value)} is out of range for degrees') from None
     if not (math.isfinite(latitude) and abs(latitude) <= 90.0):
         raise _Place(where, f'latitude {latitude!r} is not in [-90, 90] degrees')
     if not (math.isfinite(longitude) and abs(longitude) <= 180.0):
@@ -229,9 +232,12 @@ def _ring(points: object, where: str, *, lon_first: bool = False
 
 
 def _radius(value: object, where: str) -> float:
+    given = value
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 1000:
+        value = math.inf   # beyond a double: refused below like any infinite radius
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
             math.isfinite(value) and value > 0):
-        raise _Place(where, f'must be a positive number of metres, got {_short(value)}')
+        raise _Place(where, f'must be a positive number of metres, got {_short(given)}')
     return float(value)
 
 
