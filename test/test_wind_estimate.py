@@ -149,6 +149,30 @@ def test_a_gap_in_the_targets_holds_and_a_pilot_taking_over_ends_the_stream(refe
     assert not stream.active
 
 
+def test_a_link_closing_mid_stream_resumes_the_mission_at_the_item_ahead_not_the_last(
+        reference):
+    events, asked = [], []
+    stream = TargetStream(HOME, events.append)
+    link = RecordingLink()
+
+    def resume_item(elapsed_s):
+        asked.append(elapsed_s)
+        return 4
+
+    stream.start(StreamJob(reference, 50.0, 100.0, 'auto', resume_item))
+    stream.on_heartbeat(heartbeat('GUIDED'))
+    for t in 50.0 + np.arange(0, 41) * 0.05:       # two seconds of targets
+        stream.tick(link, float(t))
+    # The vehicle answers the mode change before the link goes.
+    answer = heartbeat('AUTO')
+    answer.get_srcSystem = lambda: link.target_system
+    link.recv_match = lambda **kwargs: answer
+    stream.close(link)
+    assert asked[-1] == pytest.approx(2.0)       # the last target's time, not the plan's end
+    assert link.currents == [4] and link.modes[-1] == COPTER_MODES['AUTO']
+    assert 'closing' in events[-1].message
+
+
 def test_a_px4_vehicle_is_not_streamed_to_and_keeps_its_mission(reference):
     events = []
     stream = TargetStream(HOME, events.append)

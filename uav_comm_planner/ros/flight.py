@@ -141,6 +141,9 @@ class MissionFlight:
         if not reason:
             self._on_plan_s = time_s
             return
+        # A clock that went back (a rebooted autopilot) restarts both waits.
+        self._on_plan_s = min(self._on_plan_s, time_s)
+        self._last_pose_replan_s = min(self._last_pose_replan_s, time_s)
         if (time_s - self._last_pose_replan_s < output.replan_interval_s
                 or time_s - self._on_plan_s < OFF_PLAN_CONFIRM_S):
             return

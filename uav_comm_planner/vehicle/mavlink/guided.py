@@ -199,7 +199,10 @@ class TargetStream:
             job, reason = self._job, self._stop_reason
         if job is None:
             return
-        mode = self._fall_back(link, job, None, reason or 'the vehicle link is closing')
+        # AUTO goes on from the item ahead of the last target sent (the start if none was).
+        sent = self._last_sent_s
+        elapsed = 0.0 if sent is None else max(0.0, sent - job.t0_s)
+        mode = self._fall_back(link, job, elapsed, reason or 'the vehicle link is closing')
         deadline = time.monotonic() + CLOSING_WAIT_S
         while self._mode != mode and (left := deadline - time.monotonic()) > 0:
             message = link.recv_match(type='HEARTBEAT', blocking=True, timeout=left)
