@@ -148,3 +148,23 @@ def test_the_fence_margin_is_a_distance():
     for bad in (-1.0, float('nan'), float('inf'), True, '5'):
         with pytest.raises(InvalidScenarioError, match='fence_margin_m must be'):
             NodeSettings(fence_margin_m=bad)
+
+
+def test_a_fenced_plan_is_not_moved_to_a_vehicle_home_its_zones_were_not_placed_from():
+    """Zones read from the home parameters would land elsewhere if the mission were rebuilt
+    for the vehicle's own home: refused, in one line naming both, and nothing uploaded."""
+    from types import SimpleNamespace
+
+    from uav_comm_planner.ros.vehicle_state import VehicleState
+    reports, uploads = [], []
+    state = VehicleState()
+    state._report = lambda message, is_error: reports.append((message, is_error))
+    state._bridge = SimpleNamespace(upload=lambda *a, **k: uploads.append(a))
+    state._reset_state(Home(-35.363262, 149.165237, 584.0))       # the vehicle's home
+    request = SimpleNamespace(home=HOME, planned_scenario=SimpleNamespace(zones=ZONES))
+    state.upload(SimpleNamespace(plan=SimpleNamespace(request=request),
+                                 request=SimpleNamespace(start_ns=1)))
+    assert uploads == [] and state._pending_tag is None
+    (message, is_error), = reports
+    assert is_error and 'zones were placed from the home parameters' in message
+    assert '-35.3632620' in message and f'{HOME.latitude_deg:.7f}' in message

@@ -56,6 +56,16 @@ class VehicleState:
             self._held = outcome            # uploaded once the vehicle tells its home
             return
         request = plan.request
+        zones = request.planned_scenario.zones
+        if request.home != self.home and zones is not None and not zones.empty:
+            # The zones were read in metres from the home parameters; moved to the vehicle's
+            # home they would no longer be where the fence file puts them.
+            self._pending_tag = None
+            self._report(f'mission upload refused: its zones were placed from the home '
+                         f'parameters {_where(request.home)}, the vehicle\'s home is '
+                         f'{_where(self.home)}; set home_latitude_deg, home_longitude_deg and '
+                         f'home_altitude_m to the vehicle\'s home to fly a fence', True)
+            return
         if request.home != self.home:
             plan = plan.for_output(home=self.home, end=request.end, firmware=request.firmware)
         if plan.items is None:
@@ -73,7 +83,7 @@ class VehicleState:
 
     def _on_home(self, event: HomeReport) -> None:
         home = event.home
-        where = f'({home.latitude_deg:.7f}, {home.longitude_deg:.7f}, {home.altitude_m:.1f} m)'
+        where = _where(home)
         if not event.adopted:
             self._node.get_logger().info(f'vehicle home {where}')
             return
@@ -99,6 +109,10 @@ class VehicleState:
         if event.kind == 'connected':
             self.link_up = True
         return False
+
+
+def _where(home: Home) -> str:
+    return f'({home.latitude_deg:.7f}, {home.longitude_deg:.7f}, {home.altitude_m:.1f} m)'
 
 
 __all__ = ['VehicleState']
