@@ -26,6 +26,18 @@ from uav_comm_planner.errors import InvalidScenarioError
 MAX_POLYGON_VERTICES = 1000
 
 
+def _number(name: str, value: object) -> float:
+    """``value`` as a float if it is a real number (not a bool); an integer beyond a double
+    is infinite (and then refused as not finite by the caller)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+            value, (int, float, np.integer, np.floating)):
+        raise InvalidScenarioError(f'{name} must be a number of metres, got {value!r}')
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
+
+
 def _finite_points(name: str, vertices: ArrayLike) -> np.ndarray:
     try:
         points = np.array(vertices, dtype=float)
@@ -148,12 +160,19 @@ class KeepOutCircle:
     radius_m: float
 
     def __post_init__(self) -> None:
-        center = _finite_points('a keep-out circle\'s centre', [self.center_m] * 3)[0]
-        if not (math.isfinite(self.radius_m) and self.radius_m > 0):
+        try:
+            center = np.array(self.center_m, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            center = np.array([math.nan])
+        if center.shape != (2,) or not np.isfinite(center).all():
+            raise InvalidScenarioError(f'a keep-out circle\'s centre must be a finite (x, y) '
+                                       f'in metres, got {self.center_m!r}')
+        radius = _number('a keep-out circle\'s radius', self.radius_m)
+        if not (math.isfinite(radius) and radius > 0):
             raise InvalidScenarioError(
                 f'a keep-out circle\'s radius must be positive and finite, got {self.radius_m!r}')
         object.__setattr__(self, 'center_m', (float(center[0]), float(center[1])))
-        object.__setattr__(self, 'radius_m', float(self.radius_m))
+        object.__setattr__(self, 'radius_m', radius)
 
     def clearance(self, points: ArrayLike) -> np.ndarray:
         """Distance of each point (K, 2) outside the circle; negative inside."""
@@ -401,11 +420,12 @@ class Zones:
         if self.area is not None and not isinstance(self.area, OperatingArea):
             raise InvalidScenarioError(
                 f'the operating area must be an OperatingArea, got {type(self.area).__name__}')
-        if not (math.isfinite(self.margin_m) and self.margin_m >= 0):
+        margin = _number('the zone margin', self.margin_m)
+        if not (math.isfinite(margin) and margin >= 0):
             raise InvalidScenarioError(
                 f'the zone margin must be >= 0 and finite, got {self.margin_m!r} m')
         object.__setattr__(self, 'keep_out', keep_out)
-        object.__setattr__(self, 'margin_m', float(self.margin_m))
+        object.__setattr__(self, 'margin_m', margin)
 
     @property
     def empty(self) -> bool:
@@ -451,8 +471,7 @@ class Zones:
             raise InvalidScenarioError(f"zones' keep_out must be a list, got {items!r}")
         keep_out = []
         for item in items:
-            if isinstance(item, dict) and set(item) == {'center_m', 'radius_m'} \
-                    and isinstance(item['radius_m'], (int, float)):
+            if isinstance(item, dict) and set(item) == {'center_m', 'radius_m'}:
                 keep_out.append(KeepOutCircle(item['center_m'], item['radius_m']))
             elif isinstance(item, dict) and set(item) == {'vertices_m'}:
                 keep_out.append(KeepOutPolygon(item['vertices_m']))
@@ -461,11 +480,8 @@ class Zones:
                     f"a keep-out zone is {{'center_m', 'radius_m'}} or {{'vertices_m'}}, got "
                     f'{item!r}')
         area = data.get('area')
-        margin = data.get('margin_m', 5.0)
-        if isinstance(margin, bool) or not isinstance(margin, (int, float)):
-            raise InvalidScenarioError(f'the zone margin must be a number, got {margin!r}')
         return cls(area=None if area is None else OperatingArea(area),
-                   keep_out=tuple(keep_out), margin_m=margin)
+                   keep_out=tuple(keep_out), margin_m=data.get('margin_m', 5.0))
 
 
 __all__ = ['KeepOut', 'KeepOutCircle', 'KeepOutPolygon', 'MAX_POLYGON_VERTICES',
