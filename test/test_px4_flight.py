@@ -5,7 +5,7 @@ Each case is planned for PX4 with the package's own pipeline (``plan_mission``, 
 QGroundControl ``.plan``, uploaded and read back with the package's ``upload``
 (:func:`~uav_comm_planner.vehicle.mavlink.upload.upload_file`), and flown in AUTO.MISSION on a
 fresh PX4 SITL (``../shared/sitl/px4``) with PX4's default parameters but MPC_XY_CRUISE. The
-three flights run side by side on instances 4, 5 and 6 at a speed-up of 10. The plan's clock
+three flights run side by side on instances 4, 5 and 6 at a speed-up of 5. The plan's clock
 starts when PX4 starts counting the hold at q0; every time is autopilot time. What must hold,
 for the letter's case I at 5 and at 10 m/s and for a random scenario of six nodes:
 
@@ -37,7 +37,9 @@ from uav_comm_planner.vehicle.px4_sitl import (fly_px4_mission, PX4_HOME, start_
 
 RUN_PX4 = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'px4' / 'run_px4.sh'
 CLI = [sys.executable, '-m', 'uav_comm_planner.tools.cli']
-SPEEDUP = 10
+#: Three PX4s at 10x on a loaded 2-core machine once flew a point 4.2 s late (its flight
+#: controller's threads starved); at 5x they keep up.
+SPEEDUP = 5
 
 pytestmark = [pytest.mark.sitl,
               pytest.mark.skipif(bool(why_px4_not_runnable(RUN_PX4)),
