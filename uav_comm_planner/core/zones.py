@@ -186,19 +186,20 @@ class KeepOutCircle:
         return float(distance[0]) - self.radius_m
 
 
-@dataclass(frozen=True, eq=False)
-class KeepOutPolygon:
-    """A simple polygon the flight must not enter (vertices east-north metres, stored CCW)."""
+class _Polygon:
+    """What a polygon zone does with its vertices: validated as a simple polygon, stored
+    counter-clockwise and read-only, compared and hashed by value (so that scenarios holding
+    zones compare and hash as dataclasses do). ``what`` names it in errors."""
 
+    what = 'a polygon'
     vertices_m: np.ndarray
 
     def __post_init__(self) -> None:
-        vertices = _simple_polygon('a keep-out polygon', self.vertices_m)
+        vertices = _simple_polygon(self.what, self.vertices_m)
         vertices.setflags(write=False)
         object.__setattr__(self, 'vertices_m', vertices)
 
     def __eq__(self, other: object) -> bool:
-        # By value, so that scenarios holding zones compare and hash as dataclasses do.
         return type(other) is type(self) and np.array_equal(self.vertices_m, other.vertices_m)
 
     def __hash__(self) -> int:
@@ -207,6 +208,14 @@ class KeepOutPolygon:
     @property
     def convex(self) -> bool:
         return _is_convex(self.vertices_m)
+
+
+@dataclass(frozen=True, eq=False)
+class KeepOutPolygon(_Polygon):
+    """A simple polygon the flight must not enter (vertices east-north metres, stored CCW)."""
+
+    what = 'a keep-out polygon'
+    vertices_m: np.ndarray
 
     def convex_pieces(self) -> list[np.ndarray]:
         """Convex polygons (CCW vertices) whose union is this one: itself when convex, else its
@@ -224,26 +233,11 @@ class KeepOutPolygon:
 
 
 @dataclass(frozen=True, eq=False)
-class OperatingArea:
+class OperatingArea(_Polygon):
     """A simple polygon the whole flight stays inside (vertices east-north metres, CCW)."""
 
+    what = 'the operating area'
     vertices_m: np.ndarray
-
-    def __post_init__(self) -> None:
-        vertices = _simple_polygon('the operating area', self.vertices_m)
-        vertices.setflags(write=False)
-        object.__setattr__(self, 'vertices_m', vertices)
-
-    def __eq__(self, other: object) -> bool:
-        # By value, so that scenarios holding zones compare and hash as dataclasses do.
-        return type(other) is type(self) and np.array_equal(self.vertices_m, other.vertices_m)
-
-    def __hash__(self) -> int:
-        return hash((type(self).__name__, self.vertices_m.tobytes()))
-
-    @property
-    def convex(self) -> bool:
-        return _is_convex(self.vertices_m)
 
     def hull_and_pockets(self) -> tuple[np.ndarray, list[np.ndarray]]:
         """The area's convex hull (CCW vertices) and its pockets, the polygons between the hull
