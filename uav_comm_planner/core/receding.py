@@ -26,6 +26,7 @@ Notation: p (N, k) watts, positions (k, 2) metres, D (N,) bits.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 import math
 from typing import Callable, Sequence
@@ -34,7 +35,7 @@ import numpy as np
 
 from uav_comm_planner.core.feasibility import within_speed_limit
 from uav_comm_planner.core.model import snr_per_watt, spectral_efficiencies
-from uav_comm_planner.core.optimizer import plan, PlanResult
+from uav_comm_planner.core.optimizer import plan, PlanResult, ZoneKeeper
 from uav_comm_planner.core.scenario import DUPLICATE_NODE_DISTANCE_M, Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 
@@ -201,6 +202,31 @@ Planner = Callable[..., PlanResult]
 
 #: Name of the start that continues the previous plan (see :func:`replan`).
 PREVIOUS_PLAN_START = 'previous'
+#: The starts of a warm replan besides the previous plan (:meth:`RecedingProblem.settings`).
+WARM_STARTS = ('hover',)
+
+
+def rejoined(previous_q: np.ndarray, position_m: Sequence[float],
+             rest: Scenario) -> np.ndarray | None:
+    """The rest of the plan in force, ``previous_q`` (M', 2) metres, flown from
+    ``position_m``: straight at the fastest ground speed to its first point j it can reach by
+    slot j (a point the UAV is already at is reached in its own slot), then as planned. None when
+    it has not the rest's M' slots or reaches none of its points in time (qF is checked by the
+    caller, :func:`~uav_comm_planner.core.feasibility.within_speed_limit`)."""
+    previous = np.asarray(previous_q, dtype=float)
+    if previous.shape != (rest.num_slots, 2) or not np.all(np.isfinite(previous)):
+        return None
+    position = np.asarray(position_m, dtype=float)
+    gaps = previous - position
+    distances = np.linalg.norm(gaps, axis=1)
+    for j, (gap, distance) in enumerate(zip(gaps, distances)):
+        speed = (rest.fastest_ground_speed_mps(gap / distance) if distance > 0.0
+                 else rest.max_speed_mps)
+        if distance <= (j + 1) * speed * rest.slot_s * (1 - 1e-9):
+            joined = previous.copy()
+            joined[:j + 1] = position + np.arange(1, j + 2)[:, None] / (j + 1) * gap
+            return joined
+    return None
 
 
 @dataclass(frozen=True)
@@ -210,7 +236,9 @@ class RecedingProblem:
     rest: :func:`rest_of_mission`; delivered_bits: D_n (N,) bits so far; offsets: o (N,) bits
     per use, D_n over the rest's slots; plan_options: the keywords for the core's
     :func:`~uav_comm_planner.core.optimizer.plan` (the offsets, and the rest of the plan in
-    force as one more start when it keeps the speed limit).
+    force, :func:`rejoined` from the UAV's position, as one more start when it keeps the speed
+    limit); warm: whether the replan continues that start instead of searching the tours again
+    (:meth:`settings`).
     """
 
     mission: Scenario
@@ -219,6 +247,29 @@ class RecedingProblem:
     delivered_bits: np.ndarray
     offsets: np.ndarray
     plan_options: dict
+    warm: bool = False
+
+    def settings(self, settings: SolverSettings | None,
+                 scenario: Scenario | None = None) -> SolverSettings | None:
+        """The optimiser's settings for this replan of ``scenario`` (:attr:`rest`, or the
+        slower one a vehicle-aware plan tries): ``settings`` itself, or for a warm replan,
+        where the previous plan's start keeps ``scenario``'s limits, that start and the hover
+        start (:data:`WARM_STARTS`) with no screened tours.
+
+        The plan in force already is the best tour the screening found for these nodes, and
+        the replan only moves its start to where the UAV is: continuing it (one SCA step per
+        power step, as the default continues its best tour) gives at least what flying on with
+        it would, in a few trajectory steps instead of the screening's forty tours, which is
+        what lets a replan in flight come back within a fraction of a second. The hover start
+        is kept as a second candidate, cheap beside it. Where the previous plan is no start
+        (it is faster than a slower planning speed allows) the tours are screened as usual.
+        """
+        scenario = self.rest if scenario is None else scenario
+        start = self.plan_options.get('extra_starts', {}).get(PREVIOUS_PLAN_START)
+        if not self.warm or start is None or not within_speed_limit(start, scenario):
+            return settings
+        return dataclasses.replace(settings or SolverSettings(), starts=WARM_STARTS,
+                                   screened_tours=0)
 
     def outcome(self, result: PlanResult) -> RecedingPlan:
         """What the plan ``result`` of :attr:`rest` (its rates counting the offsets) promises
@@ -232,37 +283,46 @@ class RecedingProblem:
 
 
 def receding_problem(mission: Scenario, position_m: Sequence[float], flown: FlownSlots, *,
-                     previous_q: np.ndarray | None = None) -> RecedingProblem:
+                     previous_q: np.ndarray | None = None,
+                     warm: bool = False) -> RecedingProblem:
     """The rest of ``mission`` from ``position_m`` after the slots ``flown``, as a problem for
     the optimiser (module docstring). ``previous_q`` (M - k, 2) metres, the rest of the plan
-    being flown, becomes one more start when it keeps the speed limit from ``position_m``.
-    Raises the errors of :func:`rest_of_mission`."""
+    being flown, becomes one more start, :func:`rejoined` from ``position_m``, when that keeps
+    the speed limit (and the zones); with ``warm`` (the plan in force serves the same nodes)
+    the replan then continues it (:meth:`RecedingProblem.settings`). Raises the errors of
+    :func:`rest_of_mission`."""
     rest = rest_of_mission(mission, position_m, flown)
     delivered = delivered_bits(mission, flown)
     per_use = rest.slot_s * rest.bandwidth_hz / rest.num_nodes * rest.num_slots
     offsets = delivered / per_use
     options: dict = {'offsets': offsets}
-    if previous_q is not None and within_speed_limit(previous_q, rest):
-        options['extra_starts'] = {PREVIOUS_PLAN_START: np.asarray(previous_q, float)}
+    start = None if previous_q is None else rejoined(previous_q, position_m, rest)
+    if start is not None and within_speed_limit(start, rest) and (
+            rest.zones is None or rest.zones.empty or ZoneKeeper(rest).keeps(start)):
+        options['extra_starts'] = {PREVIOUS_PLAN_START: start}
     return RecedingProblem(mission=mission, flown=flown, rest=rest, delivered_bits=delivered,
-                           offsets=offsets, plan_options=options)
+                           offsets=offsets, plan_options=options,
+                           warm=bool(warm) and 'extra_starts' in options)
 
 
 def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
            settings: SolverSettings | None = None, *, planner: Planner = plan,
-           previous_q: np.ndarray | None = None, **plan_options) -> RecedingPlan:
+           previous_q: np.ndarray | None = None, warm: bool = False,
+           **plan_options) -> RecedingPlan:
     """Plan the rest of ``mission`` from ``position_m`` after the slots ``flown``.
 
     Maximises the whole mission's min average throughput under the whole mission's budget
     (module docstring). ``previous_q`` (M - k, 2) metres, the rest of the plan being flown,
-    is one more start for Algorithm 1 when it keeps the speed limit from ``position_m``: the
-    replan then promises at least what going on with it would give. ``plan_options`` go to
-    ``planner`` (:func:`plan`: ``power_method``, ``trajectory_method``). With no flown slot
-    and ``position_m`` = q0 it returns the letter's plan exactly. Raises the errors of
-    :func:`rest_of_mission` and of the planner.
+    is one more start for Algorithm 1 (:func:`rejoined` from ``position_m``) when it keeps the
+    speed limit: the replan then promises at least what going on with it would give; ``warm``
+    continues it instead of screening the tours again (:meth:`RecedingProblem.settings`).
+    ``plan_options`` go to ``planner`` (:func:`plan`: ``power_method``,
+    ``trajectory_method``). With no flown slot and ``position_m`` = q0 it returns the letter's
+    plan exactly. Raises the errors of :func:`rest_of_mission` and of the planner.
     """
-    problem = receding_problem(mission, position_m, flown, previous_q=previous_q)
-    result = planner(problem.rest, settings, **problem.plan_options, **plan_options)
+    problem = receding_problem(mission, position_m, flown, previous_q=previous_q, warm=warm)
+    result = planner(problem.rest, problem.settings(settings), **problem.plan_options,
+                     **plan_options)
     return problem.outcome(result)
 
 
@@ -274,7 +334,6 @@ def mission_rates_flown(mission: Scenario, power_w: np.ndarray,
     return delivered_bits(mission, flown) / mission.horizon_s
 
 
-__all__ = ['PREVIOUS_PLAN_START', 'FlownSlots', 'RecedingPlan', 'RecedingProblem',
+__all__ = ['PREVIOUS_PLAN_START', 'WARM_STARTS', 'FlownSlots', 'RecedingPlan', 'RecedingProblem',
            'delivered_bits', 'lengthened', 'mission_rates_flown', 'power_for_nodes',
-           'receding_problem',
-           'replan', 'rest_of_mission']
+           'receding_problem', 'rejoined', 'replan', 'rest_of_mission']

@@ -26,7 +26,8 @@ from pathlib import Path
 from typing import Callable
 
 from uav_comm_planner.core.optimizer import plan, PlanResult
-from uav_comm_planner.core.receding import lengthened, receding_problem, RecedingPlan
+from uav_comm_planner.core.receding import (lengthened, receding_problem, RecedingPlan,
+                                            RecedingProblem)
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError, PlannerError
 from uav_comm_planner.files import OutputFolder
@@ -62,6 +63,11 @@ class MissionPlan:
     items: tuple[MissionItem, ...] | None = None
     items_error: str = ''
     fence: tuple[MissionItem, ...] | None = None
+
+    @property
+    def optimised(self) -> PlanResult:
+        """The optimiser's plan: the ideal plan of a vehicle-aware request, else ``result``."""
+        return self.result if self.vehicle_plan is None else self.vehicle_plan.ideal
 
     @property
     def min_throughput(self) -> float:
@@ -121,8 +127,17 @@ LENGTHEN_ATTEMPTS = 5
 
 
 def _plan_scenario(request: MissionRequest, scenario: Scenario, planner: Planner,
-                   options: dict) -> tuple[PlanResult, VehiclePlan | None]:
-    optimiser = _bound(planner, **options)
+                   options: dict, problem: RecedingProblem | None = None
+                   ) -> tuple[PlanResult, VehiclePlan | None]:
+    """``scenario`` planned for ``request``; for the rest of a mission in flight, every
+    scenario the vehicle-aware planning tries gets ``problem``'s settings for it (a warm
+    replan where the plan in force is a start for it)."""
+    bound = _bound(planner, **options)
+
+    def optimiser(planned: Scenario, settings: SolverSettings | None) -> PlanResult:
+        return bound(planned, settings if problem is None
+                     else problem.settings(settings, planned))
+
     if not request.vehicle_aware:
         return optimiser(scenario, request.settings), None
     vehicle_plan = plan_for_vehicle(scenario, request.vehicle, request.settings,
@@ -135,17 +150,18 @@ def _plan_rest(request: MissionRequest, planner: Planner,
                ) -> tuple[PlanResult, VehiclePlan | None, RecedingPlan]:
     """The rest of a mission in flight; when qF cannot be kept in time (by the speed limit,
     or by the vehicle's timing), the mission is lengthened by whole slots until it can, and
-    the plan promises the whole mission over that longer horizon."""
+    the plan promises the whole mission over that longer horizon. A warm replan continues the
+    plan in force (:meth:`~uav_comm_planner.core.receding.RecedingProblem.settings`)."""
     rest = request.in_flight
     mission = lengthened(rest.mission(request.planned_scenario), rest.position_m, rest.flown)
     attempts = 0
     while True:
         problem = receding_problem(mission, rest.position_m, rest.flown,
-                                   previous_q=rest.previous_q)
+                                   previous_q=rest.previous_q, warm=rest.warm)
         try:
             result, vehicle_plan = _plan_scenario(
                 request, problem.rest, planner,
-                {'should_stop': should_stop, **problem.plan_options})
+                {'should_stop': should_stop, **problem.plan_options}, problem)
         except InfeasibleHorizonError:
             attempts += 1
             if attempts > LENGTHEN_ATTEMPTS:

@@ -23,8 +23,10 @@ import numpy as np
 
 from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.optimizer import PlanResult
-from uav_comm_planner.core.receding import FlownSlots, power_for_nodes
+from uav_comm_planner.core.receding import (FlownSlots, lengthened, power_for_nodes,
+                                            rest_of_mission)
 from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.mission.request import InFlight, with_slots
 
 #: Position samples kept for the flown positions (about 20 minutes at 50 Hz).
 TRACK_LENGTH = 60_000
@@ -89,14 +91,22 @@ class PoseTrack:
 class Segment:
     """One plan of the mission: it covers mission slots first_slot + 1 .. first_slot + M'.
 
-    start_s: when its clock started (the UAV at its q0), None while it waits for that;
-    slots_kept: how many of its slots count (all until a replan cuts it).
+    result: the plan as flown; start_s: when its clock started (the UAV at its q0), None
+    while it waits for that; slots_kept: how many of its slots count (all until a replan cuts
+    it); planned: the optimiser's plan that ``result`` flies (a vehicle-aware plan's ideal
+    plan; None: ``result`` itself), whose rest a replan continues.
     """
 
     result: PlanResult
     first_slot: int
     start_s: float | None = None
     slots_kept: int | None = None
+    planned: PlanResult | None = None
+
+    @property
+    def optimised(self) -> PlanResult:
+        """The optimiser's plan of this segment (:attr:`planned`, else :attr:`result`)."""
+        return self.result if self.planned is None else self.planned
 
     @property
     def num_slots(self) -> int:
@@ -135,10 +145,12 @@ class MissionProgress:
     def current(self) -> Segment | None:
         return self.segments[-1] if self.segments else None
 
-    def begin(self, mission: Scenario, result: PlanResult) -> None:
-        """A new mission whose first plan is ``result``; its clock is not running yet."""
+    def begin(self, mission: Scenario, result: PlanResult, *,
+              planned: PlanResult | None = None) -> None:
+        """A new mission whose first plan is ``result`` (optimised as ``planned``,
+        :class:`Segment`); its clock is not running yet."""
         self.mission = mission
-        self.segments = [Segment(result, 0)]
+        self.segments = [Segment(result, 0, planned=planned)]
         self.mission_id = next(_MISSION_IDS)
 
     def start_clock(self, now_s: float) -> None:
@@ -166,6 +178,29 @@ class MissionProgress:
             return FlownSlots.none(len(nodes))
         return FlownSlots(np.hstack(power), np.vstack(positions))
 
+    def in_flight(self, scenario: Scenario, time_s: float, position_m: tuple[float, float],
+                  track: PoseTrack | None) -> InFlight:
+        """What a replan of the rest of this mission from ``position_m`` at ``time_s`` needs
+        (``scenario``: the mission's parameters now, lengthened to the mission's slots so
+        far): the slots flown (positions from ``track``), the rest of the optimiser's plan in
+        force as a start, warm when that plan serves ``scenario``'s nodes. Raises the errors
+        of :func:`~uav_comm_planner.core.receding.rest_of_mission` when the rest cannot be
+        planned (the horizon over, the budget spent, qF out of reach even lengthened)."""
+        slots = self.mission.num_slots
+        mission = with_slots(scenario, slots)
+        segment = self.current
+        begun = segment.slots_begun(time_s) if segment.start_s is not None else 0
+        flown = self.flown_slots(time_s, mission.ground_nodes_m, track)
+        rest_of_mission(lengthened(mission, position_m, flown), position_m, flown)
+        planned = segment.optimised
+        same_nodes = np.array_equal(np.asarray(planned.scenario.ground_nodes_m, float),
+                                    np.asarray(mission.ground_nodes_m, float))
+        return InFlight(
+            position_m=(float(position_m[0]), float(position_m[1])), flown=flown,
+            previous_q=np.array(planned.trajectory[begun:], dtype=float),
+            mission_id=self.mission_id, segment=len(self.segments) - 1, slots_kept=begun,
+            mission_slots=slots, warm=same_nodes)
+
     def cut(self, now_s: float) -> int:
         """End the plan in force after its slots begun by ``now_s``; returns the mission's
         slots counted so far (the next plan's first slot)."""
@@ -173,16 +208,17 @@ class MissionProgress:
         segment.slots_kept = segment.slots_begun(now_s)
         return segment.first_slot + segment.slots_kept
 
-    def follow_with(self, mission: Scenario, result: PlanResult, first_slot: int) -> None:
+    def follow_with(self, mission: Scenario, result: PlanResult, first_slot: int, *,
+                    planned: PlanResult | None = None) -> None:
         """The next plan of the mission, from mission slot ``first_slot`` + 1."""
         self.mission = mission
         if self.current is not None and self.current.start_s is None:
             # The plan it replaces never started: drop it, it flew no slot.
             self.segments.pop()
-        self.segments.append(Segment(result, first_slot))
+        self.segments.append(Segment(result, first_slot, planned=planned))
 
     def take_over(self, mission_id: int, segment: int, slots_kept: int, mission: Scenario,
-                  result: PlanResult) -> bool:
+                  result: PlanResult, *, planned: PlanResult | None = None) -> bool:
         """A replan asked while plan number ``segment`` of mission ``mission_id`` was in force
         takes over after that plan's first ``slots_kept`` slots. False, and nothing changes,
         when the mission is another by now or a later plan has started already."""
@@ -192,7 +228,7 @@ class MissionProgress:
         del self.segments[segment + 1:]
         kept = self.segments[segment]
         kept.slots_kept = slots_kept
-        self.follow_with(mission, result, kept.first_slot + slots_kept)
+        self.follow_with(mission, result, kept.first_slot + slots_kept, planned=planned)
         return True
 
     def over(self, now_s: float) -> bool:

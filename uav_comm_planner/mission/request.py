@@ -91,11 +91,14 @@ class InFlight:
     :mod:`uav_comm_planner.core.receding`).
 
     position_m: where the rest starts; flown: the slots already flown (power mapped onto the
-    mission's nodes); previous_q: (M - k, 2) metres, the rest of the plan in force, one more
-    start; mission_id and segment: which mission, and which of its plans
+    mission's nodes); previous_q: (M - k, 2) metres, the rest of the plan in force as the
+    optimiser planned it (for a vehicle-aware plan its ideal plan, which keeps the speed it was
+    planned at), one more start; mission_id and segment: which mission, and which of its plans
     (:attr:`~uav_comm_planner.mission.progress.MissionProgress.segments`) was in force, cut
     after ``slots_kept`` of its slots when the replan takes over; mission_slots: the
-    mission's slots so far when an earlier replan lengthened it (0: the scenario's own).
+    mission's slots so far when an earlier replan lengthened it (0: the scenario's own);
+    warm: the plan in force serves the same nodes, so the replan continues it instead of
+    screening the tours again (:meth:`~uav_comm_planner.core.receding.RecedingProblem.settings`).
     """
 
     position_m: tuple[float, float]
@@ -105,6 +108,7 @@ class InFlight:
     segment: int
     slots_kept: int
     mission_slots: int = 0
+    warm: bool = False
 
     def mission(self, scenario: Scenario) -> Scenario:
         """``scenario`` as long as the mission in flight is (lengthened by earlier replans)."""

@@ -19,9 +19,6 @@ import math
 import time
 from typing import Protocol
 
-import numpy as np
-
-from uav_comm_planner.core.receding import lengthened, rest_of_mission
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.mission.plausible import PositionGate
 from uav_comm_planner.mission.progress import (MissionProgress, off_plan, planned_position,
@@ -206,35 +203,29 @@ class MissionFlight:
 
     def _request_rest(self, reason: str, time_s: float, position: tuple[float, float]) -> None:
         """Replan the rest of the mission in flight from ``position`` at ``time_s``."""
-        slots = self.progress.mission.num_slots
-        mission = with_slots(self._node.config.scenario, slots)
-        segment = self.progress.current
-        begun = segment.slots_begun(time_s) if segment.start_s is not None else 0
         try:
-            flown = self.progress.flown_slots(time_s, mission.ground_nodes_m, self.track)
-            rest_of_mission(lengthened(mission, position, flown), position, flown)
+            in_flight = self.progress.in_flight(self._node.config.scenario, time_s, position,
+                                                self.track)
         except PlannerError as exc:
+            mission = with_slots(self._node.config.scenario, self.progress.mission.num_slots)
             self._node.refuse(reason, f'{reason} refused: {exc}',
                               nodes=nodes_text(mission.ground_nodes_m))
             return
-        previous = np.array(segment.result.trajectory[begun:], dtype=float)
-        self._node.submit(reason, InFlight(
-            position_m=(float(position[0]), float(position[1])), flown=flown,
-            previous_q=previous, mission_id=self.progress.mission_id,
-            segment=len(self.progress.segments) - 1, slots_kept=begun, mission_slots=slots))
+        self._node.submit(reason, in_flight)
 
     def take(self, outcome: PlanOutcome) -> bool:
         """Make ``outcome`` the plan in force of the mission; False if it came too late."""
         node = self._node
         request = outcome.request
         rest = request.mission.in_flight
+        planned = outcome.plan.optimised
         if rest is None:
-            self.progress.begin(request.scenario, outcome.result)
+            self.progress.begin(request.scenario, outcome.result, planned=planned)
             return True
         mission = outcome.receding.mission
         before = self.progress.mission
         if not self.progress.take_over(rest.mission_id, rest.segment, rest.slots_kept,
-                                       mission, outcome.result):
+                                       mission, outcome.result, planned=planned):
             node.get_logger().info(f'{request.reason}: a newer plan is flown already; this '
                                    f'replan is dropped')
             return False

@@ -13,6 +13,8 @@
   over one 200 s flight, with the least-squares exponent of M on a log-log scale.
 * Speed of the default plan: the same settings on the reference path and on the fast path
   (loose steps and the solvers kept between plans only help the fast path).
+* Replans in flight: the node's replan of the rest of a mission, warm and with the full search
+  (:mod:`uav_comm_planner.tools.replans`).
 * Quality: on seeded random drops, the default plan against the letter's Algorithm 1 and the
   best known plan, with the dual upper bound (:mod:`uav_comm_planner.core.bound`) and its gap.
 
@@ -42,6 +44,7 @@ from uav_comm_planner.core.optimizer import alternate, plan, PlanResult, step_so
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.core.tours import random_tours, scenario_seed
 from uav_comm_planner.tools.flights import flight_cases, fly_case, format_flights
+from uav_comm_planner.tools.replans import format_replans, measure_replans, REPLAN_POINTS
 from uav_comm_planner.vehicle.sitl import why_not_runnable
 
 REFERENCE = dict(power_method='conic', trajectory_method='cvxpy')
@@ -394,6 +397,11 @@ def run(quick: bool = False, out: TextIO | None = None, *, flights: bool = True,
             "'runs' reference plans, each followed by 3 pairs of fast plans (kept solvers, and "
             'no cached solver or cone structure)', format_default_speed(
                 [measure_default_speed(case) for case in default_size_cases(quick)]))
+    section('Replans in flight: the node\'s replan of the rest of an N = 20, M = 500 mission '
+            '(ArduCopter limits, mission items built), warm (the plan in force continued) and '
+            'with the full search, median of 2 alternating pairs; target under 150 ms',
+            format_replans(measure_replans((1,) if quick else (1, 2, 3),
+                                           points=REPLAN_POINTS[1:2] if quick else REPLAN_POINTS)))
     cases, max_slots = (4, 80) if quick else (24, 199)
     drops = (f'random drops: N 3-20, M 51-{max_slots}, slots 0.5-2 s, V 20-100 m/s; best known: '
              'the best of the default, the letter and 20 other random tours run to '

@@ -1,0 +1,185 @@
+"""Warm replans in flight: the plan in force, rejoined from where the UAV is, continued instead
+of screening the tours again; the full search where it is no start or the nodes changed."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from uav_comm_planner import plan, SolverSettings
+from uav_comm_planner.core.drops import random_scenario
+from uav_comm_planner.core.feasibility import within_speed_limit
+from uav_comm_planner.core.receding import (FlownSlots, PREVIOUS_PLAN_START, receding_problem,
+                                            rejoined, replan, WARM_STARTS)
+from uav_comm_planner.mission.pipeline import plan_mission
+from uav_comm_planner.mission.progress import planned_position
+from uav_comm_planner.mission.request import InFlight, MissionRequest
+from uav_comm_planner.ros.flight import MissionFlight
+from uav_comm_planner.ros.params import NodeSettings, PlannerConfig
+
+SETTINGS = SolverSettings(compute_baselines=False)
+#: Eight nodes, 150 slots of 2 s at 10 m/s from (0, 0) to (1200, 1200).
+MISSION = random_scenario(8, 150, 3, side_m=1200.0, horizon_s=300.0, max_speed_mps=10.0)
+
+
+@pytest.fixture(scope='module')
+def first():
+    return plan(MISSION, SETTINGS)
+
+
+def flown(result, slots: int) -> FlownSlots:
+    return FlownSlots(result.power[:, :slots], result.trajectory[:slots])
+
+
+def test_rejoined_flies_straight_to_the_first_point_it_reaches_in_time():
+    rest = MISSION.replace(start_m=(0.0, 0.0), num_slots=6, horizon_s=12.0,
+                           goal_m=(60.0, 0.0))
+    step = rest.max_speed_mps * rest.slot_s                # 20 m a slot
+    previous = np.array([[0.0, 50.0], [10.0, 50.0], [20.0, 45.0], [30.0, 40.0],
+                         [40.0, 25.0], [50.0, 10.0]])
+    joined = rejoined(previous, (0.0, 0.0), rest)
+    # Point j is reached by slot j when its distance is at most (j + 1) 20 m: (0, 50) is 50 m
+    # (> 20), (10, 50) 51 m (> 40), (20, 45) 49.2 m (<= 60): j = 2.
+    first_reached = next(j for j, point in enumerate(previous)
+                         if math.hypot(*point) <= (j + 1) * step)
+    assert first_reached == 2
+    np.testing.assert_allclose(joined[:3], [[20 / 3, 15.0], [40 / 3, 30.0], [20.0, 45.0]])
+    np.testing.assert_array_equal(joined[3:], previous[3:])
+    assert within_speed_limit(joined, rest)
+
+
+def test_rejoined_is_the_plan_itself_from_its_own_start_and_none_when_out_of_reach():
+    rest = MISSION.replace(start_m=(0.0, 0.0), num_slots=3, horizon_s=6.0, goal_m=(30.0, 0.0))
+    previous = np.array([[10.0, 0.0], [20.0, 0.0], [30.0, 0.0]])
+    np.testing.assert_allclose(rejoined(previous, (0.0, 0.0), rest), previous)
+    assert rejoined(previous[:2], (0.0, 0.0), rest) is None           # not the rest's slots
+    far = np.array([[500.0, 0.0], [500.0, 10.0], [500.0, 20.0]])
+    assert rejoined(far, (0.0, 0.0), rest) is None
+    assert rejoined(np.full((3, 2), np.nan), (0.0, 0.0), rest) is None
+
+
+def test_a_warm_replan_continues_the_plan_in_force_from_off_its_path(first):
+    k = 40
+    position = first.trajectory[k] + np.array([30.0, 0.0])     # 30 m east of the plan
+    args = (MISSION, position, flown(first, k), SETTINGS)
+    steps = {True: 0, False: 0}            # plan() asks should_stop between its steps
+
+    def counter(warm: bool):
+        def should_stop() -> bool:
+            steps[warm] += 1
+            return False
+        return should_stop
+    warm = replan(*args, previous_q=first.trajectory[k:], warm=True,
+                  should_stop=counter(True))
+    full = replan(*args, previous_q=first.trajectory[k:], should_stop=counter(False))
+    assert set(warm.result.start_throughputs) == {*WARM_STARTS, PREVIOUS_PLAN_START}
+    assert len(full.result.start_throughputs) > 10                  # the tours screened again
+    print(f'steps: warm {steps[True]}, full {steps[False]}; min throughput warm '
+          f'{warm.mission_min_throughput:.6f}, full {full.mission_min_throughput:.6f} bit/s')
+    assert 0 < 4 * steps[True] < steps[False]
+    # The plan in force, rejoined from the position, is one start: the warm replan promises
+    # at least what it gives, and stays near the full search.
+    assert warm.result.min_throughput >= warm.result.start_throughputs[PREVIOUS_PLAN_START]
+    assert warm.mission_min_throughput >= full.mission_min_throughput * (1 - 2e-3)
+    np.testing.assert_allclose(warm.result.scenario.start_m, position)
+    assert within_speed_limit(warm.result.trajectory, warm.result.scenario)
+
+
+def test_warm_only_where_the_plan_in_force_is_a_start(first):
+    k = 40
+    position = first.trajectory[k]
+    problem = receding_problem(MISSION, position, flown(first, k),
+                               previous_q=first.trajectory[k:], warm=True)
+    warm = problem.settings(SETTINGS)
+    assert warm.screened_tours == 0 and warm.starts == WARM_STARTS
+    assert warm.relative_tolerance == SETTINGS.relative_tolerance
+    # A slower scenario the plan in force is too fast for is searched in full.
+    slower = problem.rest.replace(max_speed_mps=0.9 * MISSION.max_speed_mps)
+    assert not within_speed_limit(problem.plan_options['extra_starts'][PREVIOUS_PLAN_START],
+                                  slower)
+    assert problem.settings(SETTINGS, slower) is SETTINGS
+    cold = receding_problem(MISSION, position, flown(first, k), previous_q=first.trajectory[k:])
+    assert not cold.warm and cold.settings(SETTINGS) is SETTINGS
+    # No plan in force that can be rejoined: no warm replan, whatever is asked.
+    lost = receding_problem(MISSION, position, flown(first, k),
+                            previous_q=first.trajectory[k:] + 900.0, warm=True)
+    assert not lost.warm and 'extra_starts' not in lost.plan_options
+
+
+def test_the_vehicle_aware_pipeline_plans_every_speed_it_tries_warm_where_it_can(first):
+    k = 40
+    calls = []
+
+    def recording(scenario, settings, **options):
+        calls.append((scenario.max_speed_mps, settings.screened_tours,
+                      PREVIOUS_PLAN_START in options.get('extra_starts', {})))
+        return plan(scenario, settings, **options)
+
+    in_flight = InFlight(position_m=tuple(first.trajectory[k]), flown=flown(first, k),
+                         previous_q=np.array(first.trajectory[k:]), mission_id=1, segment=0,
+                         slots_kept=k, warm=True)
+    result = plan_mission(MissionRequest(MISSION, SETTINGS, items=False, in_flight=in_flight),
+                          planner=recording)
+    assert calls and calls[0][1:] == (0, True)
+    for speed, tours, _ in calls:
+        start = receding_problem(MISSION, first.trajectory[k], flown(first, k),
+                                 previous_q=first.trajectory[k:]).plan_options[
+                                     'extra_starts'][PREVIOUS_PLAN_START]
+        keeps = within_speed_limit(start, result.result.scenario.replace(max_speed_mps=speed))
+        assert tours == (0 if keeps else SETTINGS.screened_tours)
+
+
+class StandInVehicle:
+    linked = False
+    upload_pending = False
+
+
+class StandInNode:
+    """What MissionFlight asks of its node, recording the replans."""
+
+    def __init__(self, scenario) -> None:
+        self.config = PlannerConfig(scenario, SETTINGS, NodeSettings(vehicle_aware=False))
+        self.vehicle = StandInVehicle()
+        self.submitted: list[InFlight] = []
+
+    def get_logger(self):
+        class Quiet:
+            def info(self, *_):
+                pass
+            warning = error = info
+        return Quiet()
+
+    def submit(self, reason: str, in_flight=None) -> None:
+        self.submitted.append(in_flight)
+
+    def refuse(self, *_, **__) -> None:
+        raise AssertionError('refused')
+
+    def clock_s(self) -> float:
+        return 0.0
+
+
+@pytest.mark.parametrize('nodes_moved', [False, True])
+def test_the_node_replans_from_the_optimised_plan_warm_for_the_same_nodes(first, nodes_moved):
+    """The flown plan (here the optimised one shifted 3 m, as a vehicle's timing moves it) is
+    what the clock and the off-plan test follow; the replan continues the optimiser's plan."""
+    nodes = np.asarray(MISSION.ground_nodes_m) + (50.0 if nodes_moved else 0.0)
+    node = StandInNode(MISSION.replace(ground_nodes_m=nodes.tolist()))
+    flight = MissionFlight(node)
+    as_flown = dataclasses.replace(first, trajectory=first.trajectory + np.array([0.0, 3.0]))
+    flight.progress.begin(MISSION, as_flown, planned=first)
+    flight.progress.start_clock(0.0)
+    for t in np.round(np.arange(1, 1200) * 0.1, 6):
+        x, y = planned_position(first, t)
+        if t >= 60.0:
+            y += 5.0 * (t - 60.0)           # pushed north at 5 m/s
+        flight.on_position(t, x, y, source='uav_pose')
+        if node.submitted:
+            break
+    assert len(node.submitted) == 1
+    rest = node.submitted[0]
+    np.testing.assert_array_equal(rest.previous_q, first.trajectory[rest.slots_kept:])
+    assert rest.warm is not nodes_moved

@@ -1,0 +1,112 @@
+"""Benchmark of replans in flight: the node's replan of the rest of a mission, warm against
+the full search, side by side.
+
+A mission of N = 20 nodes and M = 500 slots of 2 s is planned for ArduCopter's default limits
+(10 m/s, the node's vehicle-aware default) as the node plans it. Its plan is begun on a
+:class:`~uav_comm_planner.mission.progress.MissionProgress` as the node begins it, the clock
+started at q0, and at a few times of the flight the UAV is put off the plan; the request is the
+one the node builds (:meth:`~uav_comm_planner.mission.progress.MissionProgress.in_flight`) and
+is planned by the node's pipeline (:func:`~uav_comm_planner.mission.pipeline.plan_mission`,
+with mission items, as for a mission file or a link), once warm (the plan in force continued)
+and once with the full search (the tours screened again), in alternation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+import statistics
+import time
+from typing import Sequence
+
+import numpy as np
+
+from uav_comm_planner.core.drops import random_scenario
+from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.mission.pipeline import plan_mission
+from uav_comm_planner.mission.progress import MissionProgress, planned_position
+from uav_comm_planner.mission.request import InFlight, MissionRequest
+
+#: The replans: (slots flown, metres east of the plan).
+REPLAN_POINTS = ((100, 0.0), (100, 40.0), (300, 40.0))
+#: A replan of this size should come back within this many seconds (the node's target).
+TARGET_S = 0.150
+
+
+def replan_mission(seed: int) -> Scenario:
+    """N = 20 nodes in a 2 km square, M = 500 slots of 2 s at 10 m/s, corner to corner."""
+    return random_scenario(20, 500, seed, side_m=2000.0, horizon_s=1000.0, max_speed_mps=10.0)
+
+
+@dataclass(frozen=True)
+class ReplanRow:
+    seed: int
+    slots_flown: int
+    off_plan_m: float
+    full_s: float
+    warm_s: float
+    full_bps: float
+    warm_bps: float
+
+    @property
+    def change(self) -> float:
+        """The warm replan's whole-mission min throughput against the full search's, - 1."""
+        return self.warm_bps / self.full_bps - 1.0
+
+
+def _timed(request: MissionRequest) -> tuple[float, float]:
+    began = time.perf_counter()
+    planned = plan_mission(request)
+    return time.perf_counter() - began, planned.min_throughput
+
+
+def measure_replans(seeds: Sequence[int], repeats: int = 2,
+                    points: Sequence[tuple[int, float]] = REPLAN_POINTS) -> list[ReplanRow]:
+    """Each mission of ``seeds`` replanned at ``points``, warm and full in alternation
+    ``repeats`` times (median wall times)."""
+    rows = []
+    for seed in seeds:
+        scenario = replan_mission(seed)
+        first = plan_mission(MissionRequest(scenario, items=False))
+        for slots, east_m in points:
+            progress = MissionProgress()
+            progress.begin(scenario, first.result, planned=first.optimised)
+            progress.start_clock(0.0)
+            time_s = (slots + 0.5) * scenario.slot_s
+            position = planned_position(first.result, time_s) + np.array([east_m, 0.0])
+            warm = progress.in_flight(scenario, time_s, tuple(position), None)
+            requests = {True: warm, False: dataclasses.replace(warm, warm=False)}
+            times: dict[bool, list[float]] = {True: [], False: []}
+            values = {}
+            for _ in range(repeats):
+                for kind, in_flight in requests.items():
+                    seconds, values[kind] = _timed(_request(scenario, in_flight))
+                    times[kind].append(seconds)
+            rows.append(ReplanRow(seed, slots, east_m, statistics.median(times[False]),
+                                  statistics.median(times[True]), values[False], values[True]))
+    return rows
+
+
+def _request(scenario: Scenario, in_flight: InFlight) -> MissionRequest:
+    return MissionRequest(scenario, in_flight=in_flight)
+
+
+def format_replans(rows: Sequence[ReplanRow]) -> str:
+    lines = ['seed  flown  off_m   full_s   warm_s  speed-up  full_bps    warm_bps    change']
+    for r in rows:
+        lines.append(f'{r.seed:>4} {r.slots_flown:>6} {r.off_plan_m:>6.0f} {r.full_s:>8.3f} '
+                     f'{r.warm_s:>8.3f} {r.full_s / r.warm_s:>8.1f}x {r.full_bps:>10.6f} '
+                     f'{r.warm_bps:>10.6f} {r.change:>+9.3%}')
+    warm = [r.warm_s for r in rows]
+    changes = [r.change for r in rows]
+    within = sum(seconds < TARGET_S for seconds in warm)
+    lines.append(f'warm replan: median {statistics.median(warm):.3f} s (full search '
+                 f'{statistics.median(r.full_s for r in rows):.3f} s), under '
+                 f'{TARGET_S * 1e3:.0f} ms in {within} of {len(rows)}; min throughput against '
+                 f'the full search: mean {statistics.mean(changes):+.3%}, worst '
+                 f'{min(changes):+.3%}')
+    return '\n'.join(lines)
+
+
+__all__ = ['ReplanRow', 'REPLAN_POINTS', 'TARGET_S', 'format_replans', 'measure_replans',
+           'replan_mission']
