@@ -11,7 +11,7 @@ import pytest
 
 from uav_comm_planner import plan, SolverSettings
 from uav_comm_planner.core.drops import random_scenario
-from uav_comm_planner.core.feasibility import within_speed_limit
+from uav_comm_planner.core.feasibility import retimed, within_speed_limit
 from uav_comm_planner.core.receding import (FlownSlots, PREVIOUS_PLAN_START, receding_problem,
                                             rejoined, replan, WARM_STARTS)
 from uav_comm_planner.mission.pipeline import plan_mission
@@ -19,6 +19,7 @@ from uav_comm_planner.mission.progress import planned_position
 from uav_comm_planner.mission.request import InFlight, MissionRequest
 from uav_comm_planner.ros.flight import MissionFlight
 from uav_comm_planner.ros.params import NodeSettings, PlannerConfig
+from uav_comm_planner.vehicle.limits import VehicleLimits
 
 SETTINGS = SolverSettings(compute_baselines=False)
 #: Eight nodes, 150 slots of 2 s at 10 m/s from (0, 0) to (1200, 1200).
@@ -93,23 +94,59 @@ def test_warm_only_where_the_plan_in_force_is_a_start(first):
     position = first.trajectory[k]
     problem = receding_problem(MISSION, position, flown(first, k),
                                previous_q=first.trajectory[k:], warm=True)
-    warm = problem.settings(SETTINGS)
+    start = problem.plan_options['extra_starts'][PREVIOUS_PLAN_START]
+    warm, options = problem.for_scenario(SETTINGS)
     assert warm.screened_tours == 0 and warm.starts == WARM_STARTS
     assert warm.relative_tolerance == SETTINGS.relative_tolerance
-    # A slower scenario the plan in force is too fast for is searched in full.
+    assert options['extra_starts'][PREVIOUS_PLAN_START] is start
+    np.testing.assert_array_equal(options['offsets'], problem.offsets)
+    # A slower scenario the plan in force is too fast for gets it retimed, still warm.
     slower = problem.rest.replace(max_speed_mps=0.9 * MISSION.max_speed_mps)
-    assert not within_speed_limit(problem.plan_options['extra_starts'][PREVIOUS_PLAN_START],
-                                  slower)
-    assert problem.settings(SETTINGS, slower) is SETTINGS
+    assert not within_speed_limit(start, slower)
+    warm, options = problem.for_scenario(SETTINGS, slower)
+    assert warm.screened_tours == 0
+    np.testing.assert_array_equal(options['extra_starts'][PREVIOUS_PLAN_START],
+                                  retimed(start, slower))
+    # So slow that its path no longer fits the horizon: the tours are screened again.
+    slowest = problem.rest.replace(max_speed_mps=0.6 * MISSION.max_speed_mps)
+    assert retimed(start, slowest) is None
+    settings, options = problem.for_scenario(SETTINGS, slowest)
+    assert settings is SETTINGS and 'extra_starts' not in options
     cold = receding_problem(MISSION, position, flown(first, k), previous_q=first.trajectory[k:])
-    assert not cold.warm and cold.settings(SETTINGS) is SETTINGS
+    assert not cold.warm and cold.for_scenario(SETTINGS)[0] is SETTINGS
     # No plan in force that can be rejoined: no warm replan, whatever is asked.
     lost = receding_problem(MISSION, position, flown(first, k),
                             previous_q=first.trajectory[k:] + 900.0, warm=True)
     assert not lost.warm and 'extra_starts' not in lost.plan_options
 
 
-def test_the_vehicle_aware_pipeline_plans_every_speed_it_tries_warm_where_it_can(first):
+def test_retimed_keeps_its_path_and_the_slower_limit_and_reaches_qf(first):
+    path = np.vstack([MISSION.start_m, first.trajectory, MISSION.goal_m])
+    length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+    fits = []
+    for share in (0.95, 0.9, 0.8, 0.7, 0.6):
+        slower = MISSION.replace(max_speed_mps=share * MISSION.max_speed_mps)
+        q = retimed(first.trajectory, slower)
+        fits.append(length <= (MISSION.num_slots + 1) * slower.max_step_m)
+        if not fits[-1]:
+            assert q is None
+            continue
+        assert q is not None and within_speed_limit(q, slower, slack=0.0)
+        # Every retimed point lies on the plan's path.
+        distances = [min(distance_to_segment(point, a, b) for a, b in zip(path, path[1:]))
+                     for point in q]
+        assert max(distances) < 1e-6
+    assert any(fits) and not all(fits)
+    np.testing.assert_array_equal(retimed(first.trajectory, MISSION), first.trajectory)
+
+
+def distance_to_segment(point, a, b) -> float:
+    ab = b - a
+    t = 0.0 if not ab.any() else float(np.clip((point - a) @ ab / (ab @ ab), 0.0, 1.0))
+    return float(np.linalg.norm(point - (a + t * ab)))
+
+
+def test_the_vehicle_aware_pipeline_plans_every_speed_warm_then_in_full(first):
     k = 40
     calls = []
 
@@ -121,15 +158,20 @@ def test_the_vehicle_aware_pipeline_plans_every_speed_it_tries_warm_where_it_can
     in_flight = InFlight(position_m=tuple(first.trajectory[k]), flown=flown(first, k),
                          previous_q=np.array(first.trajectory[k:]), mission_id=1, segment=0,
                          slots_kept=k, warm=True)
-    result = plan_mission(MissionRequest(MISSION, SETTINGS, items=False, in_flight=in_flight),
-                          planner=recording)
-    assert calls and calls[0][1:] == (0, True)
-    for speed, tours, _ in calls:
-        start = receding_problem(MISSION, first.trajectory[k], flown(first, k),
-                                 previous_q=first.trajectory[k:]).plan_options[
-                                     'extra_starts'][PREVIOUS_PLAN_START]
-        keeps = within_speed_limit(start, result.result.scenario.replace(max_speed_mps=speed))
-        assert tours == (0 if keeps else SETTINGS.screened_tours)
+    planned = plan_mission(MissionRequest(MISSION, SETTINGS, items=False, in_flight=in_flight,
+                                          vehicle=VehicleLimits(max_accel_mpss=1.0)),
+                           planner=recording)
+    print(calls)
+    assert calls[0] == (MISSION.max_speed_mps, 0, True)
+    assert len(calls) >= 2          # the vehicle's slow starts and stops spoil the first plan
+    for (speed, tours, continued), after in zip(calls, calls[1:] + [None]):
+        if tours == 0:
+            assert continued
+            if after is not None:   # the full search at the same speed, then a slower one
+                assert after[:2] == (speed, SETTINGS.screened_tours)
+        else:
+            assert after is None or after[0] < speed
+    assert planned.optimised.scenario.max_speed_mps == calls[-1][0]
 
 
 class StandInVehicle:

@@ -79,5 +79,38 @@ def project_onto_speed_limit(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     return (1.0 - lam) * q + lam * initial.straight_line(scenario)
 
 
-__all__ = ['LEG_SLACK', 'limit_discs', 'project_onto_speed_limit',
+def retimed(q: np.ndarray, scenario: Scenario) -> np.ndarray | None:
+    """q (M, 2) metres flown along its own path q0 -> q[1..M] -> qF at a pace that keeps
+    ``scenario``'s speed limits: every slot advances along the path by at most the radius r of
+    the largest leg disc about zero inside every limit disc (min over the discs of radius
+    minus the distance of its centre from zero), as close to q's own arc length as that allows
+    and never later than what still reaches qF at that pace; a chord of the path is no longer
+    than the arc it spans, so every leg keeps the limits. The path's stops are shortened to
+    pay for its slower legs; q itself when it keeps the limits. None when the path is longer
+    than M + 1 legs of r.
+
+    With s_m q's arc length at slot m, S the path's length and L_m = S - (M + 1 - m) r the
+    least arc that still reaches qF: s'_0 = 0, s'_m = max(s'_{m-1}, min(s_m, s'_{m-1} + r),
+    L_m); each increment is at most r since L_m - L_{m-1} = r and s'_{m-1} >= L_{m-1}.
+    """
+    if within_speed_limit(q, scenario, slack=0.0):
+        return np.asarray(q, dtype=float)
+    path = np.vstack([scenario.start_m, np.asarray(q, dtype=float).reshape(-1, 2),
+                      scenario.goal_m])
+    pieces = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(pieces)])
+    radius = min(r - float(np.linalg.norm(c)) for c, r in limit_discs(scenario)) * (1 - 1e-9)
+    total, slots = float(arc[-1]), scenario.num_slots
+    if not (math.isfinite(total) and radius > 0.0) or total > (slots + 1) * radius:
+        return None
+    paced = np.zeros(slots + 1)
+    for m in range(1, slots + 1):
+        paced[m] = max(paced[m - 1], min(arc[m], paced[m - 1] + radius),
+                       total - (slots + 1 - m) * radius)
+    kept = np.concatenate([[True], pieces > 0.0])           # np.interp needs increasing arcs
+    return np.column_stack([np.interp(paced[1:], arc[kept], path[kept, axis])
+                            for axis in range(2)])
+
+
+__all__ = ['LEG_SLACK', 'limit_discs', 'project_onto_speed_limit', 'retimed',
            'within_speed_limit']

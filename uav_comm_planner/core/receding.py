@@ -33,7 +33,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from uav_comm_planner.core.feasibility import within_speed_limit
+from uav_comm_planner.core.feasibility import retimed, within_speed_limit
 from uav_comm_planner.core.model import snr_per_watt, spectral_efficiencies
 from uav_comm_planner.core.optimizer import plan, PlanResult, ZoneKeeper
 from uav_comm_planner.core.scenario import DUPLICATE_NODE_DISTANCE_M, Scenario, SolverSettings
@@ -202,7 +202,7 @@ Planner = Callable[..., PlanResult]
 
 #: Name of the start that continues the previous plan (see :func:`replan`).
 PREVIOUS_PLAN_START = 'previous'
-#: The starts of a warm replan besides the previous plan (:meth:`RecedingProblem.settings`).
+#: The starts of a warm replan besides the previous plan (:meth:`RecedingProblem.for_scenario`).
 WARM_STARTS = ('hover',)
 
 
@@ -238,7 +238,7 @@ class RecedingProblem:
     :func:`~uav_comm_planner.core.optimizer.plan` (the offsets, and the rest of the plan in
     force, :func:`rejoined` from the UAV's position, as one more start when it keeps the speed
     limit); warm: whether the replan continues that start instead of searching the tours again
-    (:meth:`settings`).
+    (:meth:`for_scenario`).
     """
 
     mission: Scenario
@@ -249,27 +249,37 @@ class RecedingProblem:
     plan_options: dict
     warm: bool = False
 
-    def settings(self, settings: SolverSettings | None,
-                 scenario: Scenario | None = None) -> SolverSettings | None:
-        """The optimiser's settings for this replan of ``scenario`` (:attr:`rest`, or the
-        slower one a vehicle-aware plan tries): ``settings`` itself, or for a warm replan,
-        where the previous plan's start keeps ``scenario``'s limits, that start and the hover
-        start (:data:`WARM_STARTS`) with no screened tours.
+    def for_scenario(self, settings: SolverSettings | None, scenario: Scenario | None = None,
+                     *, warm: bool | None = None) -> tuple[SolverSettings | None, dict]:
+        """The optimiser's settings and :attr:`plan_options` for this replan of ``scenario``
+        (:attr:`rest`, or a slower one that a vehicle-aware plan tries); ``warm`` False asks
+        for the full search even for a warm replan (None: :attr:`warm`).
 
-        The plan in force already is the best tour the screening found for these nodes, and
-        the replan only moves its start to where the UAV is: continuing it (one SCA step per
-        power step, as the default continues its best tour) gives at least what flying on with
-        it would, in a few trajectory steps instead of the screening's forty tours, which is
-        what lets a replan in flight come back within a fraction of a second. The hover start
-        is kept as a second candidate, cheap beside it. Where the previous plan is no start
-        (it is faster than a slower planning speed allows) the tours are screened as usual.
+        The previous plan's start goes to a slower ``scenario`` :func:`~uav_comm_planner.core.
+        feasibility.retimed` (its path flown at the slower pace, its stops shortened), since
+        the optimiser would otherwise blend it towards the straight line. A warm replan then
+        runs that start and the hover start (:data:`WARM_STARTS`) with no screened tours:
+        the plan in force already is the best tour the screening found for these nodes, and
+        the replan only moves its start to where the UAV is, so continuing it (one SCA step
+        per power step, as the default continues its best tour) gives at least what flying on
+        with it would, in a few trajectory steps instead of the screening's forty tours. That
+        is what lets a replan in flight come back within a fraction of a second. Where the
+        previous plan gives no start for ``scenario``, the tours are screened as usual.
         """
         scenario = self.rest if scenario is None else scenario
-        start = self.plan_options.get('extra_starts', {}).get(PREVIOUS_PLAN_START)
-        if not self.warm or start is None or not within_speed_limit(start, scenario):
-            return settings
+        options = dict(self.plan_options)
+        start = options.pop('extra_starts', {}).get(PREVIOUS_PLAN_START)
+        if start is not None and not within_speed_limit(start, scenario):
+            start = retimed(start, scenario)
+            if start is not None and not _keeps_zones(start, scenario):
+                start = None
+        if start is None:
+            return settings, options
+        options['extra_starts'] = {PREVIOUS_PLAN_START: start}
+        if not (self.warm if warm is None else self.warm and warm):
+            return settings, options
         return dataclasses.replace(settings or SolverSettings(), starts=WARM_STARTS,
-                                   screened_tours=0)
+                                   screened_tours=0), options
 
     def outcome(self, result: PlanResult) -> RecedingPlan:
         """What the plan ``result`` of :attr:`rest` (its rates counting the offsets) promises
@@ -282,6 +292,10 @@ class RecedingProblem:
                             mission_min_throughput=float(mission_rates.min()))
 
 
+def _keeps_zones(q: np.ndarray, scenario: Scenario) -> bool:
+    return scenario.zones is None or scenario.zones.empty or ZoneKeeper(scenario).keeps(q)
+
+
 def receding_problem(mission: Scenario, position_m: Sequence[float], flown: FlownSlots, *,
                      previous_q: np.ndarray | None = None,
                      warm: bool = False) -> RecedingProblem:
@@ -289,7 +303,7 @@ def receding_problem(mission: Scenario, position_m: Sequence[float], flown: Flow
     the optimiser (module docstring). ``previous_q`` (M - k, 2) metres, the rest of the plan
     being flown, becomes one more start, :func:`rejoined` from ``position_m``, when that keeps
     the speed limit (and the zones); with ``warm`` (the plan in force serves the same nodes)
-    the replan then continues it (:meth:`RecedingProblem.settings`). Raises the errors of
+    the replan then continues it (:meth:`RecedingProblem.for_scenario`). Raises the errors of
     :func:`rest_of_mission`."""
     rest = rest_of_mission(mission, position_m, flown)
     delivered = delivered_bits(mission, flown)
@@ -297,8 +311,7 @@ def receding_problem(mission: Scenario, position_m: Sequence[float], flown: Flow
     offsets = delivered / per_use
     options: dict = {'offsets': offsets}
     start = None if previous_q is None else rejoined(previous_q, position_m, rest)
-    if start is not None and within_speed_limit(start, rest) and (
-            rest.zones is None or rest.zones.empty or ZoneKeeper(rest).keeps(start)):
+    if start is not None and within_speed_limit(start, rest) and _keeps_zones(start, rest):
         options['extra_starts'] = {PREVIOUS_PLAN_START: start}
     return RecedingProblem(mission=mission, flown=flown, rest=rest, delivered_bits=delivered,
                            offsets=offsets, plan_options=options,
@@ -315,14 +328,14 @@ def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
     (module docstring). ``previous_q`` (M - k, 2) metres, the rest of the plan being flown,
     is one more start for Algorithm 1 (:func:`rejoined` from ``position_m``) when it keeps the
     speed limit: the replan then promises at least what going on with it would give; ``warm``
-    continues it instead of screening the tours again (:meth:`RecedingProblem.settings`).
+    continues it instead of screening the tours again (:meth:`RecedingProblem.for_scenario`).
     ``plan_options`` go to ``planner`` (:func:`plan`: ``power_method``,
     ``trajectory_method``). With no flown slot and ``position_m`` = q0 it returns the letter's
     plan exactly. Raises the errors of :func:`rest_of_mission` and of the planner.
     """
     problem = receding_problem(mission, position_m, flown, previous_q=previous_q, warm=warm)
-    result = planner(problem.rest, problem.settings(settings), **problem.plan_options,
-                     **plan_options)
+    settings, options = problem.for_scenario(settings)
+    result = planner(problem.rest, settings, **options, **plan_options)
     return problem.outcome(result)
 
 

@@ -130,18 +130,24 @@ def _plan_scenario(request: MissionRequest, scenario: Scenario, planner: Planner
                    options: dict, problem: RecedingProblem | None = None
                    ) -> tuple[PlanResult, VehiclePlan | None]:
     """``scenario`` planned for ``request``; for the rest of a mission in flight, every
-    scenario the vehicle-aware planning tries gets ``problem``'s settings for it (a warm
-    replan where the plan in force is a start for it)."""
-    bound = _bound(planner, **options)
-
-    def optimiser(planned: Scenario, settings: SolverSettings | None) -> PlanResult:
-        return bound(planned, settings if problem is None
-                     else problem.settings(settings, planned))
+    scenario the vehicle-aware planning tries gets ``problem``'s settings and options for it
+    (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`), and where the
+    vehicle cannot fly a warm replan on time the full search is tried at the same speed before
+    a slower one."""
+    def optimiser(warm: bool | None) -> Callable[[Scenario, SolverSettings | None], PlanResult]:
+        def planned(rest: Scenario, settings: SolverSettings | None) -> PlanResult:
+            extra: dict = {}
+            if problem is not None:
+                settings, extra = problem.for_scenario(settings, rest, warm=warm)
+            return _bound(planner, **options, **extra)(rest, settings)
+        return planned
 
     if not request.vehicle_aware:
-        return optimiser(scenario, request.settings), None
-    vehicle_plan = plan_for_vehicle(scenario, request.vehicle, request.settings,
-                                    firmware=request.firmware, planner=optimiser)
+        return optimiser(None)(scenario, request.settings), None
+    vehicle_plan = plan_for_vehicle(
+        scenario, request.vehicle, request.settings, firmware=request.firmware,
+        planner=optimiser(None),
+        wider_planner=optimiser(False) if problem is not None and problem.warm else None)
     return vehicle_plan.flown, vehicle_plan
 
 
@@ -151,7 +157,7 @@ def _plan_rest(request: MissionRequest, planner: Planner,
     """The rest of a mission in flight; when qF cannot be kept in time (by the speed limit,
     or by the vehicle's timing), the mission is lengthened by whole slots until it can, and
     the plan promises the whole mission over that longer horizon. A warm replan continues the
-    plan in force (:meth:`~uav_comm_planner.core.receding.RecedingProblem.settings`)."""
+    plan in force (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`)."""
     rest = request.in_flight
     mission = lengthened(rest.mission(request.planned_scenario), rest.position_m, rest.flown)
     attempts = 0
@@ -161,7 +167,7 @@ def _plan_rest(request: MissionRequest, planner: Planner,
         try:
             result, vehicle_plan = _plan_scenario(
                 request, problem.rest, planner,
-                {'should_stop': should_stop, **problem.plan_options}, problem)
+                {'should_stop': should_stop}, problem)
         except InfeasibleHorizonError:
             attempts += 1
             if attempts > LENGTHEN_ATTEMPTS:

@@ -98,7 +98,8 @@ class InFlight:
     after ``slots_kept`` of its slots when the replan takes over; mission_slots: the
     mission's slots so far when an earlier replan lengthened it (0: the scenario's own);
     warm: the plan in force serves the same nodes, so the replan continues it instead of
-    screening the tours again (:meth:`~uav_comm_planner.core.receding.RecedingProblem.settings`).
+    screening the tours again
+    (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`).
     """
 
     position_m: tuple[float, float]

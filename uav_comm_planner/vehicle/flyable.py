@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+import time
 from typing import Callable, Optional
 
 import numpy as np
@@ -327,11 +328,14 @@ def check_speed(scenario: Scenario, limits: VehicleLimits) -> None:
             f'{limits.cruise_speed_mps:g} or give the vehicle\'s real limits')
 
 
-def flown_result(ideal: PlanResult, schedule: Schedule) -> PlanResult:
+def flown_result(ideal: PlanResult, schedule: Schedule,
+                 began_s: float | None = None) -> PlanResult:
     """The plan as flown: predicted positions at the slot times, power optimal for them.
 
     A replan in flight keeps its offsets (the data each node already holds): the power is
-    optimal for them and the rates count them, as in the ideal plan.
+    optimal for them and the rates count them, as in the ideal plan. Its ``solve_time_s`` is
+    the time since ``began_s`` (a :func:`time.perf_counter` reading: the whole planning for
+    the vehicle, every speed tried and its timing), else the ideal plan's.
     """
     scenario = ideal.scenario
     q = schedule.flight.positions(scenario.times_s)
@@ -342,7 +346,9 @@ def flown_result(ideal: PlanResult, schedule: Schedule) -> PlanResult:
         scenario=scenario, trajectory=q, times=scenario.times_s, power=p, rates=rates,
         min_throughput=value, history=(Step('power', value),), baselines=ideal.baselines,
         outer_iterations=ideal.outer_iterations, trajectory_steps=ideal.trajectory_steps,
-        converged=ideal.converged, solve_time_s=ideal.solve_time_s, start=ideal.start,
+        converged=ideal.converged, start=ideal.start,
+        solve_time_s=(ideal.solve_time_s if began_s is None
+                      else time.perf_counter() - began_s),
         upper_bound=ideal.upper_bound, start_throughputs=ideal.start_throughputs,
         offsets=ideal.offsets)
 
@@ -350,7 +356,8 @@ def flown_result(ideal: PlanResult, schedule: Schedule) -> PlanResult:
 def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
                      settings: SolverSettings | None = None, *, firmware: str = 'ardupilot',
                      planner: Callable[[Scenario, SolverSettings | None], PlanResult] = plan,
-                     ) -> VehiclePlan:
+                     wider_planner: Callable[[Scenario, SolverSettings | None], PlanResult]
+                     | None = None) -> VehiclePlan:
     """Plan ``scenario`` for a vehicle with ``limits`` (None: ``firmware``'s defaults,
     :meth:`VehicleLimits.for_firmware`): the mission and what it delivers.
 
@@ -364,38 +371,46 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
     request whose straight line fits the horizon is never refused (with zones, only when that
     line keeps out of them). With zones, no leg of the mission is straightened across them:
     every segment between the mission's waypoints keeps their margin. ``planner`` is the
-    optimiser (the core's :func:`~uav_comm_planner.core.optimizer.plan`). Raises
+    optimiser (the core's :func:`~uav_comm_planner.core.optimizer.plan`); ``wider_planner``,
+    when given, is tried at the same speed when the vehicle cannot fly ``planner``'s plan on
+    time (a warm replan's full search: another tour may fly where the plan in force no longer
+    does), before a slower speed is. Raises
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
     speed exceeds the vehicle's, or the wind the vehicle's airspeed, and when not even the
     straight line fits the horizon (saying the horizon it needs).
     """
+    began = time.perf_counter()
     firmware_named(firmware)                 # an unknown name is refused before any solve
     limits = VehicleLimits.for_firmware(firmware) if limits is None else limits
     check_speed(scenario, limits)
     scenario = in_wind(scenario, limits)
     first_error = None
     keeps = zone_check(scenario.zones)
+    planners = (planner,) if wider_planner is None else (planner, wider_planner)
     for share in (1.0,) + SLOWER_PLANNING:
-        try:
-            slower = scenario if share == 1.0 else scenario.replace(
-                max_speed_mps=share * scenario.max_speed_mps)
-            ideal = planner(slower, settings)
-        except InfeasibleHorizonError as exc:
-            first_error = first_error or exc
-            continue
-        for stop_at_hovers in (True, False):
+        for optimiser in planners:
             try:
-                schedule = schedule_flight(ideal, limits, firmware=firmware,
-                                           stop_at_hovers=stop_at_hovers)
+                slower = scenario if share == 1.0 else scenario.replace(
+                    max_speed_mps=share * scenario.max_speed_mps)
+                ideal = optimiser(slower, settings)
             except InfeasibleHorizonError as exc:
                 first_error = first_error or exc
                 continue
-            return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
+            for stop_at_hovers in (True, False):
+                try:
+                    schedule = schedule_flight(ideal, limits, firmware=firmware,
+                                               stop_at_hovers=stop_at_hovers)
+                except InfeasibleHorizonError as exc:
+                    first_error = first_error or exc
+                    continue
+                return VehiclePlan(ideal, flown_result(ideal, schedule, began), schedule,
+                                   limits)
     if keeps is not None and not keeps(np.asarray(scenario.start_m, float),
                                        np.asarray(scenario.goal_m, float)):
         # The straight line would cross a zone: there is no fallback to fly.
         raise first_error
-    return _straight_line_plan(scenario, limits, settings, firmware, planner, first_error)
+    return _straight_line_plan(scenario, limits, settings, firmware, planner, first_error,
+                               began)
 
 
 def in_wind(scenario: Scenario, limits: VehicleLimits) -> Scenario:
@@ -409,7 +424,7 @@ def in_wind(scenario: Scenario, limits: VehicleLimits) -> Scenario:
 def _straight_line_plan(scenario: Scenario, limits: VehicleLimits,
                         settings: SolverSettings | None, firmware: str,
                         planner: Callable[[Scenario, SolverSettings | None], PlanResult],
-                        first_error: Exception | None) -> VehiclePlan:
+                        first_error: Exception | None, began_s: float) -> VehiclePlan:
     """The last fallback: the straight line q0 -> qF, planned by ``planner`` at exactly its
     own ground speed (so that it is the only path, with the power optimal for it and any
     offsets the planner brings) and flown as one leg from rest to rest, leaving at once at the
@@ -439,7 +454,7 @@ def _straight_line_plan(scenario: Scenario, limits: VehicleLimits,
     flight = Flight((Dwell(start, 0.0, hold), leg, Dwell(goal, at_rest, at_rest)))
     schedule = Schedule((Stop(start, hold), Stop(goal, 0.0)), (leg,), flight, firmware,
                         arrival)
-    return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
+    return VehiclePlan(ideal, flown_result(ideal, schedule, began_s), schedule, limits)
 
 
 def _no_flyable_plan(scenario: Scenario, limits: VehicleLimits) -> str:
