@@ -195,7 +195,8 @@ def test_a_20_hz_pose_stream_replans_a_bounded_number_of_times(harness):
 def test_a_replan_in_flight_is_planned_for_the_vehicle(harness):
     h = harness(vehicle_aware=True, max_speed_mps=10.0, horizon_s=400.0, num_slots=50)
     h.published(1)
-    assert h.node.current_plan.vehicle_plan is not None
+    first = h.node.current_plan.vehicle_plan
+    assert first is not None
     assert h.call('start', Trigger.Request()).success
     answer = h.call('set_parameters', SetParameters.Request(
         parameters=[Parameter('power_budget_w', value=4.0).to_parameter_msg()]))
@@ -203,6 +204,10 @@ def test_a_replan_in_flight_is_planned_for_the_vehicle(harness):
     h.published(2)
     outcome = h.node.current_plan
     assert outcome.receding is not None and outcome.vehicle_plan is not None
+    # The same nodes: the replan continues the optimiser's plan in force, not the flown one.
+    rest = outcome.request.mission.in_flight
+    assert rest.warm
+    np.testing.assert_array_equal(rest.previous_q, first.ideal.trajectory[rest.slots_kept:])
     # The published plan is the one the vehicle flies: its trajectory is the schedule's.
     scenario = outcome.result.scenario
     np.testing.assert_allclose(
