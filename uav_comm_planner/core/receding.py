@@ -253,7 +253,8 @@ class RecedingProblem:
                      *, warm: bool | None = None) -> tuple[SolverSettings | None, dict]:
         """The optimiser's settings and :attr:`plan_options` for this replan of ``scenario``
         (:attr:`rest`, or a slower one that a vehicle-aware plan tries); ``warm`` False asks
-        for the full search even for a warm replan (None: :attr:`warm`).
+        a warm replan for the other tours: the full search without the plan in force, which
+        the warm search has just continued (None: :attr:`warm`).
 
         The previous plan's start goes to a slower ``scenario`` :func:`~uav_comm_planner.core.
         feasibility.retimed` (its path flown at the slower pace, its stops shortened), since
@@ -269,6 +270,8 @@ class RecedingProblem:
         scenario = self.rest if scenario is None else scenario
         options = dict(self.plan_options)
         start = options.pop('extra_starts', {}).get(PREVIOUS_PLAN_START)
+        if self.warm and warm is False:
+            return settings, options
         if start is not None and not within_speed_limit(start, scenario):
             start = retimed(start, scenario)
             if start is not None and not _keeps_zones(start, scenario):
@@ -276,7 +279,7 @@ class RecedingProblem:
         if start is None:
             return settings, options
         options['extra_starts'] = {PREVIOUS_PLAN_START: start}
-        if not (self.warm if warm is None else self.warm and warm):
+        if not self.warm:
             return settings, options
         return dataclasses.replace(settings or SolverSettings(), starts=WARM_STARTS,
                                    screened_tours=0), options

@@ -132,8 +132,8 @@ def _plan_scenario(request: MissionRequest, scenario: Scenario, planner: Planner
     """``scenario`` planned for ``request``; for the rest of a mission in flight, every
     scenario the vehicle-aware planning tries gets ``problem``'s settings and options for it
     (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`), and where the
-    vehicle cannot fly a warm replan on time the full search is tried at the same speed before
-    a slower one."""
+    vehicle cannot fly a warm replan on time the other tours are searched at the same speed
+    before a slower one is tried."""
     def optimiser(warm: bool | None) -> Callable[[Scenario, SolverSettings | None], PlanResult]:
         def planned(rest: Scenario, settings: SolverSettings | None) -> PlanResult:
             extra: dict = {}
