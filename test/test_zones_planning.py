@@ -380,6 +380,31 @@ def test_a_replan_in_flight_keeps_the_zones_and_leaves_out_a_rest_that_would_cut
     assert ('previous' in receding.result.start_throughputs) == kept
 
 
+@pytest.mark.parametrize('inside_m', [0.3, 4.0])
+def test_a_replan_from_just_inside_the_margin_starts_at_the_margin(across, inside_m):
+    """A vehicle flying a plan that hugs the margin drifts a little inside it: the rest starts
+    at the nearest point that keeps the margin, not refused."""
+    mission, first, _ = across
+    k = 20
+    flown = FlownSlots(first.power[:, :k], first.trajectory[:k])
+    disc = mission.zones.keep_out[0]
+    centre = np.array(disc.center_m)
+    away = (first.trajectory[k - 1] - centre) / np.linalg.norm(first.trajectory[k - 1] - centre)
+    position = centre + (disc.radius_m + mission.zones.margin_m - inside_m) * away
+    assert 0 < mission.zones.clearance([position])[0] < mission.zones.margin_m
+    receding = replan(mission, position, flown, previous_q=first.trajectory[k:])
+    rest = receding.result.scenario
+    start = np.array(rest.start_m)
+    assert mission.zones.clearance([start])[0] >= mission.zones.margin_m
+    # Radially out of the disc, by what was missing and the graph's clearance.
+    np.testing.assert_allclose(start, position + (inside_m + GRAPH_CLEARANCE_M) * away,
+                               atol=1e-9)
+    check_plan(receding.result, rest)
+    # In the disc itself the position stays refused.
+    with pytest.raises(InvalidScenarioError, match='zone'):
+        replan(mission, centre + (disc.radius_m - 1.0) * away, flown)
+
+
 def test_a_many_sided_non_convex_zone_across_the_letter_s_line_is_kept_out():
     rng = np.random.default_rng(7)
     polygon = None

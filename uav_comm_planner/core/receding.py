@@ -33,6 +33,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from uav_comm_planner.core import detour
 from uav_comm_planner.core.feasibility import retimed, within_speed_limit
 from uav_comm_planner.core.model import snr_per_watt, spectral_efficiencies
 from uav_comm_planner.core.optimizer import plan, PlanResult, ZoneKeeper
@@ -123,7 +124,8 @@ def delivered_bits(mission: Scenario, flown: FlownSlots) -> np.ndarray:
 
 def rest_of_mission(mission: Scenario, position_m: Sequence[float],
                     flown: FlownSlots) -> Scenario:
-    """The remaining M - k slots from ``position_m`` to qF, same delta, with the budget left.
+    """The remaining M - k slots from ``position_m`` (:func:`clear_start`) to qF, same
+    delta, with the budget left.
 
     Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when no slot remains or
     qF is out of reach, :class:`~uav_comm_planner.errors.InvalidScenarioError` when the
@@ -141,8 +143,28 @@ def rest_of_mission(mission: Scenario, position_m: Sequence[float],
             f'{mission.power_budget_w:g} W in {flown.num_slots} slots): start a new mission')
     if remaining == mission.num_slots and tuple(position_m) == tuple(mission.start_m):
         return mission
-    return mission.replace(start_m=tuple(position_m), num_slots=remaining,
+    return mission.replace(start_m=clear_start(mission, position_m), num_slots=remaining,
                            horizon_s=remaining * mission.slot_s, power_budget_w=budget_left)
+
+
+def clear_start(mission: Scenario, position_m: Sequence[float]) -> tuple[float, float]:
+    """Where the rest of ``mission`` starts from ``position_m``: the position itself, or, when
+    it is closer to a zone's edge than the margin but not in a zone (a vehicle tracking a plan
+    that keeps the margin exactly drifts a little inside it), the nearest point that keeps the
+    margin (:func:`~uav_comm_planner.core.detour.outside_point`) when that is no farther than
+    the margin; the vehicle flies there first. A position in a zone, or farther in, is kept
+    (and refused by the scenario)."""
+    position = (float(position_m[0]), float(position_m[1]))
+    zones = mission.zones
+    if zones is None or zones.empty:
+        return position
+    clearance = float(zones.clearance([position])[0])
+    if clearance >= zones.margin_m or clearance < 0.0:
+        return position
+    moved = detour.outside_point(zones, np.asarray(position))
+    if moved is None or math.dist(moved, position) > zones.margin_m + detour.GRAPH_CLEARANCE_M:
+        return position
+    return float(moved[0]), float(moved[1])
 
 
 def lengthened(mission: Scenario, position_m: Sequence[float], flown: FlownSlots, *,
@@ -313,7 +335,7 @@ def receding_problem(mission: Scenario, position_m: Sequence[float], flown: Flow
     per_use = rest.slot_s * rest.bandwidth_hz / rest.num_nodes * rest.num_slots
     offsets = delivered / per_use
     options: dict = {'offsets': offsets}
-    start = None if previous_q is None else rejoined(previous_q, position_m, rest)
+    start = None if previous_q is None else rejoined(previous_q, rest.start_m, rest)
     if start is not None and within_speed_limit(start, rest) and _keeps_zones(start, rest):
         options['extra_starts'] = {PREVIOUS_PLAN_START: start}
     return RecedingProblem(mission=mission, flown=flown, rest=rest, delivered_bits=delivered,
@@ -352,4 +374,4 @@ def mission_rates_flown(mission: Scenario, power_w: np.ndarray,
 
 __all__ = ['PREVIOUS_PLAN_START', 'WARM_STARTS', 'FlownSlots', 'RecedingPlan', 'RecedingProblem',
            'delivered_bits', 'lengthened', 'mission_rates_flown', 'power_for_nodes',
-           'receding_problem', 'rejoined', 'replan', 'rest_of_mission']
+           'clear_start', 'receding_problem', 'rejoined', 'replan', 'rest_of_mission']
