@@ -22,9 +22,9 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.core.trajectory import trajectory_step_cvxpy
 from uav_comm_planner.core.zone_rows import _outward_edges, ZONE_CUSHION_M, zone_model
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, OperatingArea, Zones
-from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError, WalledInError
 from uav_comm_planner.mission.pipeline import plan_mission
-from uav_comm_planner.mission.request import MissionRequest
+from uav_comm_planner.mission.request import InFlight, MissionRequest
 from uav_comm_planner.tools.serialize import scenario_from_dict, scenario_to_dict
 from uav_comm_planner.vehicle.flyable import simplify, zone_check
 
@@ -300,6 +300,25 @@ def test_a_goal_walled_off_is_refused():
     # A margin of 3 m fits through.
     narrower = scenario.replace(zones=Zones(area=area, margin_m=3.0))
     check_plan(plan(narrower, SolverSettings(starts=('straight',))), narrower)
+    # A rest in flight walled off from qF is refused at once: neither more slots nor a slower
+    # speed finds a way round.
+    calls = []
+
+    def recording(rest, settings, **options):
+        calls.append(rest.num_slots)
+        return plan(rest, settings, **options)
+    in_flight = InFlight(position_m=(100.0, 0.0), flown=FlownSlots.none(3),
+                         previous_q=np.zeros((0, 2)), mission_id=1, segment=0, slots_kept=0)
+    with pytest.raises(WalledInError, match='walled in'):
+        plan_mission(MissionRequest(scenario, in_flight=in_flight, items=False,
+                                    vehicle_aware=False), planner=recording)
+    assert calls == [scenario.num_slots]
+    slow = scenario.replace(max_speed_mps=10.0, horizon_s=400.0)
+    calls.clear()
+    with pytest.raises(WalledInError, match='walled in'):      # planned for the vehicle
+        plan_mission(MissionRequest(slow, in_flight=in_flight, items=False),
+                     planner=recording)
+    assert calls == [slow.num_slots]
 
 
 def test_a_way_round_longer_than_the_horizon_is_refused_with_the_horizon_it_needs():

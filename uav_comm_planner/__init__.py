@@ -11,7 +11,8 @@ import importlib
 
 from uav_comm_planner.errors import (ComputeBudgetError, InfeasibleHorizonError,
                                      InvalidScenarioError, MissionExportError,
-                                     PlanCancelledError, PlannerError, SolverError)
+                                     PlanCancelledError, PlannerError, SolverError,
+                                     WalledInError)
 
 # The core (numpy, scipy, cvxpy) loads on first use, so that importing a light module of the
 # package, such as the planner's entry point, does not wait for it.
@@ -35,5 +36,6 @@ def __getattr__(name: str) -> object:
 __all__ = [
     'ComputeBudgetError', 'PlanCancelledError', 'InfeasibleHorizonError',
     'InvalidScenarioError', 'MissionExportError', 'PlanResult',
-    'PlannerError', 'Scenario', 'SolverError', 'SolverSettings', 'paper_scenario', 'plan',
+    'PlannerError', 'Scenario', 'SolverError', 'SolverSettings', 'WalledInError',
+    'paper_scenario', 'plan',
 ]

@@ -13,6 +13,11 @@ class InfeasibleHorizonError(InvalidScenarioError):
     """The goal cannot be reached from the start within the horizon at the speed limit."""
 
 
+class WalledInError(InfeasibleHorizonError):
+    """No path keeps the zones' margin between two points, however long the horizon: more
+    slots or a slower speed cannot help (the start or the goal is walled in)."""
+
+
 class SolverError(PlannerError, RuntimeError):
     """A convex sub-problem was not solved to optimality (numerical failure of the solver)."""
 

@@ -30,7 +30,7 @@ from uav_comm_planner.core import initial
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.zones import (closest_on_segments, inside_polygon, KeepOutCircle,
                                          Zones)
-from uav_comm_planner.errors import InfeasibleHorizonError
+from uav_comm_planner.errors import InfeasibleHorizonError, WalledInError
 
 #: Sides of the polygon that stands for a keep-out circle (circumscribed, so it holds the
 #: circle grown by the margin): its perimeter is 1 % longer than the circle's.
@@ -205,8 +205,8 @@ def path_length(path: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
 
 
-def _no_path(scenario: Scenario, what: str) -> InfeasibleHorizonError:
-    return InfeasibleHorizonError(
+def _no_path(scenario: Scenario, what: str) -> WalledInError:
+    return WalledInError(
         f'no path from {what} keeps the margin of {scenario.zones.margin_m:g} m from the zones '
         f'(the goal or the start is walled in); move it or the zones')
 

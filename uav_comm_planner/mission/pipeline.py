@@ -29,7 +29,8 @@ from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.receding import (lengthened, receding_problem, RecedingPlan,
                                             RecedingProblem)
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
-from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError, PlannerError
+from uav_comm_planner.errors import (InfeasibleHorizonError, InvalidScenarioError, PlannerError,
+                                     WalledInError)
 from uav_comm_planner.files import OutputFolder
 from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.vehicle.fence import fence_from_zones
@@ -168,6 +169,8 @@ def _plan_rest(request: MissionRequest, planner: Planner,
             result, vehicle_plan = _plan_scenario(
                 request, problem.rest, planner,
                 {'should_stop': should_stop}, problem)
+        except WalledInError:
+            raise                           # no longer horizon finds a way round the zones
         except InfeasibleHorizonError:
             attempts += 1
             if attempts > LENGTHEN_ATTEMPTS:

@@ -39,7 +39,7 @@ from uav_comm_planner.core.model import average_rates, flown_path
 from uav_comm_planner.core.optimizer import optimal_power, plan, PlanResult, Step
 from uav_comm_planner.core.scenario import MIN_STEP_M, Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
-from uav_comm_planner.errors import InfeasibleHorizonError
+from uav_comm_planner.errors import InfeasibleHorizonError, WalledInError
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline
 from uav_comm_planner.vehicle.firmware import firmware_named, FIRMWARES
 from uav_comm_planner.vehicle.leg_models import leg_model, MIN_STOP_HOLD_S
@@ -393,6 +393,8 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
                 slower = scenario if share == 1.0 else scenario.replace(
                     max_speed_mps=share * scenario.max_speed_mps)
                 ideal = optimiser(slower, settings)
+            except WalledInError:
+                raise                       # no slower speed finds a way round the zones
             except InfeasibleHorizonError as exc:
                 first_error = first_error or exc
                 continue
