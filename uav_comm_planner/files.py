@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import json
 import os
 from pathlib import Path
 import secrets
@@ -331,3 +332,16 @@ def read_text_file(path: str | os.PathLike, *, max_bytes: int, what: str = 'file
     except UnicodeDecodeError as exc:
         raise error(f'{what} {str(path)!r} is not UTF-8 text ({exc.reason} at byte '
                     f'{exc.start})') from None
+
+
+def read_json_file(path: str | os.PathLike, *, max_bytes: int, what: str = 'file',
+                   error: type[Exception] = InputFileError) -> object:
+    """The JSON value in the UTF-8 regular file ``path`` (:func:`read_text_file`); a file that
+    is not JSON, or nested too deeply to parse, raises ``error`` naming it."""
+    text = read_text_file(path, max_bytes=max_bytes, what=what, error=error)
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise error(f'{what} {str(path)!r} is nested too deeply') from None
+    except ValueError as exc:
+        raise error(f'{what} {str(path)!r} is not valid JSON: {exc}') from None

@@ -16,6 +16,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
+from uav_comm_planner.core.numbers import real_number
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import (ComputeBudgetError, InfeasibleHorizonError,
                                      InvalidScenarioError)
@@ -37,22 +38,11 @@ MIN_STEP_M = 1.0e-6
 MAX_NODE_SLOTS = 100_000
 
 
-def _real(name: str, value: object) -> float:
-    """``value`` as a float if it is a real number (int or float, not bool, str or None)."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(
-            value, (int, float, np.integer, np.floating)):
-        raise InvalidScenarioError(f'{name} must be a number, got {value!r}')
-    try:
-        return float(value)
-    except OverflowError:
-        raise InvalidScenarioError(f'{name} must be a finite number, got {value!r}') from None
-
-
 def _point(name: str, value: Sequence[float]) -> Point:
     if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) \
             or len(value) != 2:
         raise InvalidScenarioError(f'{name} must be a pair (x, y) in metres, got {value!r}')
-    x, y = (_real(name, v) for v in value)
+    x, y = (real_number(name, v) for v in value)
     if not (math.isfinite(x) and math.isfinite(y)):
         raise InvalidScenarioError(f'{name} must be finite, got ({x}, {y})')
     if max(abs(x), abs(y)) > MAX_COORDINATE_M:
@@ -63,7 +53,7 @@ def _point(name: str, value: Sequence[float]) -> Point:
 
 
 def _positive(name: str, value: float) -> None:
-    value = _real(name, value)
+    value = real_number(name, value)
     if not math.isfinite(value) or value <= 0:
         raise InvalidScenarioError(f'{name} must be a positive finite number, got {value!r}')
 
@@ -190,7 +180,7 @@ class Scenario:
                      'reference_gain', 'power_budget_w'):
             _positive(name, getattr(self, name))
             object.__setattr__(self, name, float(getattr(self, name)))
-        noise = _real('noise_psd_dbm_per_hz', self.noise_psd_dbm_per_hz)
+        noise = real_number('noise_psd_dbm_per_hz', self.noise_psd_dbm_per_hz)
         if not math.isfinite(noise):
             raise InvalidScenarioError(
                 f'noise_psd_dbm_per_hz must be finite, got {self.noise_psd_dbm_per_hz!r}')
@@ -203,8 +193,8 @@ class Scenario:
         _check_zones(self)
 
     def _check_wind(self) -> None:
-        speed = _real('wind_speed_mps', self.wind_speed_mps)
-        direction = _real('wind_from_deg', self.wind_from_deg)
+        speed = real_number('wind_speed_mps', self.wind_speed_mps)
+        direction = real_number('wind_from_deg', self.wind_from_deg)
         if not (math.isfinite(speed) and speed >= 0.0):
             raise InvalidScenarioError(f'wind_speed_mps must be >= 0 and finite, got {speed!r}')
         if not math.isfinite(direction):
@@ -382,7 +372,7 @@ class SolverSettings:
 
     def __post_init__(self) -> None:
         for name in ('tolerance_bps', 'relative_tolerance'):
-            object.__setattr__(self, name, _real(name, getattr(self, name)))
+            object.__setattr__(self, name, real_number(name, getattr(self, name)))
         if not math.isfinite(self.tolerance_bps) or self.tolerance_bps < 0:
             raise InvalidScenarioError(
                 f'tolerance_bps must be >= 0 and finite, got {self.tolerance_bps!r}')

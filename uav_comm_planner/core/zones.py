@@ -20,22 +20,11 @@ from typing import Union
 import numpy as np
 from numpy.typing import ArrayLike
 
+from uav_comm_planner.core.numbers import real_number
 from uav_comm_planner.errors import InvalidScenarioError
 
 #: Vertices a polygon zone may have at most (a fence vertex is one MAVLink item).
 MAX_POLYGON_VERTICES = 1000
-
-
-def _number(name: str, value: object) -> float:
-    """``value`` as a float if it is a real number (not a bool); an integer beyond a double
-    is infinite (and then refused as not finite by the caller)."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(
-            value, (int, float, np.integer, np.floating)):
-        raise InvalidScenarioError(f'{name} must be a number of metres, got {value!r}')
-    try:
-        return float(value)
-    except OverflowError:
-        return math.inf
 
 
 def _finite_points(name: str, vertices: ArrayLike) -> np.ndarray:
@@ -167,7 +156,7 @@ class KeepOutCircle:
         if center.shape != (2,) or not np.isfinite(center).all():
             raise InvalidScenarioError(f'a keep-out circle\'s centre must be a finite (x, y) '
                                        f'in metres, got {self.center_m!r}')
-        radius = _number('a keep-out circle\'s radius', self.radius_m)
+        radius = real_number('a keep-out circle\'s radius', self.radius_m, 'metres')
         if not (math.isfinite(radius) and radius > 0):
             raise InvalidScenarioError(
                 f'a keep-out circle\'s radius must be positive and finite, got {self.radius_m!r}')
@@ -414,7 +403,7 @@ class Zones:
         if self.area is not None and not isinstance(self.area, OperatingArea):
             raise InvalidScenarioError(
                 f'the operating area must be an OperatingArea, got {type(self.area).__name__}')
-        margin = _number('the zone margin', self.margin_m)
+        margin = real_number('the zone margin', self.margin_m, 'metres')
         if not (math.isfinite(margin) and margin >= 0):
             raise InvalidScenarioError(
                 f'the zone margin must be >= 0 and finite, got {self.margin_m!r} m')

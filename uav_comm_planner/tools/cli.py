@@ -21,7 +21,7 @@ from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
-from uav_comm_planner.files import check_output_path, read_text_file, write_text_atomic
+from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
 from uav_comm_planner.tools import bench
 from uav_comm_planner.tools.plots import check_figure_path, make_folder, METHOD_LABELS
 from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
@@ -153,14 +153,8 @@ def read_scenario_file(path: Path) -> dict:
     file (a device, pipe or folder, refused without blocking), not UTF-8, not JSON, nested too
     deeply, larger than MAX_SCENARIO_FILE_BYTES or not an object at the top."""
     name = str(path)
-    text = read_text_file(path, max_bytes=MAX_SCENARIO_FILE_BYTES, what='scenario file',
+    data = read_json_file(path, max_bytes=MAX_SCENARIO_FILE_BYTES, what='scenario file',
                           error=PlannerError)
-    try:
-        data = json.loads(text)
-    except RecursionError:
-        raise PlannerError(f'scenario file {name!r} is nested too deeply') from None
-    except ValueError as exc:
-        raise PlannerError(f'scenario file {name!r} is not valid JSON: {exc}') from None
     if not isinstance(data, dict):
         raise PlannerError(f'scenario file {name!r} must hold a JSON object {{"field": value, '
                            f'...}}, not {type(data).__name__}')

@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike
 from uav_comm_planner.core.zones import (KeepOutCircle, KeepOutPolygon, MAX_POLYGON_VERTICES,
                                          OperatingArea, Zones)
 from uav_comm_planner.errors import FenceFileError, InvalidScenarioError
-from uav_comm_planner.files import read_text_file
+from uav_comm_planner.files import read_json_file
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, geodetic_to_enu, Home
 
 #: Sides of the polygon inscribed in an inclusion circle (its edges stay within
@@ -339,14 +339,8 @@ def read_fence(path: str | os.PathLike) -> GeoFence:
     if suffix not in ('.plan', *GEOJSON_SUFFIXES):
         raise FenceFileError(f'unknown fence format {suffix or "(no extension)"!r} for {name}: '
                              f'use a QGroundControl .plan or a .geojson file')
-    text = read_text_file(target, max_bytes=MAX_FENCE_FILE_BYTES, what='fence file',
-                          error=FenceFileError)
-    try:
-        document = json.loads(text)
-    except RecursionError:
-        raise FenceFileError(f'fence file {name} is nested too deeply') from None
-    except ValueError as exc:
-        raise FenceFileError(f'fence file {name} is not valid JSON: {exc}') from None
+    document = read_json_file(target, max_bytes=MAX_FENCE_FILE_BYTES, what='fence file',
+                              error=FenceFileError)
     try:
         return plan_fence(document) if suffix == '.plan' else geojson_fence(document)
     except _Place as exc:

@@ -1,0 +1,23 @@
+"""Real numbers from user input: one check for the scenario's fields and the zones'."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from uav_comm_planner.errors import InvalidScenarioError
+
+
+def real_number(name: str, value: object, unit: str = '') -> float:
+    """``value`` as a float if it is a real number (int or float, not bool, str or None) that
+    a double holds; InvalidScenarioError naming ``name`` (and its ``unit``) otherwise."""
+    of = f' of {unit}' if unit else ''
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+            value, (int, float, np.integer, np.floating)):
+        raise InvalidScenarioError(f'{name} must be a number{of}, got {value!r}')
+    try:
+        return float(value)
+    except OverflowError:
+        raise InvalidScenarioError(f'{name} must be a finite number{of}, got {value!r}') from None
+
+
+__all__ = ['real_number']
