@@ -107,3 +107,31 @@ def test_the_ardupilot_model_is_the_scurve_with_its_latency():
     assert model.reached_s(profile) == pytest.approx(reference.duration_s + LEG_LATENCY_S / 2)
     assert model.start_delay_s == LEG_LATENCY_S / 2
     assert model.min_hold_s(None, 10.0, VehicleLimits()) == MIN_STOP_HOLD_S
+
+
+def test_the_quick_refusal_and_the_horizon_it_asks_for_use_the_firmwares_leg_timing():
+    """PX4 flies a 1000 m leg at 5 m/s about a second slower than ArduCopter's S-curve with the
+    same limits: the check when parameters are set, and the horizon named when no plan flies,
+    follow PX4's own timing."""
+    from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+    from uav_comm_planner.mission.request import check_goal_in_time
+    from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+
+    limits = VehicleLimits.for_firmware('px4')
+    line = np.array([[0.0, 0.0], [1000.0, 0.0]])
+    px4_s = leg_model('px4').timed_s(leg_model('px4').profile(line, 5.0, limits))
+    scurve_s = Profile.rest_to_rest(1000.0, 5.0, limits).duration_s
+    assert px4_s > scurve_s + 0.5
+    end_s = (px4_s + scurve_s) / 2                      # (M + 1) delta between the two
+    slots = 100
+    scenario = paper_scenario('I', ground_nodes_m=[(500.0, 100.0)], start_m=(0.0, 0.0),
+                              goal_m=(1000.0, 0.0), max_speed_mps=5.0, num_slots=slots,
+                              horizon_s=end_s * slots / (slots + 1))
+    check_goal_in_time(scenario, limits, 'ardupilot')
+    with pytest.raises(InvalidScenarioError, match='cannot reach qF in time'):
+        check_goal_in_time(scenario, limits, 'px4')
+    with pytest.raises(InfeasibleHorizonError, match='lengthen horizon_s to') as refused:
+        plan_for_vehicle(scenario, limits, firmware='px4')
+    needed = float(str(refused.value).rsplit('lengthen horizon_s to ', 1)[1].split(' s')[0])
+    flown = plan_for_vehicle(scenario.replace(horizon_s=needed), limits, firmware='px4')
+    assert flown.schedule.arrival_s <= needed * (slots + 1) / slots + flown.ideal.scenario.slot_s

@@ -21,6 +21,7 @@ from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
+from uav_comm_planner.vehicle.leg_models import leg_model
 from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
 from uav_comm_planner.vehicle.timing import leg_time
 
@@ -67,14 +68,18 @@ def check_legs_timed(limits: VehicleLimits) -> None:
                 f'jerk time {limits.jerk_time_s:g} s')
 
 
-def check_goal_in_time(scenario: Scenario, limits: VehicleLimits) -> None:
+def check_goal_in_time(scenario: Scenario, limits: VehicleLimits,
+                       firmware: str = 'ardupilot') -> None:
     """Refuse (InvalidScenarioError) a mission the vehicle cannot fly at all: even the straight
-    line from q0 to qF, one leg rest to rest at the cruise speed (the fastest any plan flies it,
-    in any wind, since the waypoint speed bounds the ground speed), takes longer than the
+    line from q0 to qF, one leg from rest at the cruise speed (the fastest any plan flies it,
+    in any wind, since the waypoint speed bounds the ground speed) timed as ``firmware`` times
+    a leg (:func:`~uav_comm_planner.vehicle.leg_models.leg_model`), takes longer than the
     mission's M + 1 slots. Cheap, and run when the parameters are set, so that a node never
     accepts limits every later plan would fail on."""
     length_m = math.dist(scenario.start_m, scenario.goal_m)
-    seconds = leg_time(length_m, limits.cruise_speed_mps, limits)
+    model = leg_model(firmware)
+    line = np.array([scenario.start_m, scenario.goal_m], dtype=float)
+    seconds = model.timed_s(model.profile(line, limits.cruise_speed_mps, limits))
     end_s = scenario.slot_s * (scenario.num_slots + 1)
     if seconds > end_s:
         raise InvalidScenarioError(

@@ -464,7 +464,7 @@ def config_from_parameters(values: Mapping[str, Any],
     settings.check(scenario)
     if node.vehicle_aware:
         check_speed(scenario, vehicle)
-        check_goal_in_time(scenario, vehicle)
+        check_goal_in_time(scenario, vehicle, node.mission_firmware)
     return PlannerConfig(scenario, settings, node, vehicle)
 
 

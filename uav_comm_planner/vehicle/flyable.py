@@ -42,10 +42,10 @@ from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InfeasibleHorizonError, WalledInError
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline
 from uav_comm_planner.vehicle.firmware import firmware_named, FIRMWARES
-from uav_comm_planner.vehicle.leg_models import leg_model, MIN_STOP_HOLD_S
+from uav_comm_planner.vehicle.leg_models import leg_model
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.timing import (Dwell, Flight, Leg, LEG_LATENCY_S, Profile,
-                                             ramp_distance, ramp_time)
+from uav_comm_planner.vehicle.timing import (Dwell, Flight, Leg, LEG_LATENCY_S, ramp_distance,
+                                             ramp_time)
 
 #: Plan points closer than this are one stop (ArduCopter's default WPNAV_RADIUS is 2 m).
 MERGE_RADIUS_M = 2.0
@@ -451,7 +451,8 @@ def _straight_line_plan(scenario: Scenario, limits: VehicleLimits,
     leg = Leg(line, fitted, hold + model.start_delay_s, profile)
     arrival = leg.start_s + model.reached_s(profile)
     if arrival > end_s + GOAL_TOLERANCE_SLOTS * scenario.slot_s:
-        raise InfeasibleHorizonError(_no_flyable_plan(scenario, limits)) from first_error
+        raise InfeasibleHorizonError(_no_flyable_plan(scenario, limits, firmware)) \
+            from first_error
     at_rest = max(arrival, leg.end_s)
     flight = Flight((Dwell(start, 0.0, hold), leg, Dwell(goal, at_rest, at_rest)))
     schedule = Schedule((Stop(start, hold), Stop(goal, 0.0)), (leg,), flight, firmware,
@@ -459,15 +460,17 @@ def _straight_line_plan(scenario: Scenario, limits: VehicleLimits,
     return VehiclePlan(ideal, flown_result(ideal, schedule, began_s), schedule, limits)
 
 
-def _no_flyable_plan(scenario: Scenario, limits: VehicleLimits) -> str:
-    """Why not even the straight line fits, with the horizon it needs (computed from its
-    rest-to-rest profile at the fastest speed the vehicle holds along it)."""
+def _no_flyable_plan(scenario: Scenario, limits: VehicleLimits, firmware: str) -> str:
+    """Why not even the straight line fits, with the horizon it needs (computed from the
+    firmware's leg timing from rest at the fastest speed the vehicle holds along it: the hold
+    at q0, the start, and the leg until qF counts as reached)."""
     distance = math.dist(scenario.start_m, scenario.goal_m)
     direction = (np.asarray(scenario.goal_m) - np.asarray(scenario.start_m)) / distance
-    speed = _leg_cruise(np.vstack([scenario.start_m, scenario.goal_m]), scenario,
-                        limits.cruise_speed_mps)
-    flight_s = (MIN_STOP_HOLD_S + Profile.rest_to_rest(distance, speed, limits).duration_s
-                + LEG_LATENCY_S)
+    line = np.vstack([scenario.start_m, scenario.goal_m])
+    speed = _leg_cruise(line, scenario, limits.cruise_speed_mps)
+    model = leg_model(firmware)
+    flight_s = (model.min_hold_s(None, speed, limits) + model.start_delay_s
+                + model.reached_s(model.profile(line, speed, limits)))
     # qF may come GOAL_TOLERANCE_SLOTS after (M + 1) delta = T (M + 1) / M.
     needed = flight_s * scenario.num_slots / (scenario.num_slots + 1 + GOAL_TOLERANCE_SLOTS)
     heading = math.degrees(math.atan2(direction[0], direction[1])) % 360.0
