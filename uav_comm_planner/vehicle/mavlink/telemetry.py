@@ -20,9 +20,13 @@ planning frame's origin, and no position is handed on before it.
 Faults of the link: a connection the vehicle closes (EOF) or resets, and a link on which
 nothing arrives for :data:`SILENCE_S` (wall clock, counted only while the thread reads, so a
 stalled process is not taken for a silent vehicle), end the connection; the thread connects
-again with backoff. Each change of state is one event: 'lost' once when the link goes down
-(whatever the reconnection attempts meet then), 'connected' when it is up again. A mission
-whose upload the loss cut is uploaded again once the link is back. A gap of more than
+again with backoff. During an upload the same silence ends it too (a :class:`~.link.LinkWatch`
+on the connection), and so does stopping the bridge. Each change of state is one event: 'lost'
+once when the link goes down (whatever the reconnection attempts meet then), 'connected' when
+it is up again. A mission whose upload the loss cut (a
+:class:`~uav_comm_planner.errors.VehicleLinkLostError` or any OSError, in any step: fence,
+mission, read-back, MISSION_SET_CURRENT) is uploaded again once the link is back; a refusal
+is said and not sent again. A gap of more than
 :data:`TELEMETRY_GAP_S` of autopilot time between two positions is one 'gap' event.
 An upload may carry fence items (:mod:`.fence`): they go first, each time they differ from the
 fence the vehicle was last given on this connection, and are read back too.
@@ -42,15 +46,16 @@ import numpy as np
 from numpy.typing import ArrayLike
 from pymavlink import mavutil
 
-from uav_comm_planner.errors import VehicleLinkError
+from uav_comm_planner.errors import VehicleLinkError, VehicleLinkLostError
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, TargetStream
 from uav_comm_planner.vehicle.mavlink.home import (HOME_DISTANCE_LIMIT_M, home_of,
                                                    mission_far_from_vehicle, position_of,
                                                    request_home)
 from uav_comm_planner.vehicle.mavlink.items import DEGREES_E7, MissionItem
-from uav_comm_planner.vehicle.mavlink.link import (connect, has_home_row, LinkSettings,
-                                                   upload_and_verify)
+from uav_comm_planner.vehicle.mavlink.link import (check_link, connect, has_home_row,
+                                                   LinkSettings, LinkWatch, upload_and_verify,
+                                                   WATCH_POLL_S)
 
 MAV = mavutil.mavlink
 #: Telemetry rate asked of the autopilot (per second of autopilot time).
@@ -276,6 +281,7 @@ class VehicleBridge:
                 link.close()
 
     def _serve(self, link) -> None:
+        link.watch = LinkWatch(silence_s=SILENCE_S, should_stop=self._stop.is_set)
         request_telemetry(link, self._rate_hz)
         request_wind(link, WIND_RATE_HZ)
         heard = asked = time.monotonic()
@@ -393,11 +399,13 @@ class VehicleBridge:
                 current = job.current_seq - (0 if has_home_row(link) else 1)
                 set_current(link, current)
                 note = f'; current item {current}'
+        except (VehicleLinkLostError, OSError):
+            if self._stop.is_set():
+                return                      # the bridge is being stopped: nothing to say
+            with self._lock:                # uploaded again once the link is back
+                self._waiting = self._waiting or job
+            raise
         except VehicleLinkError as exc:
-            if 'link lost' in str(exc):
-                with self._lock:            # uploaded again once the link is back
-                    self._waiting = self._waiting or job
-                raise
             self._on_event(LinkEvent('error', f'mission upload failed: {exc}', job.tag))
             return
         self._on_event(LinkEvent('uploaded', f'mission of {len(job.items)} items uploaded '
@@ -417,14 +425,21 @@ def upload_fence(link, fence: Sequence[MissionItem] | None, settings: LinkSettin
 
 
 def set_current(link, seq: int) -> None:
-    """MISSION_SET_CURRENT until MISSION_CURRENT reports ``seq``; raises VehicleLinkError."""
+    """MISSION_SET_CURRENT until MISSION_CURRENT reports ``seq``; raises VehicleLinkError
+    (VehicleLinkLostError when the link goes down meanwhile)."""
     for _ in range(SET_CURRENT_TRIES):
-        link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
         deadline = time.monotonic() + SET_CURRENT_TIMEOUT_S
-        while (left := deadline - time.monotonic()) > 0:
-            message = link.recv_match(type='MISSION_CURRENT', blocking=True, timeout=left)
-            if message is not None and message.seq == seq:
-                return
+        try:
+            link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
+            while (left := deadline - time.monotonic()) > 0:
+                check_link(link)
+                message = link.recv_match(type='MISSION_CURRENT', blocking=True,
+                                          timeout=min(left, WATCH_POLL_S))
+                if message is not None and message.seq == seq:
+                    return
+        except (OSError, ConnectionError) as exc:
+            raise VehicleLinkLostError(f'link lost while making item {seq} current: '
+                                       f'{exc}') from exc
     raise VehicleLinkError(f'the vehicle did not make item {seq} current after '
                            f'{SET_CURRENT_TRIES} tries of {SET_CURRENT_TIMEOUT_S:g} s')
 

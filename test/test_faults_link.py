@@ -1,0 +1,168 @@
+"""The link going down in the middle of something, against the fake vehicle: an upload cut on
+any transport (EOF, a port's error, a silence) is a typed loss, said once and sent again on
+the next connection; a refusal is not sent again."""
+
+from __future__ import annotations
+
+import errno
+import time
+
+from fake_vehicle import FakeVehicle
+import pytest
+
+from uav_comm_planner.errors import VehicleLinkError, VehicleLinkLostError
+from uav_comm_planner.vehicle.geodesy import Home
+from uav_comm_planner.vehicle.mavlink import telemetry
+from uav_comm_planner.vehicle.mavlink.items import MissionItem, NAV_WAYPOINT
+from uav_comm_planner.vehicle.mavlink.link import (connect, LinkSettings, LinkWatch,
+                                                   upload_and_verify)
+from uav_comm_planner.vehicle.mavlink.telemetry import LinkEvent, Position, SILENCE_S
+
+HOME = Home(47.0, 8.0, 400.0)
+ITEMS = [MissionItem(NAV_WAYPOINT, 0, x=47.0 + k * 1e-4, y=8.0, z=10.0 * k, current=k == 0)
+         for k in range(6)]
+
+
+class Events:
+    """What a bridge hands on, with the monotonic time of each."""
+
+    def __init__(self) -> None:
+        self.seen: list[tuple[float, object]] = []
+
+    def __call__(self, event) -> None:
+        self.seen.append((time.monotonic(), event))
+
+    def links(self, kind: str) -> list[tuple[float, LinkEvent]]:
+        return [(t, e) for t, e in self.seen if isinstance(e, LinkEvent) and e.kind == kind]
+
+    def wait(self, condition, what: str, timeout_s: float = 15.0) -> None:
+        deadline = time.monotonic() + timeout_s
+        while not condition():
+            assert time.monotonic() < deadline, f'no {what} within {timeout_s} s'
+            time.sleep(0.02)
+
+    def wait_position(self) -> None:
+        self.wait(lambda: any(isinstance(e, Position) for _, e in self.seen), 'position')
+
+
+def counts(vehicle: FakeVehicle, kind: str) -> int:
+    return sum(1 for entry in vehicle.log if entry[0] == kind)
+
+
+# The link: every transport's loss is a VehicleLinkLostError.
+
+def _eof(vehicle, link) -> None:
+    vehicle.hang_up_on = 'MISSION_ITEM_INT'         # TCP: the vehicle closes the connection
+
+
+def _port_error(vehicle, link) -> None:
+    # A serial port whose device went away: pyserial's SerialException is an OSError (EIO).
+    receive, asked = link.recv, []
+
+    def failing(n=None):
+        if any(entry[0] == 'MISSION_ITEM_INT' for entry in vehicle.log):
+            asked.append(n)
+            raise OSError(errno.EIO, 'Input/output error')
+        return receive(n)
+    link.recv = failing
+
+
+def _silence(vehicle, link) -> None:
+    # UDP or a radio out of range: nothing fails, nothing more arrives.
+    vehicle.quiet_on = 'MISSION_ITEM_INT'
+    link.watch = LinkWatch(silence_s=SILENCE_S)
+
+
+@pytest.mark.parametrize('cut, said', [(_eof, 'closed the TCP connection'),
+                                       (_port_error, 'Input/output error'),
+                                       (_silence, 'nothing heard from the vehicle for 2 s')])
+def test_an_upload_cut_on_any_transport_is_a_link_loss_not_a_refusal(cut, said):
+    settings = LinkSettings(timeout_s=2.0, retries=5)
+    with FakeVehicle('good') as vehicle:
+        link = connect(vehicle.url, timeout_s=5.0)
+        try:
+            cut(vehicle, link)
+            began = time.monotonic()
+            with pytest.raises(VehicleLinkLostError, match=said):
+                upload_and_verify(link, ITEMS, settings)
+            took = time.monotonic() - began
+        finally:
+            link.close()
+    print(f'{cut.__name__}: lost after {took:.2f} s')
+    # Found by the cut itself or the silence, not by the retries (5 x 2 s).
+    assert took < SILENCE_S + 1.0
+
+
+def test_a_vehicle_that_heartbeats_but_never_answers_is_still_a_refusal():
+    settings = LinkSettings(timeout_s=0.3, retries=2)
+    with FakeVehicle('silent') as vehicle:
+        link = connect(vehicle.url, timeout_s=5.0)
+        link.watch = LinkWatch(silence_s=SILENCE_S)
+        try:
+            with pytest.raises(VehicleLinkError, match='stopped answering') as raised:
+                upload_and_verify(link, ITEMS, settings)
+        finally:
+            link.close()
+    assert not isinstance(raised.value, VehicleLinkLostError)
+
+
+# The bridge: a cut upload is said once and sent again once the link is back.
+
+def test_an_eof_while_the_current_item_is_set_is_a_loss_and_the_upload_is_sent_again():
+    events = Events()
+    with FakeVehicle('good', positions=True) as vehicle:
+        vehicle.hang_up_on = 'MISSION_SET_CURRENT'
+        bridge = telemetry.VehicleBridge(vehicle.url, HOME, events)
+        try:
+            events.wait_position()
+            bridge.upload(ITEMS, current_seq=2, tag='replan')
+            events.wait(lambda: events.links('uploaded'), 'upload on the next connection')
+        finally:
+            bridge.stop()
+    (_, lost), = events.links('lost')
+    assert 'closed the TCP connection (EOF)' in lost.message
+    assert events.links('error') == []
+    (_, uploaded), = events.links('uploaded')
+    assert uploaded.tag == 'replan' and 'current item 2' in uploaded.message
+    assert vehicle.connections == 2
+    assert counts(vehicle, 'MISSION_COUNT') == 2 and counts(vehicle, 'MISSION_SET_CURRENT') == 2
+
+
+def test_an_upload_the_link_goes_silent_in_is_lost_within_the_silence_and_sent_again():
+    events = Events()
+    with FakeVehicle('good', positions=True) as vehicle:
+        vehicle.quiet_on = 'MISSION_ITEM_INT'
+        bridge = telemetry.VehicleBridge(vehicle.url, HOME, events)
+        try:
+            events.wait_position()
+            bridge.upload(ITEMS, tag='plan')
+            events.wait(lambda: events.links('lost'), 'loss of the silent link')
+            vehicle.quiet = False
+            events.wait(lambda: events.links('uploaded'), 'upload on the next connection')
+        finally:
+            bridge.stop()
+    (lost_at, lost), = events.links('lost')
+    print(f'silence during the upload found {lost_at - vehicle.quiet_at:.2f} s after it began')
+    assert lost_at - vehicle.quiet_at < SILENCE_S + 1.0
+    assert 'nothing heard from the vehicle' in lost.message
+    assert events.links('error') == []
+    (_, uploaded), = events.links('uploaded')
+    assert uploaded.tag == 'plan' and len(vehicle.stored) == len(ITEMS)
+
+
+def test_stopping_the_bridge_ends_an_upload_at_once_and_says_nothing():
+    events = Events()
+    with FakeVehicle('silent', positions=True) as vehicle:
+        bridge = telemetry.VehicleBridge(vehicle.url, HOME, events)
+        try:
+            events.wait_position()
+            bridge.upload(ITEMS, tag='plan')
+            events.wait(lambda: counts(vehicle, 'MISSION_COUNT') >= 1, 'upload begun')
+        finally:
+            began = time.monotonic()
+            bridge.stop()
+            took = time.monotonic() - began
+    print(f'stopped during an upload in {took:.2f} s')
+    assert took < 1.0 and not bridge._thread.is_alive()
+    assert events.links('lost') == [] and events.links('error') == []
+
