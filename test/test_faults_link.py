@@ -166,3 +166,42 @@ def test_stopping_the_bridge_ends_an_upload_at_once_and_says_nothing():
     assert took < 1.0 and not bridge._thread.is_alive()
     assert events.links('lost') == [] and events.links('error') == []
 
+
+# Wind estimates across a reconnection.
+
+def test_winds_heard_before_a_reconnections_first_position_keep_the_smoothing():
+    from uav_comm_planner.mission.wind import WindEstimate
+    from uav_comm_planner.vehicle.mavlink.telemetry import Wind
+
+    events = Events()
+    with FakeVehicle('good', positions=True) as vehicle:
+        vehicle.wind = (5.0, 0.0)           # from the north: the air moves south
+        vehicle.positions_after_s = 0.5     # each connection: winds first, then positions
+        bridge = telemetry.VehicleBridge(vehicle.url, HOME, events)
+        try:
+            events.wait_position()
+            time.sleep(1.5)
+            vehicle.wind = (5.0, 90.0)      # from the east
+            cut_at = time.monotonic()
+            vehicle.hang_up()
+            events.wait(lambda: any(isinstance(e, Position) for t, e in events.seen
+                                    if t > cut_at), 'position after the reconnection')
+            time.sleep(1.0)
+        finally:
+            bridge.stop()
+    before = [e.time_s for t, e in events.seen if isinstance(e, Position) and t < cut_at]
+    winds = [e for _, e in events.seen if isinstance(e, Wind)]
+    after = [w for w in winds if w.east_mps < -1.0]
+    assert len(events.links('connected')) == 2 and after
+    times = [w.time_s for w in winds]
+    assert times == sorted(times) and min(w.time_s for w in after) >= max(before)
+    estimate = WindEstimate(10.0)
+    for wind in winds:
+        estimate.add(wind.time_s, wind.east_mps, wind.north_mps)
+    east, north = estimate.velocity_mps
+    print(f'{len(after)} winds from the east after the reconnection: estimate east {east:.2f}, '
+          f'north {north:.2f} m/s')
+    # About 2 s of the new wind (the reconnection's 1.5 s included) against a 10 s time
+    # constant: closer to the old wind than to the new one (a reset would give the new one).
+    assert 0.1 < abs(east + 5.0) - abs(east) and abs(north + 5.0) < abs(north)
+    assert -2.5 < east < -0.1

@@ -28,6 +28,9 @@ it is up again. A mission whose upload the loss cut (a
 mission, read-back, MISSION_SET_CURRENT) is uploaded again once the link is back; a refusal
 is said and not sent again. A gap of more than
 :data:`TELEMETRY_GAP_S` of autopilot time between two positions is one 'gap' event.
+A wind estimate carries the time of the latest position; one that comes on a connection before
+its first position (whose time is not known yet: WIND carries none) is held, the latest only,
+and handed on with that position's time.
 An upload may carry fence items (:mod:`.fence`): they go first, each time they differ from the
 fence the vehicle was last given on this connection, and are read back too.
 
@@ -36,7 +39,7 @@ Times are the autopilot's (``time_boot_ms`` / 1000, seconds), never the wall clo
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 import threading
 import time
@@ -287,6 +290,8 @@ class VehicleBridge:
         heard = asked = time.monotonic()
         request_home(link)
         latest_time_s = 0.0
+        timed = False       # whether this connection has told the autopilot's time yet
+        held: Wind | None = None
         mode = None
         waiting_since = None
         while not self._stop.is_set():
@@ -322,8 +327,10 @@ class VehicleBridge:
             heard = time.monotonic()
             if kind in ('WIND', 'WIND_COV'):
                 wind = wind_of(message, latest_time_s)
-                if wind is not None:
+                if wind is not None and timed:
                     self._on_event(wind)
+                elif wind is not None:
+                    held = wind     # its time is not known yet: given the first position's
             elif kind == 'HEARTBEAT':
                 if self.stream is not None:
                     self.stream.on_heartbeat(message)
@@ -333,6 +340,10 @@ class VehicleBridge:
                     self._on_event(ModeReport(latest_time_s, mode))
             elif kind == 'GLOBAL_POSITION_INT':
                 latest_time_s = message.time_boot_ms / 1000.0
+                if not timed:
+                    timed = True
+                    if held is not None:
+                        self._on_event(replace(held, time_s=latest_time_s))
                 if self._position(message, latest_time_s) and self.stream is not None:
                     self.stream.tick(link, latest_time_s)
             elif kind == 'MISSION_CURRENT':
