@@ -205,3 +205,65 @@ def test_winds_heard_before_a_reconnections_first_position_keep_the_smoothing():
     # constant: closer to the old wind than to the new one (a reset would give the new one).
     assert 0.1 < abs(east + 5.0) - abs(east) and abs(north + 5.0) < abs(north)
     assert -2.5 < east < -0.1
+
+
+# A stream's fallback and a new mission's upload, in order.
+
+@pytest.fixture(scope='module')
+def reference():
+    from uav_comm_planner import paper_scenario
+    from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+    from uav_comm_planner.vehicle.limits import VehicleLimits
+    from uav_comm_planner.vehicle.stream import stream_reference
+
+    scenario = paper_scenario('I', ground_nodes_m=((200.0, 150.0), (500.0, -100.0)),
+                              goal_m=(700.0, 0.0), max_speed_mps=10.0, horizon_s=120.0,
+                              num_slots=30)
+    vehicle = plan_for_vehicle(scenario, VehicleLimits())
+    return stream_reference(vehicle.flown, vehicle.limits)
+
+
+@pytest.mark.parametrize('replan', [False, True], ids=['new plan', 'replan in flight'])
+def test_a_streams_fallback_never_acts_on_the_mission_uploaded_after_it(reference, replan):
+    from uav_comm_planner.vehicle.mavlink.guided import COPTER_MODES, StreamJob, TargetStream
+
+    events = Events()
+    with FakeVehicle('good', positions=True) as vehicle:
+        vehicle.mode = COPTER_MODES['GUIDED']
+        stream = TargetStream(HOME, events)
+        bridge = telemetry.VehicleBridge(vehicle.url, HOME, events, stream=stream)
+        try:
+            events.wait_position()
+            bridge.upload(ITEMS, tag='old')
+            events.wait(lambda: events.links('uploaded'), 'the old mission uploaded')
+            now_s = [e for _, e in events.seen if isinstance(e, Position)][-1].time_s
+            # The old plan's fallback resumes its own mission at item 4.
+            stream.start(StreamJob(reference, now_s, 100.0, 'auto', lambda elapsed_s: 4))
+            events.wait(lambda: stream.targets_sent >= 5, 'targets streamed')
+            logged = len(vehicle.log)
+            # As VehicleAdapter.fly does: the stream stopped, then the new mission queued.
+            if replan:
+                stream.stop('a new plan is in force', resume_seq=2, mission='new')
+                bridge.upload(ITEMS[:5], current_seq=2, tag='new')
+            else:
+                stream.stop('a new plan is in force')
+                bridge.upload(ITEMS[:5], tag='new')
+            events.wait(lambda: len(events.links('uploaded')) == 2 and not stream.active,
+                        'the new mission uploaded and the stream stopped')
+            time.sleep(0.3)
+        finally:
+            bridge.stop()
+    log = vehicle.log[logged:]
+    count = log.index(('MISSION_COUNT', 5))
+    auto = ('SET_MODE', COPTER_MODES['AUTO'])
+    print(log[:count + 1], [entry for entry in log[count:] if entry[0] != 'MISSION_ITEM_INT'])
+    if replan:
+        # Nothing for the old mission; AUTO at the new mission's item 2 once it is on board.
+        assert auto not in log[:count] and ('MISSION_SET_CURRENT', 4) not in log
+        assert ('MISSION_SET_CURRENT', 2) in log[count:] and auto in log[count:]
+    else:
+        # The old plan's fallback lands on the old mission, before the new upload starts.
+        assert ('MISSION_SET_CURRENT', 4) in log[:count] and auto in log[:count]
+        assert not any(entry[0] == 'MISSION_SET_CURRENT' for entry in log[count:])
+    (_, stopped), = [(t, e) for t, e in events.seen if getattr(e, 'kind', '') == 'stopped']
+    assert f'mission item {2 if replan else 4}' in stopped.message

@@ -143,10 +143,16 @@ class VehicleAdapter(VehicleState):
         in AUTO (a replan in flight from its q0 item) as a mission's."""
         if outcome.request.output.flight_mode == 'stream':
             self.prepare_stream(outcome, limits)
-        if self.stream is not None and self.stream.active:
+        streaming = self.stream is not None and self.stream.active
+        if streaming:
+            # Asked before the upload: the link thread orders the two (:mod:`.guided`).
             self.stop_stream('a new plan is in force',
-                             resume_seq=Q0_SEQ if outcome.receding is not None else None)
+                             resume_seq=Q0_SEQ if outcome.receding is not None else None,
+                             mission=outcome.request.start_ns)
         self.upload(outcome)
+        if streaming and not self.upload_pending:
+            # Refused before it reached the link: the stream falls back as its job says.
+            self.stop_stream('a new plan is in force')
 
     def prepare_stream(self, outcome: PlanOutcome, limits: VehicleLimits) -> None:
         """Make the streamed reference of ``outcome``'s plan now (it is streamed once the
@@ -181,11 +187,13 @@ class VehicleAdapter(VehicleState):
                                     output.stream_fallback, resume))
         return True
 
-    def stop_stream(self, reason: str, *, resume_seq: int | None = None) -> None:
-        """End the stream (with its fallback, or in AUTO from ``resume_seq``) at the link's
-        next position report."""
+    def stop_stream(self, reason: str, *, resume_seq: int | None = None,
+                    mission: object = None) -> None:
+        """End the stream (with its fallback, or in AUTO from ``resume_seq`` of the mission
+        uploaded as ``mission``, once it is) at the link's next position report or before its
+        next upload."""
         if self.stream is not None:
-            self.stream.stop(reason, resume_seq=resume_seq)
+            self.stream.stop(reason, resume_seq=resume_seq, mission=mission)
 
     def stop(self) -> None:
         """End the link (a stream running falls back first, said on the log) and withdraw

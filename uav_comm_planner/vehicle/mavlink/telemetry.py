@@ -310,7 +310,11 @@ class VehicleBridge:
                                  f'nor its position for {HOME_WAIT_REPORT_S:g} s'))
             if job is not None:
                 waiting_since = None
-                self._upload(link, job)
+                if self.stream is not None:     # a stop of the stream acts on the old mission
+                    self.stream.before_upload(link, latest_time_s, job.tag)
+                verified = self._upload(link, job)
+                if self.stream is not None:
+                    self.stream.uploaded(link, latest_time_s, job.tag, verified)
                 request_telemetry(link, self._rate_hz)
                 heard = time.monotonic()
                 self._gap_cause = ' (the link read no telemetry during an upload)'
@@ -396,12 +400,13 @@ class VehicleBridge:
             job, self._waiting = self._waiting, None
         return job
 
-    def _upload(self, link, job: _Upload) -> None:
+    def _upload(self, link, job: _Upload) -> bool:
+        """Upload ``job``; whether the vehicle holds it (a loss of the link raises)."""
         reason = mission_far_from_vehicle(job.items, self.vehicle_home, self._vehicle_position,
                                           self._home_limit_m)
         if reason:
             self._on_event(LinkEvent('error', f'mission upload refused: {reason}', job.tag))
-            return
+            return False
         try:
             fence, note = upload_fence(link, job.fence, self._settings), ''   # the fence first
             upload_and_verify(link, job.items, self._settings)
@@ -412,15 +417,16 @@ class VehicleBridge:
                 note = f'; current item {current}'
         except (VehicleLinkLostError, OSError):
             if self._stop.is_set():
-                return                      # the bridge is being stopped: nothing to say
+                return False                # the bridge is being stopped: nothing to say
             with self._lock:                # uploaded again once the link is back
                 self._waiting = self._waiting or job
             raise
         except VehicleLinkError as exc:
             self._on_event(LinkEvent('error', f'mission upload failed: {exc}', job.tag))
-            return
+            return False
         self._on_event(LinkEvent('uploaded', f'mission of {len(job.items)} items uploaded '
                                              f'and read back{fence}{note}', job.tag))
+        return True
 
 
 def upload_fence(link, fence: Sequence[MissionItem] | None, settings: LinkSettings) -> str:
