@@ -267,3 +267,35 @@ def test_a_streams_fallback_never_acts_on_the_mission_uploaded_after_it(referenc
         assert not any(entry[0] == 'MISSION_SET_CURRENT' for entry in log[count:])
     (_, stopped), = [(t, e) for t, e in events.seen if getattr(e, 'kind', '') == 'stopped']
     assert f'mission item {2 if replan else 4}' in stopped.message
+
+
+# The link made again while an upload is pending.
+
+@pytest.mark.parametrize('name, value', [('home_distance_limit_m', 2000.0),
+                                         ('flight_mode', 'stream')])
+def test_a_link_made_again_mid_upload_uploads_the_plan_again_and_the_clock_starts(
+        harness, name, value):
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    from uav_comm_planner.vehicle.mavlink.guided import COPTER_MODES
+
+    with FakeVehicle('silent', positions=True) as vehicle:
+        vehicle.where = (HOME.latitude_deg, HOME.longitude_deg, 100.0)    # at q0, at rest
+        vehicle.mode = COPTER_MODES['AUTO']
+        # The home parameters: a silent vehicle does not tell its home either.
+        # A plan the vehicle flies (its default 10 m/s).
+        h = harness(mavlink_url=vehicle.url, home_latitude_deg=HOME.latitude_deg,
+                    home_longitude_deg=HOME.longitude_deg, home_altitude_m=HOME.altitude_m,
+                    max_speed_mps=10.0, horizon_s=300.0)
+        h.published(1)
+        h.spin_until(lambda: counts(vehicle, 'MISSION_COUNT') >= 1, 'upload begun')
+        assert h.node.vehicle.upload_pending
+        answer = h.call('set_parameters', SetParameters.Request(
+            parameters=[Parameter(name, value=value).to_parameter_msg()]))
+        assert answer.results[0].successful
+        vehicle.reset('good')               # the new link's vehicle answers
+        h.spin_until(lambda: h.node.progress.started, 'mission clock started at q0')
+        assert not h.node.vehicle.upload_pending and h.node.vehicle.uploads_verified == 1
+        assert h.node.stats.plans_published == 1          # the same plan, not a new one
+        assert vehicle.connections == 2 and len(vehicle.stored) > 0

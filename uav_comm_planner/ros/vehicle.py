@@ -9,7 +9,12 @@ whose thread hands positions, mission progress and link events to the executor t
 
 Unless the home parameters were set, the vehicle's home (HOME_POSITION) is the planning
 frame's origin: a plan's mission items are built for it before the upload, and a plan made
-before the vehicle told it waits for it. A lost link, a telemetry gap and a mission refused
+before the vehicle told it waits for it. A link made again (another ``mavlink_url``,
+``flight_mode``, ``home_distance_limit_m`` or home) uploads the plan in force again unless the
+vehicle on the same link and home was verified to hold it (a plan in force before the first
+link is uploaded on it), so that its clock can start; the
+events the former link had not handed on yet are dropped. A lost link, a telemetry gap and a
+mission refused
 for another place are each one line on the log (a loss and a refusal also on
 ``planner_status``).
 """
@@ -86,10 +91,15 @@ class VehicleAdapter(VehicleState):
         self._report = report
         self._frame_id = frame_id
         self._bridge: VehicleBridge | None = None
-        self._events: ExecutorHandoff[Event] = ExecutorHandoff(node, self._drain,
-                                                               maxlen=EVENTS_KEPT)
+        self._events: ExecutorHandoff[tuple[int, Event]] = ExecutorHandoff(
+            node, self._drain, maxlen=EVENTS_KEPT)
+        #: Counts the links made: an event of an older one is not drained.
+        self._generation = 0
         self._pose: Publisher | None = None
         self._pending_tag: int | None = None
+        #: The link's (url, home) and the last upload verified: (url, home, tag).
+        self._link_key: tuple[str, Home | None] = ('', None)
+        self._verified: tuple[str, Home | None, object] | None = None
         self._position_ns: int | None = None
         self.time_s: float | None = None
         self.mission_item: int | None = None
@@ -118,19 +128,37 @@ class VehicleAdapter(VehicleState):
         self.time_s = self._position_ns = None
         self.last_error = ''
         self._upload_failed = False
+        self._pending_tag = None
         self._reset_state(None if follow_home else output.home)
+        self._link_key = (output.mavlink_url, self.home)
         if output.mavlink_url:
             self._pose = self._node.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE,
                                                      VEHICLE_POSE_QOS)
-            self.stream = TargetStream(output.home, self._events.put)
+            put, generation = self._events.put, self._generation
+
+            def on_event(event: Event) -> None:
+                put((generation, event))
+            self.stream = TargetStream(output.home, on_event)
             rate = (STREAM_TELEMETRY_RATE_HZ if output.flight_mode == 'stream'
                     else TELEMETRY_RATE_HZ)
-            self._bridge = VehicleBridge(output.mavlink_url, self.home, self._events.put,
+            self._bridge = VehicleBridge(output.mavlink_url, self.home, on_event,
                                          rate_hz=rate, stream=self.stream,
                                          home_limit_m=output.home_distance_limit_m)
             origin = "the vehicle's home" if follow_home else 'the home parameters'
             self._report(f'vehicle link: connecting to {output.mavlink_url} (planning frame '
                          f'origin: {origin})', False)
+            self._upload_again(output)
+
+    def _upload_again(self, output: NodeSettings) -> None:
+        """On a link made (again): the node's plan in force, unless this link and home were
+        verified to hold it."""
+        outcome = getattr(self._node, 'current_plan', None)
+        if outcome is None or self._verified == (*self._link_key, outcome.request.start_ns):
+            return
+        if output.flight_mode == 'stream' and self.stream_reference is None:
+            self.prepare_stream(outcome, self._node.config.vehicle)
+        self._report('vehicle link made again: the plan in force is uploaded again', False)
+        self.upload(outcome)
 
     @property
     def stream_reference(self) -> StreamReference | None:
@@ -198,6 +226,7 @@ class VehicleAdapter(VehicleState):
     def stop(self) -> None:
         """End the link (a stream running falls back first, said on the log) and withdraw
         ``vehicle_pose``."""
+        self._generation += 1
         if self._bridge is not None:
             self._bridge.stop()
             self._bridge = None
@@ -211,9 +240,12 @@ class VehicleAdapter(VehicleState):
             self._node.destroy_publisher(self._pose)
             self._pose = None
 
-    def _drain(self, events: list[Event]) -> None:
-        """Executor thread: positions, mission progress and link events from the vehicle."""
-        for event in events:
+    def _drain(self, events: list[tuple[int, Event]]) -> None:
+        """Executor thread: positions, mission progress and link events from the vehicle (of
+        the link made last)."""
+        for generation, event in events:
+            if generation != self._generation:
+                continue
             if isinstance(event, Position):
                 self.time_s = event.time_s
                 self.speed_mps = event.speed_mps
@@ -254,6 +286,7 @@ class VehicleAdapter(VehicleState):
             self.uploads_verified += 1
             if event.tag == self._pending_tag:
                 self._pending_tag = None
+            self._verified = (*self._link_key, event.tag)
         self._report(event.message, False)
 
     def _publish_pose(self, event: Position) -> None:
