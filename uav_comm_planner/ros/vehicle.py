@@ -96,25 +96,15 @@ class VehicleAdapter(VehicleState):
         #: Counts the links made: an event of an older one is not drained.
         self._generation = 0
         self._pose: Publisher | None = None
-        self._pending_tag: int | None = None
-        #: The link's (url, home) and the last upload verified: (url, home, tag).
-        self._link_key: tuple[str, Home | None] = ('', None)
-        self._verified: tuple[str, Home | None, object] | None = None
         self._position_ns: int | None = None
         self.time_s: float | None = None
         self.mission_item: int | None = None
-        self.uploads_verified = 0
-        self.last_error = ''
-        self._upload_failed = False
+        self._init_uploads()
         self._reset_state(None)
 
     @property
     def linked(self) -> bool:
         return self._bridge is not None
-
-    @property
-    def upload_pending(self) -> bool:
-        return self._pending_tag is not None
 
     def telemetry_age_s(self, now_ns: int) -> float | None:
         """Seconds on the node's clock since the latest position (None before any)."""
@@ -147,18 +137,10 @@ class VehicleAdapter(VehicleState):
             origin = "the vehicle's home" if follow_home else 'the home parameters'
             self._report(f'vehicle link: connecting to {output.mavlink_url} (planning frame '
                          f'origin: {origin})', False)
-            self._upload_again(output)
-
-    def _upload_again(self, output: NodeSettings) -> None:
-        """On a link made (again): the node's plan in force, unless this link and home were
-        verified to hold it."""
-        outcome = getattr(self._node, 'current_plan', None)
-        if outcome is None or self._verified == (*self._link_key, outcome.request.start_ns):
-            return
-        if output.flight_mode == 'stream' and self.stream_reference is None:
-            self.prepare_stream(outcome, self._node.config.vehicle)
-        self._report('vehicle link made again: the plan in force is uploaded again', False)
-        self.upload(outcome)
+            outcome = getattr(self._node, 'current_plan', None)
+            if outcome is not None and output.flight_mode == 'stream':
+                self.prepare_stream(outcome, self._node.config.vehicle)   # if its clock waits
+            self._upload_again(outcome)
 
     @property
     def stream_reference(self) -> StreamReference | None:
@@ -266,28 +248,6 @@ class VehicleAdapter(VehicleState):
                 self._stream_reported += 1
                 self.stream_events.append(event.message)
                 self._report(event.message, event.kind == 'error')
-
-    def _on_link_event(self, event: LinkEvent) -> None:
-        if self._on_fault(event):
-            return
-        if event.kind == 'error':
-            if event.tag is not None and event.tag == self._pending_tag:
-                self._pending_tag = None
-            self.last_error = event.message
-            self._upload_failed = event.tag is not None
-            self._report(event.message, True)
-            return
-        # A verified upload ends any error; the link up again ends a link error, not a failed
-        # upload (the plan in force is still not on the vehicle).
-        if event.kind == 'uploaded' or (event.kind == 'connected' and not self._upload_failed):
-            self.last_error = ''
-            self._upload_failed = False
-        if event.kind == 'uploaded':
-            self.uploads_verified += 1
-            if event.tag == self._pending_tag:
-                self._pending_tag = None
-            self._verified = (*self._link_key, event.tag)
-        self._report(event.message, False)
 
     def _publish_pose(self, event: Position) -> None:
         if self._pose is None:      # a position the link sent before it was stopped

@@ -86,6 +86,16 @@ class StreamJob:
     resume_item: Callable[[float], int]
 
 
+@dataclass(frozen=True)
+class _Stop:
+    """A stop asked for: why, the item to resume at (None: the job's fallback), and the tag of
+    the upload it waits for (None: none)."""
+
+    reason: str
+    resume_seq: int | None
+    mission: object
+
+
 class TargetStream:
     """Streams a :class:`StreamJob` on the link's thread (module docstring); ``on_event``
     receives every :class:`StreamEvent` (quick and thread-safe)."""
@@ -95,10 +105,7 @@ class TargetStream:
         self._on_event = on_event
         self._lock = threading.Lock()
         self._job: StreamJob | None = None
-        self._stop_reason: str | None = None
-        #: The stop's item to resume at, and the tag of the upload it waits for (None: none).
-        self._resume: int | None = None
-        self._after: object = None
+        self._stopping: _Stop | None = None
         self._fresh = False
         self._mode: int | None = None
         self._guided_seen = False
@@ -122,7 +129,7 @@ class TargetStream:
         with self._lock:
             self._fresh = self._fresh or self._job is None
             self._job = job
-            self._stop_reason, self._resume, self._after = None, None, None
+            self._stopping = None
 
     def stop(self, reason: str, *, resume_seq: int | None = None,
              mission: object = None) -> None:
@@ -133,32 +140,28 @@ class TargetStream:
         and with the job's own fallback if it fails."""
         with self._lock:
             if self._job is not None:
-                self._stop_reason = reason
-                self._resume = resume_seq
-                self._after = mission if resume_seq is not None else None
+                self._stopping = _Stop(reason, resume_seq,
+                                       mission if resume_seq is not None else None)
 
     def before_upload(self, link, time_s: float, tag: object) -> None:
         """Link thread, before the upload tagged ``tag`` starts (autopilot time ``time_s``): a
         stop asked for and not waiting for that upload falls back now, on the mission the
         vehicle holds."""
         with self._lock:
-            job, reason, resume, after = (self._job, self._stop_reason, self._resume,
-                                          self._after)
-        if job is not None and reason is not None and after is None:
-            self._fall_back(link, job, time_s - job.t0_s, reason, resume_seq=resume)
+            job, stop = self._job, self._stopping
+        if job is not None and stop is not None and stop.mission is None:
+            self._fall_back(link, job, time_s - job.t0_s, stop.reason, resume_seq=stop.resume_seq)
 
     def uploaded(self, link, time_s: float, tag: object, verified: bool) -> None:
         """Link thread, after the upload tagged ``tag`` (``verified`` or not): a stop waiting
         for it resumes that mission at its item now, or, the upload failed, falls back as the
         job says."""
         with self._lock:
-            job, reason, resume, after = (self._job, self._stop_reason, self._resume,
-                                          self._after)
-            if job is None or after is None or after != tag:
-                return
-            self._after = None
-        self._fall_back(link, job, time_s - job.t0_s, reason,
-                        resume_seq=resume if verified else None)
+            job, stop = self._job, self._stopping
+        if job is not None and stop is not None and stop.mission is not None \
+                and stop.mission == tag:
+            self._fall_back(link, job, time_s - job.t0_s, stop.reason,
+                            resume_seq=stop.resume_seq if verified else None)
 
     def on_heartbeat(self, message) -> None:
         """The vehicle's HEARTBEAT: its flight mode."""
@@ -171,8 +174,8 @@ class TargetStream:
         with self._lock:
             job, fresh = self._job, self._fresh
             # A stop that waits for its mission's upload lets the stream go on until then.
-            reason = self._stop_reason if self._after is None else None
-            resume = self._resume if reason is not None else None
+            stop = self._stopping if self._stopping and self._stopping.mission is None else None
+            reason, resume = (stop.reason, stop.resume_seq) if stop else (None, None)
             self._fresh = False
         if fresh:
             # A new stream: what the link thread knew of the last one goes.
@@ -232,9 +235,10 @@ class TargetStream:
         heartbeat is awaited (at most CLOSING_WAIT_S) so that the mode is set before the link
         goes."""
         with self._lock:
-            job, reason = self._job, self._stop_reason
-            # The mission a waiting stop would resume is not on the vehicle.
-            resume = self._resume if self._after is None else None
+            job, stop = self._job, self._stopping
+        reason = stop.reason if stop else None
+        # The mission a waiting stop would resume is not on the vehicle.
+        resume = stop.resume_seq if stop and stop.mission is None else None
         if job is None:
             return
         # AUTO goes on from the item ahead of the last target sent (the start if none was).
@@ -285,7 +289,7 @@ class TargetStream:
     def _end(self, message: str, *, kind: str = 'stopped') -> None:
         with self._lock:
             self._job = None
-            self._stop_reason, self._resume, self._after = None, None, None
+            self._stopping = None
         self._guided_seen = False
         self._emit(StreamEvent(kind, message))
 

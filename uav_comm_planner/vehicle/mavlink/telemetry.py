@@ -252,9 +252,8 @@ class VehicleBridge:
         self._thread.join(timeout_s)
 
     def _run(self) -> None:
-        down = ''           # what was said of the link being down ('' while up or never up)
-        down_since = None
-        failures = 0
+        # down: what was said of the link being down ('' while up or never up).
+        down, down_since, failures = '', None, 0
         while not self._stop.is_set():
             # Backoff: a vehicle that stays away is asked less and less often.
             pause_s = min(RECONNECT_PAUSE_S * 2 ** min(failures, 16), MAX_RECONNECT_PAUSE_S)
@@ -289,9 +288,7 @@ class VehicleBridge:
         request_wind(link, WIND_RATE_HZ)
         heard = asked = time.monotonic()
         request_home(link)
-        latest_time_s = 0.0
-        timed = False       # whether this connection has told the autopilot's time yet
-        held: Wind | None = None
+        clock = _ConnectionClock(self._on_event)
         mode = None
         waiting_since = None
         while not self._stop.is_set():
@@ -311,10 +308,10 @@ class VehicleBridge:
             if job is not None:
                 waiting_since = None
                 if self.stream is not None:     # a stop of the stream acts on the old mission
-                    self.stream.before_upload(link, latest_time_s, job.tag)
+                    self.stream.before_upload(link, clock.time_s, job.tag)
                 verified = self._upload(link, job)
                 if self.stream is not None:
-                    self.stream.uploaded(link, latest_time_s, job.tag, verified)
+                    self.stream.uploaded(link, clock.time_s, job.tag, verified)
                 request_telemetry(link, self._rate_hz)
                 heard = time.monotonic()
                 self._gap_cause = ' (the link read no telemetry during an upload)'
@@ -330,28 +327,20 @@ class VehicleBridge:
                 continue
             heard = time.monotonic()
             if kind in ('WIND', 'WIND_COV'):
-                wind = wind_of(message, latest_time_s)
-                if wind is not None and timed:
-                    self._on_event(wind)
-                elif wind is not None:
-                    held = wind     # its time is not known yet: given the first position's
+                clock.wind(message)
             elif kind == 'HEARTBEAT':
                 if self.stream is not None:
                     self.stream.on_heartbeat(message)
                 if link.probably_vehicle_heartbeat(message) \
                         and (name := mavutil.mode_string_v10(message)) != mode:
                     mode = name
-                    self._on_event(ModeReport(latest_time_s, mode))
+                    self._on_event(ModeReport(clock.time_s, mode))
             elif kind == 'GLOBAL_POSITION_INT':
-                latest_time_s = message.time_boot_ms / 1000.0
-                if not timed:
-                    timed = True
-                    if held is not None:
-                        self._on_event(replace(held, time_s=latest_time_s))
-                if self._position(message, latest_time_s) and self.stream is not None:
-                    self.stream.tick(link, latest_time_s)
+                time_s = clock.position(message.time_boot_ms / 1000.0)
+                if self._position(message, time_s) and self.stream is not None:
+                    self.stream.tick(link, time_s)
             elif kind == 'MISSION_CURRENT':
-                self._on_event(MissionProgressReport(latest_time_s, int(message.seq)))
+                self._on_event(MissionProgressReport(clock.time_s, int(message.seq)))
             elif kind == 'HOME_POSITION':
                 self._heard_home(message)
         if self.stream is not None:
@@ -408,13 +397,7 @@ class VehicleBridge:
             self._on_event(LinkEvent('error', f'mission upload refused: {reason}', job.tag))
             return False
         try:
-            fence, note = upload_fence(link, job.fence, self._settings), ''   # the fence first
-            upload_and_verify(link, job.items, self._settings)
-            if job.current_seq is not None:
-                # Sequence numbers count the home row, which a PX4 mission has not.
-                current = job.current_seq - (0 if has_home_row(link) else 1)
-                set_current(link, current)
-                note = f'; current item {current}'
+            note = _put_on_vehicle(link, job, self._settings)
         except (VehicleLinkLostError, OSError):
             if self._stop.is_set():
                 return False                # the bridge is being stopped: nothing to say
@@ -425,8 +408,51 @@ class VehicleBridge:
             self._on_event(LinkEvent('error', f'mission upload failed: {exc}', job.tag))
             return False
         self._on_event(LinkEvent('uploaded', f'mission of {len(job.items)} items uploaded '
-                                             f'and read back{fence}{note}', job.tag))
+                                             f'and read back{note}', job.tag))
         return True
+
+
+class _ConnectionClock:
+    """The autopilot's time on one connection, that of its latest position (0 before any); a
+    wind estimate heard before the first position (WIND carries no time) is held, the latest
+    only, and handed on with that position's time."""
+
+    def __init__(self, on_event: Callable[[Event], None]) -> None:
+        self.time_s = 0.0
+        self._on_event = on_event
+        self._timed = False
+        self._held: Wind | None = None
+
+    def position(self, time_s: float) -> float:
+        """A position's time, which it returns; the first hands on the wind held."""
+        self.time_s = time_s
+        if not self._timed:
+            self._timed = True
+            if self._held is not None:
+                self._on_event(replace(self._held, time_s=time_s))
+        return time_s
+
+    def wind(self, message) -> None:
+        """A WIND or WIND_COV message: handed on at the latest position's time, or held."""
+        wind = wind_of(message, self.time_s)
+        if wind is not None and self._timed:
+            self._on_event(wind)
+        elif wind is not None:
+            self._held = wind
+
+
+def _put_on_vehicle(link, job: _Upload, settings: LinkSettings) -> str:
+    """The fence first, the mission read back, then its current item; the note for the
+    'uploaded' event. Raises VehicleLinkError (VehicleLinkLostError or OSError: the link went
+    down)."""
+    fence, note = upload_fence(link, job.fence, settings), ''
+    upload_and_verify(link, job.items, settings)
+    if job.current_seq is not None:
+        # Sequence numbers count the home row, which a PX4 mission has not.
+        current = job.current_seq - (0 if has_home_row(link) else 1)
+        set_current(link, current)
+        note = f'; current item {current}'
+    return fence + note
 
 
 def upload_fence(link, fence: Sequence[MissionItem] | None, settings: LinkSettings) -> str:
