@@ -40,9 +40,31 @@ import time
 # MAVLink 2, as ArduPilot speaks it: the link under test switches to it on the first packet.
 from pymavlink.dialects.v20 import ardupilotmega as MAV
 
+from uav_comm_planner.vehicle.mavlink.telemetry import LinkEvent
+
 BEHAVIOURS = ('good', 'mute', 'silent', 'loop', 'out_of_range', 'wrong_ack', 'wrong_count',
               'wrong_item', 'slow', 'garbage')
 HEARTBEAT_S = 0.1
+
+
+class Events:
+    """What a vehicle bridge hands on (its ``on_event``), with the monotonic time of each."""
+
+    def __init__(self) -> None:
+        self.seen: list[tuple[float, object]] = []
+
+    def __call__(self, event) -> None:
+        self.seen.append((time.monotonic(), event))
+
+    def links(self, kind: str) -> list:
+        """The (time, LinkEvent) pairs of ``kind``."""
+        return [(t, e) for t, e in self.seen if isinstance(e, LinkEvent) and e.kind == kind]
+
+    def wait(self, condition, what: str, timeout_s: float = 10.0) -> None:
+        deadline = time.monotonic() + timeout_s
+        while not condition():
+            assert time.monotonic() < deadline, f'no {what} within {timeout_s} s'
+            time.sleep(0.02)
 
 
 class FakeVehicle:

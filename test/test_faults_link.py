@@ -7,7 +7,7 @@ from __future__ import annotations
 import errno
 import time
 
-from fake_vehicle import FakeVehicle
+from fake_vehicle import Events, FakeVehicle
 import pytest
 
 from uav_comm_planner.errors import VehicleLinkError, VehicleLinkLostError
@@ -16,33 +16,15 @@ from uav_comm_planner.vehicle.mavlink import telemetry
 from uav_comm_planner.vehicle.mavlink.items import MissionItem, NAV_WAYPOINT
 from uav_comm_planner.vehicle.mavlink.link import (connect, LinkSettings, LinkWatch,
                                                    upload_and_verify)
-from uav_comm_planner.vehicle.mavlink.telemetry import LinkEvent, Position, SILENCE_S
+from uav_comm_planner.vehicle.mavlink.telemetry import Position, SILENCE_S
 
 HOME = Home(47.0, 8.0, 400.0)
 ITEMS = [MissionItem(NAV_WAYPOINT, 0, x=47.0 + k * 1e-4, y=8.0, z=10.0 * k, current=k == 0)
          for k in range(6)]
 
 
-class Events:
-    """What a bridge hands on, with the monotonic time of each."""
-
-    def __init__(self) -> None:
-        self.seen: list[tuple[float, object]] = []
-
-    def __call__(self, event) -> None:
-        self.seen.append((time.monotonic(), event))
-
-    def links(self, kind: str) -> list[tuple[float, LinkEvent]]:
-        return [(t, e) for t, e in self.seen if isinstance(e, LinkEvent) and e.kind == kind]
-
-    def wait(self, condition, what: str, timeout_s: float = 15.0) -> None:
-        deadline = time.monotonic() + timeout_s
-        while not condition():
-            assert time.monotonic() < deadline, f'no {what} within {timeout_s} s'
-            time.sleep(0.02)
-
-    def wait_position(self) -> None:
-        self.wait(lambda: any(isinstance(e, Position) for _, e in self.seen), 'position')
+def wait_position(events: Events) -> None:
+    events.wait(lambda: any(isinstance(e, Position) for _, e in events.seen), 'position')
 
 
 def counts(vehicle: FakeVehicle, kind: str) -> int:
@@ -114,7 +96,7 @@ def test_an_eof_while_the_current_item_is_set_is_a_loss_and_the_upload_is_sent_a
         vehicle.hang_up_on = 'MISSION_SET_CURRENT'
         bridge = telemetry.VehicleBridge(vehicle.url, HOME, events)
         try:
-            events.wait_position()
+            wait_position(events)
             bridge.upload(ITEMS, current_seq=2, tag='replan')
             events.wait(lambda: events.links('uploaded'), 'upload on the next connection')
         finally:
@@ -134,7 +116,7 @@ def test_an_upload_the_link_goes_silent_in_is_lost_within_the_silence_and_sent_a
         vehicle.quiet_on = 'MISSION_ITEM_INT'
         bridge = telemetry.VehicleBridge(vehicle.url, HOME, events)
         try:
-            events.wait_position()
+            wait_position(events)
             bridge.upload(ITEMS, tag='plan')
             events.wait(lambda: events.links('lost'), 'loss of the silent link')
             vehicle.quiet = False
@@ -155,7 +137,7 @@ def test_stopping_the_bridge_ends_an_upload_at_once_and_says_nothing():
     with FakeVehicle('silent', positions=True) as vehicle:
         bridge = telemetry.VehicleBridge(vehicle.url, HOME, events)
         try:
-            events.wait_position()
+            wait_position(events)
             bridge.upload(ITEMS, tag='plan')
             events.wait(lambda: counts(vehicle, 'MISSION_COUNT') >= 1, 'upload begun')
         finally:
@@ -179,7 +161,7 @@ def test_winds_heard_before_a_reconnections_first_position_keep_the_smoothing():
         vehicle.positions_after_s = 0.5     # each connection: winds first, then positions
         bridge = telemetry.VehicleBridge(vehicle.url, HOME, events)
         try:
-            events.wait_position()
+            wait_position(events)
             time.sleep(1.5)
             vehicle.wind = (5.0, 90.0)      # from the east
             cut_at = time.monotonic()
@@ -233,7 +215,7 @@ def test_a_streams_fallback_never_acts_on_the_mission_uploaded_after_it(referenc
         stream = TargetStream(HOME, events)
         bridge = telemetry.VehicleBridge(vehicle.url, HOME, events, stream=stream)
         try:
-            events.wait_position()
+            wait_position(events)
             bridge.upload(ITEMS, tag='old')
             events.wait(lambda: events.links('uploaded'), 'the old mission uploaded')
             now_s = [e for _, e in events.seen if isinstance(e, Position)][-1].time_s
