@@ -18,9 +18,10 @@ It listens on a free TCP port (``url``), takes one connection at a time and, by 
 
 Every behaviour that answers tells its ``home`` (HOME_POSITION) when asked. With
 ``positions`` it also sends GLOBAL_POSITION_INT at 10 Hz (its boot time is the wall clock
-since it started), at ``where`` (latitude, longitude, metres above home; home at 10 m unless
-set), from ``positions_after_s`` after each connection on; with ``wind`` (speed m/s, direction
-it comes from, degrees) a WIND message after every heartbeat. ``mode`` (None: no mode) is the
+since it started, times ``speedup``: a simulator's), at ``where`` (latitude, longitude,
+metres above home; home at 10 m unless set), from ``positions_after_s`` after each connection
+on; with ``wind`` (speed m/s, direction it comes from, degrees) a WIND message after every
+heartbeat. ``mode`` (None: no mode) is the
 ArduCopter mode number its heartbeat shows; SET_MODE changes it. MISSION_SET_CURRENT is
 answered with MISSION_CURRENT. ``log`` lists what it received, in order: the message type
 (with the item or mode number for MISSION_COUNT, MISSION_SET_CURRENT and SET_MODE).
@@ -80,6 +81,7 @@ class FakeVehicle:
         self.positions = positions
         self.where: tuple[float, float, float] = (home[0], home[1], 10.0)
         self.positions_after_s = 0.0
+        self.speedup = 1.0
         self.wind: tuple[float, float] | None = None
         self.mode: int | None = None
         self.quiet = False
@@ -163,7 +165,7 @@ class FakeVehicle:
             if self.positions and now >= next_position:
                 latitude, longitude, up = self.where
                 self._send(mav.global_position_int_encode(
-                    int((now - self._booted) * 1000), round(latitude * 1e7),
+                    int((now - self._booted) * self.speedup * 1000), round(latitude * 1e7),
                     round(longitude * 1e7), round((self.home[2] + up) * 1000),
                     round(up * 1000), 0, 0, 0, 0))
                 next_position = now + 0.1

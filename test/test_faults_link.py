@@ -281,3 +281,30 @@ def test_a_link_made_again_mid_upload_uploads_the_plan_again_and_the_clock_start
         assert not h.node.vehicle.upload_pending and h.node.vehicle.uploads_verified == 1
         assert h.node.stats.plans_published == 1          # the same plan, not a new one
         assert vehicle.connections == 2 and len(vehicle.stored) > 0
+
+
+# The reconnection backoff, in autopilot time.
+
+def test_the_reconnection_backoff_counts_autopilot_time_at_a_simulators_speedup():
+    from uav_comm_planner.vehicle.mavlink.telemetry import (MIN_RECONNECT_PAUSE_S,
+                                                            reconnect_pause_s)
+
+    # 1 s doubling to 8 s of autopilot time, at the clock rate the last connection showed.
+    assert [reconnect_pause_s(k, None) for k in range(5)] == [1.0, 2.0, 4.0, 8.0, 8.0]
+    assert reconnect_pause_s(3, 20.0) == pytest.approx(0.4)
+    assert reconnect_pause_s(0, 1000.0) == MIN_RECONNECT_PAUSE_S
+    events = Events()
+    with FakeVehicle('good', positions=True) as vehicle:
+        vehicle.speedup = 10.0
+        bridge = telemetry.VehicleBridge(vehicle.url, HOME, events)
+        try:
+            wait_position(events)
+            time.sleep(1.5)                 # the clock rate measured over 1 s and more
+            vehicle.hang_up()
+            events.wait(lambda: len(events.links('connected')) == 2, 'reconnection')
+        finally:
+            bridge.stop()
+    (lost_at, _), = events.links('lost')
+    again_at = events.links('connected')[1][0]
+    print(f'connected again {again_at - lost_at:.2f} s (wall) after the loss at speed-up 10')
+    assert again_at - lost_at < 0.5         # 1 s of autopilot time, 0.1 s of wall clock

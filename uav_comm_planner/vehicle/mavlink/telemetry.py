@@ -20,8 +20,10 @@ planning frame's origin, and no position is handed on before it.
 Faults of the link: a connection the vehicle closes (EOF) or resets, and a link on which
 nothing arrives for :data:`SILENCE_S` (wall clock, counted only while the thread reads, so a
 stalled process is not taken for a silent vehicle), end the connection; the thread connects
-again with backoff. During an upload the same silence ends it too (a :class:`~.link.LinkWatch`
-on the connection), and so does stopping the bridge. Each change of state is one event: 'lost'
+again with backoff, in autopilot time as the last connection's clock ran (a simulator at a
+speed-up is asked as often per second of its flight as a real vehicle). During an upload
+the same silence ends it too (a :class:`~.link.LinkWatch` on the connection), and so does
+stopping the bridge. Each change of state is one event: 'lost'
 once when the link goes down (whatever the reconnection attempts meet then), 'connected' when
 it is up again. A mission whose upload the loss cut (a
 :class:`~uav_comm_planner.errors.VehicleLinkLostError` or any OSError, in any step: fence,
@@ -63,11 +65,16 @@ from uav_comm_planner.vehicle.mavlink.link import (check_link, connect, has_home
 MAV = mavutil.mavlink
 #: Telemetry rate asked of the autopilot (per second of autopilot time).
 TELEMETRY_RATE_HZ = 10.0
-#: Pause before connecting again after a lost or refused link, seconds (wall clock).
+#: Pause before connecting again after a lost or refused link, seconds of autopilot time (as
+#: the last connection's clock ran against the wall clock; wall seconds before any).
 RECONNECT_PAUSE_S = 1.0
 #: The pause doubles after each failure in a row, up to this many seconds: a vehicle in flight
-#: whose link comes back is found again within this.
+#: whose link comes back is found again within this (autopilot time, as above).
 MAX_RECONNECT_PAUSE_S = 8.0
+#: The shortest pause, wall clock seconds, whatever the autopilot's clock rate.
+MIN_RECONNECT_PAUSE_S = 0.05
+#: A connection's clock rate is measured over at least this many wall seconds of positions.
+CLOCK_RATE_SPAN_S = 1.0
 #: Nothing heard from the vehicle for this long (wall clock, while reading) ends the
 #: connection: a vehicle sends its heartbeat at 1 Hz and positions at ``rate_hz``.
 SILENCE_S = 2.0
@@ -234,7 +241,7 @@ class VehicleBridge:
         self.vehicle_home: Home | None = None
         self._vehicle_position: tuple[float, float] | None = None
         self._last_position_s = math.nan
-        self._gap_cause = ''
+        self._gap_cause, self._clock = '', _ConnectionClock(on_event)
         self._thread = threading.Thread(target=self._run, name='uav_comm_planner.vehicle',
                                         daemon=True)
         self._thread.start()
@@ -255,8 +262,6 @@ class VehicleBridge:
         # down: what was said of the link being down ('' while up or never up).
         down, down_since, failures = '', None, 0
         while not self._stop.is_set():
-            # Backoff: a vehicle that stays away is asked less and less often.
-            pause_s = min(RECONNECT_PAUSE_S * 2 ** min(failures, 16), MAX_RECONNECT_PAUSE_S)
             try:
                 link = connect(self.url, timeout_s=self._connect_timeout_s,
                                should_stop=self._stop.is_set)
@@ -264,8 +269,9 @@ class VehicleBridge:
                 if not down:            # said once, not at every retry
                     down = str(exc)
                     self._on_event(LinkEvent('error', f'{exc}; retrying'))
+                # Backoff: a vehicle that stays away is asked less and less often.
+                self._stop.wait(reconnect_pause_s(failures, self._clock.rate))
                 failures += 1
-                self._stop.wait(pause_s)
                 continue
             try:
                 again = '' if down_since is None else \
@@ -277,8 +283,8 @@ class VehicleBridge:
                 down, down_since = str(exc), time.monotonic()
                 self._gap_cause = ' (the link was down)'
                 self._on_event(LinkEvent('lost', f'vehicle link lost: {exc}; reconnecting'))
+                self._stop.wait(reconnect_pause_s(failures, self._clock.rate))
                 failures += 1
-                self._stop.wait(pause_s)
             finally:
                 link.close()
 
@@ -288,7 +294,7 @@ class VehicleBridge:
         request_wind(link, WIND_RATE_HZ)
         heard = asked = time.monotonic()
         request_home(link)
-        clock = _ConnectionClock(self._on_event)
+        clock = self._clock = _ConnectionClock(self._on_event, self._clock.rate)
         mode = None
         waiting_since = None
         while not self._stop.is_set():
@@ -412,20 +418,35 @@ class VehicleBridge:
         return True
 
 
+def reconnect_pause_s(failures: int, clock_rate: float | None) -> float:
+    """Wall seconds to wait before connecting again after ``failures`` failures in a row: the
+    backoff in autopilot time, at ``clock_rate`` autopilot seconds per wall second (a
+    simulator's speed-up; None: unknown, 1)."""
+    autopilot_s = min(RECONNECT_PAUSE_S * 2 ** min(failures, 16), MAX_RECONNECT_PAUSE_S)
+    return max(autopilot_s / (clock_rate or 1.0), MIN_RECONNECT_PAUSE_S)
+
+
 class _ConnectionClock:
     """The autopilot's time on one connection, that of its latest position (0 before any); a
     wind estimate heard before the first position (WIND carries no time) is held, the latest
-    only, and handed on with that position's time."""
+    only, and handed on with that position's time. ``rate`` is the autopilot seconds per wall
+    second its positions showed (over CLOCK_RATE_SPAN_S at least; else the one given)."""
 
-    def __init__(self, on_event: Callable[[Event], None]) -> None:
+    def __init__(self, on_event: Callable[[Event], None], rate: float | None = None) -> None:
         self.time_s = 0.0
+        self.rate = rate
         self._on_event = on_event
         self._timed = False
         self._held: Wind | None = None
+        self._first: tuple[float, float] | None = None
 
     def position(self, time_s: float) -> float:
         """A position's time, which it returns; the first hands on the wind held."""
-        self.time_s = time_s
+        self.time_s, now = time_s, time.monotonic()
+        if self._first is None or time_s < self._first[1]:
+            self._first = (now, time_s)     # the first, or a clock restarted
+        elif now - self._first[0] >= CLOCK_RATE_SPAN_S:
+            self.rate = max(1.0, (time_s - self._first[1]) / (now - self._first[0]))
         if not self._timed:
             self._timed = True
             if self._held is not None:
