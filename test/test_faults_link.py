@@ -308,3 +308,31 @@ def test_the_reconnection_backoff_counts_autopilot_time_at_a_simulators_speedup(
     again_at = events.links('connected')[1][0]
     print(f'connected again {again_at - lost_at:.2f} s (wall) after the loss at speed-up 10')
     assert again_at - lost_at < 0.5         # 1 s of autopilot time, 0.1 s of wall clock
+
+
+def test_the_watch_counts_silence_only_while_the_link_is_read(monkeypatch):
+    from types import SimpleNamespace
+
+    from uav_comm_planner.vehicle.mavlink import link as link_module
+
+    now = [100.0]
+    monkeypatch.setattr(link_module.time, 'monotonic', lambda: now[0])
+    watch, link = LinkWatch(silence_s=2.0), SimpleNamespace(mav_count=7)
+
+    def look_until_lost(step_s: float) -> float:
+        began = now[0]
+        with pytest.raises(VehicleLinkLostError, match='nothing heard .* for 2 s'):
+            for _ in range(1000):
+                now[0] += step_s
+                watch.check(link)
+        return now[0] - began
+    watch.check(link)
+    now[0] += 30.0                  # the process stalled 30 s: half a second of silence
+    watch.check(link)
+    link.mav_count = 9              # a message: the silence starts again
+    watch.check(link)
+    took = look_until_lost(0.1)
+    assert took == pytest.approx(2.1)
+    stopping = LinkWatch(should_stop=lambda: True)
+    with pytest.raises(VehicleLinkLostError, match='being stopped'):
+        stopping.check(link)

@@ -43,6 +43,9 @@ TRANSIENT_RESULTS = (MAV.MAV_MISSION_NO_SPACE, MAV.MAV_MISSION_DENIED,
                      MAV.MAV_MISSION_OPERATION_CANCELLED)
 #: A transfer looks at the link's watch (:class:`LinkWatch`) at least this often, seconds.
 WATCH_POLL_S = 0.1
+#: A longer time between two looks is the process stalled, not the link silent: it counts as
+#: this much silence only.
+WATCH_STALL_S = 0.5
 #: What each mission type is called in messages.
 MISSION_TYPE_NAMES = {MAV.MAV_MISSION_TYPE_MISSION: 'mission',
                       MAV.MAV_MISSION_TYPE_FENCE: 'fence',
@@ -96,16 +99,18 @@ class Deadline:
 class LinkWatch:
     """What ends a transfer on a link besides its own timeouts, put on the link as its
     ``watch`` attribute: ``should_stop`` answering True (the link is being stopped), or no
-    message at all from the link for ``silence_s`` (monotonic clock): a cut UDP or serial link
-    does not fail, it goes quiet, and an upload would otherwise wait out all its retries. Each
-    is a :class:`VehicleLinkLostError`."""
+    message at all from the link for ``silence_s`` while it is read (monotonic clock; a process
+    stalled between two looks is not taken for a silent link): a cut UDP or serial link does
+    not fail, it goes quiet, and an upload would otherwise wait out all its retries. Each is a
+    :class:`VehicleLinkLostError`."""
 
     def __init__(self, *, silence_s: float = math.inf,
                  should_stop: Callable[[], bool] | None = None) -> None:
         self.silence_s = silence_s
         self._should_stop = should_stop
         self._count: int | None = None
-        self._heard = time.monotonic()
+        self._silent_s = 0.0
+        self._looked: float | None = None
 
     def check(self, link) -> None:
         """Raise VehicleLinkLostError if the link is being stopped or has been silent."""
@@ -114,8 +119,11 @@ class LinkWatch:
         count = getattr(link, 'mav_count', None)     # messages parsed, from any sender
         now = time.monotonic()
         if count != self._count:
-            self._count, self._heard = count, now
-        elif now - self._heard > self.silence_s:
+            self._count, self._silent_s = count, 0.0
+        elif self._looked is not None:
+            self._silent_s += min(now - self._looked, WATCH_STALL_S)
+        self._looked = now
+        if self._silent_s > self.silence_s:
             raise VehicleLinkLostError(f'link lost: nothing heard from the vehicle for '
                                        f'{self.silence_s:g} s')
 
