@@ -17,9 +17,18 @@ It listens on a free TCP port (``url``), takes one connection at a time and, by 
   mission messages with random seqs, counts and results.
 
 Every behaviour that answers tells its ``home`` (HOME_POSITION) when asked. With
-``positions`` it also sends GLOBAL_POSITION_INT at home at 10 Hz (its boot time is the wall
-clock since it started). :meth:`hang_up` closes the connection it serves (the link sees EOF);
-while ``quiet`` is set it sends nothing and answers nothing (a silent link).
+``positions`` it also sends GLOBAL_POSITION_INT at 10 Hz (its boot time is the wall clock
+since it started, times ``speedup``: a simulator's), at ``where`` (latitude, longitude,
+metres above home; home at 10 m unless set), from ``positions_after_s`` after each connection
+on; with ``wind`` (speed m/s, direction it comes from, degrees) a WIND message after every
+heartbeat. ``mode`` (None: no mode) is the
+ArduCopter mode number its heartbeat shows; SET_MODE changes it. MISSION_SET_CURRENT is
+answered with MISSION_CURRENT. ``log`` lists what it received, in order: the message type
+(with the item or mode number for MISSION_COUNT, MISSION_SET_CURRENT and SET_MODE).
+:meth:`hang_up` closes the connection it serves (the link sees EOF), and ``hang_up_on`` (a
+message type) does once, when that message arrives; while ``quiet`` is set it sends nothing
+and answers nothing (a silent link), and ``quiet_on`` (a message type) sets ``quiet`` when
+that message arrives (at ``quiet_at``, monotonic).
 """
 
 from __future__ import annotations
@@ -32,9 +41,31 @@ import time
 # MAVLink 2, as ArduPilot speaks it: the link under test switches to it on the first packet.
 from pymavlink.dialects.v20 import ardupilotmega as MAV
 
+from uav_comm_planner.vehicle.mavlink.telemetry import LinkEvent
+
 BEHAVIOURS = ('good', 'mute', 'silent', 'loop', 'out_of_range', 'wrong_ack', 'wrong_count',
               'wrong_item', 'slow', 'garbage')
 HEARTBEAT_S = 0.1
+
+
+class Events:
+    """What a vehicle bridge hands on (its ``on_event``), with the monotonic time of each."""
+
+    def __init__(self) -> None:
+        self.seen: list[tuple[float, object]] = []
+
+    def __call__(self, event) -> None:
+        self.seen.append((time.monotonic(), event))
+
+    def links(self, kind: str) -> list:
+        """The (time, LinkEvent) pairs of ``kind``."""
+        return [(t, e) for t, e in self.seen if isinstance(e, LinkEvent) and e.kind == kind]
+
+    def wait(self, condition, what: str, timeout_s: float = 10.0) -> None:
+        deadline = time.monotonic() + timeout_s
+        while not condition():
+            assert time.monotonic() < deadline, f'no {what} within {timeout_s} s'
+            time.sleep(0.02)
 
 
 class FakeVehicle:
@@ -48,7 +79,16 @@ class FakeVehicle:
         self.behaviour = behaviour
         self.home = home
         self.positions = positions
+        self.where: tuple[float, float, float] = (home[0], home[1], 10.0)
+        self.positions_after_s = 0.0
+        self.speedup = 1.0
+        self.wind: tuple[float, float] | None = None
+        self.mode: int | None = None
         self.quiet = False
+        self.quiet_on: str | None = None
+        self.quiet_at: float | None = None
+        self.hang_up_on: str | None = None
+        self.log: list[tuple] = []
         self.connections = 0
         self._hang_up = threading.Event()
         self._booted = time.monotonic()
@@ -111,24 +151,32 @@ class FakeVehicle:
         mav.robust_parsing = True
         self._mav, self._connection = mav, connection
         self._expected = 0
-        next_beat = next_position = 0.0
+        next_beat = 0.0
+        next_position = time.monotonic() + self.positions_after_s
         while not self._stop.is_set() and not self._hang_up.is_set():
             now = time.monotonic()
             if self.quiet:
                 try:
-                    connection.recv(4096)       # read and dropped
+                    if not connection.recv(4096):       # read and dropped
+                        return
                 except socket.timeout:
                     pass
                 continue
             if self.positions and now >= next_position:
-                latitude, longitude, altitude = self.home
+                latitude, longitude, up = self.where
                 self._send(mav.global_position_int_encode(
-                    int((now - self._booted) * 1000), round(latitude * 1e7),
-                    round(longitude * 1e7), round(altitude * 1000), 10_000, 0, 0, 0, 0))
+                    int((now - self._booted) * self.speedup * 1000), round(latitude * 1e7),
+                    round(longitude * 1e7), round((self.home[2] + up) * 1000),
+                    round(up * 1000), 0, 0, 0, 0))
                 next_position = now + 0.1
             if self.behaviour != 'mute' and now >= next_beat:
+                flags, mode = ((0, 0) if self.mode is None
+                               else (MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, self.mode))
                 self._send(mav.heartbeat_encode(MAV.MAV_TYPE_QUADROTOR,
-                                                MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 0))
+                                                MAV.MAV_AUTOPILOT_ARDUPILOTMEGA, flags, mode, 0))
+                if self.wind is not None:
+                    speed, direction = self.wind
+                    self._send(mav.wind_encode(direction, speed, 0.0))
                 next_beat = now + HEARTBEAT_S
                 if self.behaviour == 'garbage':
                     self._garbage()
@@ -140,7 +188,24 @@ class FakeVehicle:
                 return
             for message in mav.parse_buffer(data) or []:
                 self.received += 1
+                self._note(message)
+                kind = message.get_type()
+                if kind == self.hang_up_on:
+                    self.hang_up_on = None
+                    return
+                if kind == self.quiet_on:
+                    self.quiet_on, self.quiet, self.quiet_at = None, True, time.monotonic()
+                    break
                 self._answer(message)
+
+    def _note(self, message) -> None:
+        kind = message.get_type()
+        if kind in ('MISSION_COUNT', 'MISSION_SET_CURRENT', 'SET_MODE'):
+            number = {'MISSION_COUNT': 'count', 'MISSION_SET_CURRENT': 'seq',
+                      'SET_MODE': 'custom_mode'}[kind]
+            self.log.append((kind, getattr(message, number)))
+        else:
+            self.log.append((kind,))
 
     def _send(self, message) -> None:
         self._connection.sendall(message.pack(self._mav))
@@ -184,6 +249,10 @@ class FakeVehicle:
             self._send(mav.home_position_encode(round(latitude * 1e7), round(longitude * 1e7),
                                                 round(altitude * 1000), 0, 0, 0,
                                                 [1, 0, 0, 0], 0, 0, 0))
+        elif kind == 'SET_MODE':
+            self.mode = int(message.custom_mode)
+        elif kind == 'MISSION_SET_CURRENT':
+            self._send(mav.mission_current_encode(message.seq))
         elif kind == 'MISSION_COUNT':
             if behaviour == 'wrong_ack':
                 refusals = [r for r in MAV.enums['MAV_MISSION_RESULT'] if r != 0]

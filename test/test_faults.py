@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import math
 import time
 
-from fake_vehicle import FakeVehicle
+from fake_vehicle import Events, FakeVehicle
 import numpy as np
 import pytest
 
@@ -29,32 +29,12 @@ from uav_comm_planner.vehicle.mavlink import telemetry
 from uav_comm_planner.vehicle.mavlink.home import (distance_m, EARTH_RADIUS_M,
                                                    mission_far_from_vehicle)
 from uav_comm_planner.vehicle.mavlink.items import MissionItem, NAV_TAKEOFF, NAV_WAYPOINT
-from uav_comm_planner.vehicle.mavlink.telemetry import (HomeReport, LinkEvent, Position,
-                                                        SILENCE_S)
+from uav_comm_planner.vehicle.mavlink.telemetry import HomeReport, Position, SILENCE_S
 
 HOME = Home(47.0, 8.0, 400.0)
 CANBERRA = (-35.363262, 149.165237, 584.0)
 ITEMS = [MissionItem(NAV_WAYPOINT, 0, x=47.0 + k * 1e-4, y=8.0, z=10.0 * k, current=k == 0)
          for k in range(6)]
-
-
-class Events:
-    """What a bridge hands on, with the wall time of each."""
-
-    def __init__(self) -> None:
-        self.seen: list[tuple[float, object]] = []
-
-    def __call__(self, event) -> None:
-        self.seen.append((time.monotonic(), event))
-
-    def links(self, kind: str) -> list[tuple[float, LinkEvent]]:
-        return [(t, e) for t, e in self.seen if isinstance(e, LinkEvent) and e.kind == kind]
-
-    def wait(self, condition, what: str, timeout_s: float = 10.0) -> None:
-        deadline = time.monotonic() + timeout_s
-        while not condition():
-            assert time.monotonic() < deadline, f'no {what} within {timeout_s} s'
-            time.sleep(0.02)
 
 
 def test_a_link_the_vehicle_closes_is_said_once_and_made_again_without_a_flood(capfd):

@@ -34,6 +34,12 @@ class VehicleLinkError(PlannerError):
     """The vehicle's MAVLink link failed or the vehicle refused what was sent; says which."""
 
 
+class VehicleLinkLostError(VehicleLinkError):
+    """The link went down during a transfer (closed, reset, an error of its socket or port, or
+    silent: a cut UDP or serial link only goes quiet); what was being sent is worth sending
+    again once the link is back, unlike a refusal."""
+
+
 class InvalidLinkUrlError(VehicleLinkError, ValueError):
     """A vehicle link URL that is not one the planner opens (scheme, host, port, device)."""
 

@@ -9,7 +9,12 @@ whose thread hands positions, mission progress and link events to the executor t
 
 Unless the home parameters were set, the vehicle's home (HOME_POSITION) is the planning
 frame's origin: a plan's mission items are built for it before the upload, and a plan made
-before the vehicle told it waits for it. A lost link, a telemetry gap and a mission refused
+before the vehicle told it waits for it. A link made again (another ``mavlink_url``,
+``flight_mode``, ``home_distance_limit_m`` or home) uploads the plan in force again unless the
+vehicle on the same link and home was verified to hold it (a plan in force before the first
+link is uploaded on it), so that its clock can start; the
+events the former link had not handed on yet are dropped. A lost link, a telemetry gap and a
+mission refused
 for another place are each one line on the log (a loss and a refusal also on
 ``planner_status``).
 """
@@ -86,25 +91,20 @@ class VehicleAdapter(VehicleState):
         self._report = report
         self._frame_id = frame_id
         self._bridge: VehicleBridge | None = None
-        self._events: ExecutorHandoff[Event] = ExecutorHandoff(node, self._drain,
-                                                               maxlen=EVENTS_KEPT)
+        self._events: ExecutorHandoff[tuple[int, Event]] = ExecutorHandoff(
+            node, self._drain, maxlen=EVENTS_KEPT)
+        #: Counts the links made: an event of an older one is not drained.
+        self._generation = 0
         self._pose: Publisher | None = None
-        self._pending_tag: int | None = None
         self._position_ns: int | None = None
         self.time_s: float | None = None
         self.mission_item: int | None = None
-        self.uploads_verified = 0
-        self.last_error = ''
-        self._upload_failed = False
+        self._init_uploads()
         self._reset_state(None)
 
     @property
     def linked(self) -> bool:
         return self._bridge is not None
-
-    @property
-    def upload_pending(self) -> bool:
-        return self._pending_tag is not None
 
     def telemetry_age_s(self, now_ns: int) -> float | None:
         """Seconds on the node's clock since the latest position (None before any)."""
@@ -118,19 +118,29 @@ class VehicleAdapter(VehicleState):
         self.time_s = self._position_ns = None
         self.last_error = ''
         self._upload_failed = False
+        self._pending_tag = None
         self._reset_state(None if follow_home else output.home)
+        self._link_key = (output.mavlink_url, self.home)
         if output.mavlink_url:
             self._pose = self._node.create_publisher(PoseStamped, TOPIC_VEHICLE_POSE,
                                                      VEHICLE_POSE_QOS)
-            self.stream = TargetStream(output.home, self._events.put)
+            put, generation = self._events.put, self._generation
+
+            def on_event(event: Event) -> None:
+                put((generation, event))
+            self.stream = TargetStream(output.home, on_event)
             rate = (STREAM_TELEMETRY_RATE_HZ if output.flight_mode == 'stream'
                     else TELEMETRY_RATE_HZ)
-            self._bridge = VehicleBridge(output.mavlink_url, self.home, self._events.put,
+            self._bridge = VehicleBridge(output.mavlink_url, self.home, on_event,
                                          rate_hz=rate, stream=self.stream,
                                          home_limit_m=output.home_distance_limit_m)
             origin = "the vehicle's home" if follow_home else 'the home parameters'
             self._report(f'vehicle link: connecting to {output.mavlink_url} (planning frame '
                          f'origin: {origin})', False)
+            outcome = getattr(self._node, 'current_plan', None)
+            if outcome is not None and output.flight_mode == 'stream':
+                self.prepare_stream(outcome, self._node.config.vehicle)   # if its clock waits
+            self._upload_again(outcome)
 
     @property
     def stream_reference(self) -> StreamReference | None:
@@ -143,10 +153,16 @@ class VehicleAdapter(VehicleState):
         in AUTO (a replan in flight from its q0 item) as a mission's."""
         if outcome.request.output.flight_mode == 'stream':
             self.prepare_stream(outcome, limits)
-        if self.stream is not None and self.stream.active:
+        streaming = self.stream is not None and self.stream.active
+        if streaming:
+            # Asked before the upload: the link thread orders the two (:mod:`.guided`).
             self.stop_stream('a new plan is in force',
-                             resume_seq=Q0_SEQ if outcome.receding is not None else None)
+                             resume_seq=Q0_SEQ if outcome.receding is not None else None,
+                             mission=outcome.request.start_ns)
         self.upload(outcome)
+        if streaming and not self.upload_pending:
+            # Refused before it reached the link: the stream falls back as its job says.
+            self.stop_stream('a new plan is in force')
 
     def prepare_stream(self, outcome: PlanOutcome, limits: VehicleLimits) -> None:
         """Make the streamed reference of ``outcome``'s plan now (it is streamed once the
@@ -181,15 +197,18 @@ class VehicleAdapter(VehicleState):
                                     output.stream_fallback, resume))
         return True
 
-    def stop_stream(self, reason: str, *, resume_seq: int | None = None) -> None:
-        """End the stream (with its fallback, or in AUTO from ``resume_seq``) at the link's
-        next position report."""
+    def stop_stream(self, reason: str, *, resume_seq: int | None = None,
+                    mission: object = None) -> None:
+        """End the stream (with its fallback, or in AUTO from ``resume_seq`` of the mission
+        uploaded as ``mission``, once it is) at the link's next position report or before its
+        next upload."""
         if self.stream is not None:
-            self.stream.stop(reason, resume_seq=resume_seq)
+            self.stream.stop(reason, resume_seq=resume_seq, mission=mission)
 
     def stop(self) -> None:
         """End the link (a stream running falls back first, said on the log) and withdraw
         ``vehicle_pose``."""
+        self._generation += 1
         if self._bridge is not None:
             self._bridge.stop()
             self._bridge = None
@@ -203,9 +222,12 @@ class VehicleAdapter(VehicleState):
             self._node.destroy_publisher(self._pose)
             self._pose = None
 
-    def _drain(self, events: list[Event]) -> None:
-        """Executor thread: positions, mission progress and link events from the vehicle."""
-        for event in events:
+    def _drain(self, events: list[tuple[int, Event]]) -> None:
+        """Executor thread: positions, mission progress and link events from the vehicle (of
+        the link made last)."""
+        for generation, event in events:
+            if generation != self._generation:
+                continue
             if isinstance(event, Position):
                 self.time_s = event.time_s
                 self.speed_mps = event.speed_mps
@@ -226,27 +248,6 @@ class VehicleAdapter(VehicleState):
                 self._stream_reported += 1
                 self.stream_events.append(event.message)
                 self._report(event.message, event.kind == 'error')
-
-    def _on_link_event(self, event: LinkEvent) -> None:
-        if self._on_fault(event):
-            return
-        if event.kind == 'error':
-            if event.tag is not None and event.tag == self._pending_tag:
-                self._pending_tag = None
-            self.last_error = event.message
-            self._upload_failed = event.tag is not None
-            self._report(event.message, True)
-            return
-        # A verified upload ends any error; the link up again ends a link error, not a failed
-        # upload (the plan in force is still not on the vehicle).
-        if event.kind == 'uploaded' or (event.kind == 'connected' and not self._upload_failed):
-            self.last_error = ''
-            self._upload_failed = False
-        if event.kind == 'uploaded':
-            self.uploads_verified += 1
-            if event.tag == self._pending_tag:
-                self._pending_tag = None
-        self._report(event.message, False)
 
     def _publish_pose(self, event: Position) -> None:
         if self._pose is None:      # a position the link sent before it was stopped

@@ -4,7 +4,8 @@ the telemetry gaps; and what the node does on each such event.
 
 :class:`VehicleState` is the part of :class:`~uav_comm_planner.ros.vehicle.VehicleAdapter`
 that the link's faults and the vehicle's home concern, with the upload (its items built for
-the frame's origin); the adapter inherits it.
+the frame's origin; the plan in force uploaded again on a link made again unless that link and
+home were verified to hold it); the adapter inherits it.
 """
 
 from __future__ import annotations
@@ -28,8 +29,19 @@ class VehicleState:
     _node: object
     _report: Callable[[str, bool], None]
     _bridge: VehicleBridge | None
-    _pending_tag: int | None
-    last_error: str
+
+    def _init_uploads(self) -> None:
+        self._pending_tag: int | None = None
+        #: The link's (url, home) and the last upload verified on a link: (url, home, tag).
+        self._link_key: tuple[str, Home | None] = ('', None)
+        self._verified: tuple[str, Home | None, object] | None = None
+        self.uploads_verified = 0
+        self.last_error = ''
+        self._upload_failed = False
+
+    @property
+    def upload_pending(self) -> bool:
+        return self._pending_tag is not None
 
     def _reset_state(self, home: Home | None) -> None:
         self.mode: str | None = None
@@ -77,6 +89,14 @@ class VehicleState:
         self._bridge.upload(plan.items, current_seq=Q0_SEQ if in_flight else None,
                             tag=outcome.request.start_ns, fence=plan.fence)
 
+    def _upload_again(self, outcome: PlanOutcome | None) -> None:
+        """On a link made (again): the plan in force ``outcome``, unless this link and home
+        were verified to hold it."""
+        if outcome is None or self._verified == (*self._link_key, outcome.request.start_ns):
+            return
+        self._report('vehicle link made again: the plan in force is uploaded again', False)
+        self.upload(outcome)
+
     def _on_mode(self, event: ModeReport) -> None:
         self.mode = event.mode
         self._node.get_logger().info(f'vehicle mode {event.mode}')
@@ -92,6 +112,28 @@ class VehicleState:
         held, self._held = self._held, None
         if held is not None:
             self.upload(held)
+
+    def _on_link_event(self, event: LinkEvent) -> None:
+        if self._on_fault(event):
+            return
+        if event.kind == 'error':
+            if event.tag is not None and event.tag == self._pending_tag:
+                self._pending_tag = None
+            self.last_error = event.message
+            self._upload_failed = event.tag is not None
+            self._report(event.message, True)
+            return
+        # A verified upload ends any error; the link up again ends a link error, not a failed
+        # upload (the plan in force is still not on the vehicle).
+        if event.kind == 'uploaded' or (event.kind == 'connected' and not self._upload_failed):
+            self.last_error = ''
+            self._upload_failed = False
+        if event.kind == 'uploaded':
+            self.uploads_verified += 1
+            if event.tag == self._pending_tag:
+                self._pending_tag = None
+            self._verified = (*self._link_key, event.tag)
+        self._report(event.message, False)
 
     def _on_fault(self, event: LinkEvent) -> bool:
         """A telemetry gap (a warning) or the link lost (an error, once); False for any other

@@ -16,14 +16,19 @@ no target comes for GUID_TIMEOUT (3 s by default) it zeroes the velocity and acc
 holds the last position. When the stream stops (the plan ends, the node asks, or a gap in the
 targets longer than :data:`STREAM_GAP_S` of autopilot time, as after a lost link) the vehicle
 is put back in AUTO at the mission item ahead of the reference (``fallback`` 'auto') or held
-in BRAKE ('hold'), once, with one :class:`StreamEvent`. A pilot who takes the vehicle out of
+in BRAKE ('hold'), once, with one :class:`StreamEvent`. The fallback is ordered with the
+mission uploads of the same link thread: a stop asked before an upload falls back before that
+upload starts (:meth:`TargetStream.before_upload`), on the mission the vehicle still holds, so
+that its mode change and MISSION_SET_CURRENT never act on the newer mission; a stop that
+resumes the newer mission at an item (a replan in flight) waits for that mission's upload
+(:meth:`TargetStream.uploaded`) and streams on meanwhile. A pilot who takes the vehicle out of
 GUIDED ends the stream, and the node leaves the vehicle alone. Only ArduCopter is streamed to:
 a PX4 vehicle (OFFBOARD, not built) is refused once and flies the uploaded mission.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 import threading
 import time
 from typing import Callable
@@ -81,6 +86,16 @@ class StreamJob:
     resume_item: Callable[[float], int]
 
 
+@dataclass(frozen=True)
+class _Stop:
+    """A stop asked for: why, the item to resume at (None: the job's fallback), and the tag of
+    the upload it waits for (None: none)."""
+
+    reason: str
+    resume_seq: int | None
+    mission: object
+
+
 class TargetStream:
     """Streams a :class:`StreamJob` on the link's thread (module docstring); ``on_event``
     receives every :class:`StreamEvent` (quick and thread-safe)."""
@@ -90,7 +105,7 @@ class TargetStream:
         self._on_event = on_event
         self._lock = threading.Lock()
         self._job: StreamJob | None = None
-        self._stop_reason: str | None = None
+        self._stopping: _Stop | None = None
         self._fresh = False
         self._mode: int | None = None
         self._guided_seen = False
@@ -114,18 +129,39 @@ class TargetStream:
         with self._lock:
             self._fresh = self._fresh or self._job is None
             self._job = job
-            self._stop_reason = None
+            self._stopping = None
 
-    def stop(self, reason: str, *, resume_seq: int | None = None) -> None:
-        """End the stream at the next tick with the job's fallback, saying ``reason``; with
-        ``resume_seq``, in AUTO from that mission item whatever the fallback (a replan in
-        flight, uploaded to be flown from its q0 item)."""
+    def stop(self, reason: str, *, resume_seq: int | None = None,
+             mission: object = None) -> None:
+        """End the stream at the next tick (or before the next upload) with the job's
+        fallback, saying ``reason``; with ``resume_seq``, in AUTO from that item of the mission
+        uploaded with tag ``mission`` whatever the fallback (a replan in flight, uploaded to be
+        flown from its q0 item): once that upload is verified, the stream going on until then,
+        and with the job's own fallback if it fails."""
         with self._lock:
             if self._job is not None:
-                self._stop_reason = reason
-                if resume_seq is not None:
-                    self._job = replace(self._job, fallback='auto',
-                                        resume_item=lambda elapsed_s: resume_seq)
+                self._stopping = _Stop(reason, resume_seq,
+                                       mission if resume_seq is not None else None)
+
+    def before_upload(self, link, time_s: float, tag: object) -> None:
+        """Link thread, before the upload tagged ``tag`` starts (autopilot time ``time_s``): a
+        stop asked for and not waiting for that upload falls back now, on the mission the
+        vehicle holds."""
+        with self._lock:
+            job, stop = self._job, self._stopping
+        if job is not None and stop is not None and stop.mission is None:
+            self._fall_back(link, job, time_s - job.t0_s, stop.reason, resume_seq=stop.resume_seq)
+
+    def uploaded(self, link, time_s: float, tag: object, verified: bool) -> None:
+        """Link thread, after the upload tagged ``tag`` (``verified`` or not): a stop waiting
+        for it resumes that mission at its item now, or, the upload failed, falls back as the
+        job says."""
+        with self._lock:
+            job, stop = self._job, self._stopping
+        if job is not None and stop is not None and stop.mission is not None \
+                and stop.mission == tag:
+            self._fall_back(link, job, time_s - job.t0_s, stop.reason,
+                            resume_seq=stop.resume_seq if verified else None)
 
     def on_heartbeat(self, message) -> None:
         """The vehicle's HEARTBEAT: its flight mode."""
@@ -136,7 +172,10 @@ class TargetStream:
         """Link thread, at every position report (autopilot time ``time_s``): one target, a
         mode change, or the fallback."""
         with self._lock:
-            job, reason, fresh = self._job, self._stop_reason, self._fresh
+            job, fresh = self._job, self._fresh
+            # A stop that waits for its mission's upload lets the stream go on until then.
+            stop = self._stopping if self._stopping and self._stopping.mission is None else None
+            reason, resume = (stop.reason, stop.resume_seq) if stop else (None, None)
             self._fresh = False
         if fresh:
             # A new stream: what the link thread knew of the last one goes.
@@ -163,7 +202,7 @@ class TargetStream:
                       f'left as it is')
             return
         if reason is not None:
-            self._fall_back(link, job, elapsed, reason)
+            self._fall_back(link, job, elapsed, reason, resume_seq=resume)
             return
         if self._started_s is None:
             self._started_s = time_s
@@ -196,13 +235,17 @@ class TargetStream:
         heartbeat is awaited (at most CLOSING_WAIT_S) so that the mode is set before the link
         goes."""
         with self._lock:
-            job, reason = self._job, self._stop_reason
+            job, stop = self._job, self._stopping
+        reason = stop.reason if stop else None
+        # The mission a waiting stop would resume is not on the vehicle.
+        resume = stop.resume_seq if stop and stop.mission is None else None
         if job is None:
             return
         # AUTO goes on from the item ahead of the last target sent (the start if none was).
         sent = self._last_sent_s
         elapsed = 0.0 if sent is None else max(0.0, sent - job.t0_s)
-        mode = self._fall_back(link, job, elapsed, reason or 'the vehicle link is closing')
+        mode = self._fall_back(link, job, elapsed, reason or 'the vehicle link is closing',
+                               resume_seq=resume)
         deadline = time.monotonic() + CLOSING_WAIT_S
         while self._mode != mode and (left := deadline - time.monotonic()) > 0:
             message = link.recv_match(type='HEARTBEAT', blocking=True, timeout=left)
@@ -222,9 +265,15 @@ class TargetStream:
             float(accel[1]), float(accel[0]), 0.0, 0.0, 0.0)
         self.targets_sent += 1
 
-    def _fall_back(self, link, job: StreamJob, elapsed_s: float | None, reason: str) -> int:
-        """Put the vehicle in AUTO at the item ahead, or in BRAKE; returns the mode asked."""
-        if job.fallback == 'auto':
+    def _fall_back(self, link, job: StreamJob, elapsed_s: float | None, reason: str, *,
+                   resume_seq: int | None = None) -> int:
+        """Put the vehicle in AUTO at the item ahead (at ``resume_seq`` when given), or in
+        BRAKE; returns the mode asked."""
+        if resume_seq is not None:
+            seq = resume_seq
+            link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
+            name, what = 'AUTO', f'back in AUTO from mission item {seq}'
+        elif job.fallback == 'auto':
             seq = job.resume_item(elapsed_s if elapsed_s is not None
                                   else job.reference.duration_s)
             link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
@@ -240,7 +289,7 @@ class TargetStream:
     def _end(self, message: str, *, kind: str = 'stopped') -> None:
         with self._lock:
             self._job = None
-            self._stop_reason = None
+            self._stopping = None
         self._guided_seen = False
         self._emit(StreamEvent(kind, message))
 

@@ -17,7 +17,7 @@ from typing import Sequence
 
 from pymavlink import mavutil
 
-from uav_comm_planner.errors import MissionTooFarError, VehicleLinkError
+from uav_comm_planner.errors import MissionTooFarError, VehicleLinkLostError
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink.items import DEGREES_E7, MissionItem
 
@@ -117,7 +117,7 @@ def wait_for_home(link, timeout_s: float) -> tuple[Home | None, LatLon | None]:
             message = link.recv_match(type=['HOME_POSITION', 'GLOBAL_POSITION_INT'],
                                       blocking=True, timeout=min(left, 0.2))
         except (OSError, ConnectionError) as exc:
-            raise VehicleLinkError(f'link lost while asking for the home: {exc}') from exc
+            raise VehicleLinkLostError(f'link lost while asking for the home: {exc}') from exc
         if message is None:
             continue
         if message.get_type() == 'HOME_POSITION':

@@ -7,7 +7,11 @@ connection pymavlink opens: ``tcp:127.0.0.1:5760``, ``udpin:0.0.0.0:14550``,
 vehicle gets the last message again, up to ``retries`` times; a refusal that the autopilot
 gives while it is still busy (ArduCopter answers MAV_MISSION_NO_SPACE to a MISSION_COUNT sent
 right after connecting) restarts the upload after a pause. Every other MAV_MISSION_RESULT is a
-:class:`~uav_comm_planner.errors.VehicleLinkError` whose message names it.
+:class:`~uav_comm_planner.errors.VehicleLinkError` whose message names it. A link that goes
+down during a transfer is a :class:`~uav_comm_planner.errors.VehicleLinkLostError`, whatever
+the transport: an error of its socket or port (EOF, reset, refused), or, with a
+:class:`LinkWatch` on the link, nothing at all heard for the watch's silence (a cut UDP or
+serial link only goes quiet) or the link being stopped.
 
 After an upload the mission is read back and compared item by item with what was sent
 (:func:`~uav_comm_planner.vehicle.mavlink.items.mismatches`, in the fields the autopilot
@@ -24,7 +28,7 @@ from typing import Callable, Sequence
 
 from pymavlink import mavutil
 
-from uav_comm_planner.errors import VehicleLinkError
+from uav_comm_planner.errors import VehicleLinkError, VehicleLinkLostError
 from uav_comm_planner.vehicle.mavlink.items import (from_message, item_int_message,
                                                     mismatches, MISSION_TYPE, MissionItem)
 from uav_comm_planner.vehicle.mavlink.urls import parse_link_url
@@ -37,6 +41,11 @@ HEARTBEAT_POLL_S = 0.2
 #: Refusals an autopilot gives while busy (parameters or a previous transfer still loading).
 TRANSIENT_RESULTS = (MAV.MAV_MISSION_NO_SPACE, MAV.MAV_MISSION_DENIED,
                      MAV.MAV_MISSION_OPERATION_CANCELLED)
+#: A transfer looks at the link's watch (:class:`LinkWatch`) at least this often, seconds.
+WATCH_POLL_S = 0.1
+#: A longer time between two looks is the process stalled, not the link silent: it counts as
+#: this much silence only.
+WATCH_STALL_S = 0.5
 #: What each mission type is called in messages.
 MISSION_TYPE_NAMES = {MAV.MAV_MISSION_TYPE_MISSION: 'mission',
                       MAV.MAV_MISSION_TYPE_FENCE: 'fence',
@@ -85,6 +94,45 @@ class Deadline:
             raise VehicleLinkError(f'{self.what} did not finish within its deadline of '
                                    f'{self.seconds:g} s')
         return min(left, most_s)
+
+
+class LinkWatch:
+    """What ends a transfer on a link besides its own timeouts, put on the link as its
+    ``watch`` attribute: ``should_stop`` answering True (the link is being stopped), or no
+    message at all from the link for ``silence_s`` while it is read (monotonic clock; a process
+    stalled between two looks is not taken for a silent link): a cut UDP or serial link does
+    not fail, it goes quiet, and an upload would otherwise wait out all its retries. Each is a
+    :class:`VehicleLinkLostError`."""
+
+    def __init__(self, *, silence_s: float = math.inf,
+                 should_stop: Callable[[], bool] | None = None) -> None:
+        self.silence_s = silence_s
+        self._should_stop = should_stop
+        self._count: int | None = None
+        self._silent_s = 0.0
+        self._looked: float | None = None
+
+    def check(self, link) -> None:
+        """Raise VehicleLinkLostError if the link is being stopped or has been silent."""
+        if self._should_stop is not None and self._should_stop():
+            raise VehicleLinkLostError('the link is being stopped')
+        count = getattr(link, 'mav_count', None)     # messages parsed, from any sender
+        now = time.monotonic()
+        if count != self._count:
+            self._count, self._silent_s = count, 0.0
+        elif self._looked is not None:
+            self._silent_s += min(now - self._looked, WATCH_STALL_S)
+        self._looked = now
+        if self._silent_s > self.silence_s:
+            raise VehicleLinkLostError(f'link lost: nothing heard from the vehicle for '
+                                       f'{self.silence_s:g} s')
+
+
+def check_link(link) -> None:
+    """Ask ``link``'s :class:`LinkWatch`, if it has one (raises VehicleLinkLostError)."""
+    watch = getattr(link, 'watch', None)
+    if watch is not None:
+        watch.check(link)
 
 
 def result_name(result: int) -> str:
@@ -156,8 +204,8 @@ def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255,
             heartbeat = link.wait_heartbeat(timeout=min(left, HEARTBEAT_POLL_S))
     except (OSError, ConnectionError) as exc:
         link.close()
-        raise VehicleLinkError(f'link to {url!r} lost while waiting for the heartbeat: '
-                               f'{exc}') from exc
+        raise VehicleLinkLostError(f'link to {url!r} lost while waiting for the heartbeat: '
+                                   f'{exc}') from exc
     if heartbeat is None:
         link.close()
         raise VehicleLinkError(f'no heartbeat from {url!r} within {timeout_s:g} s: is the '
@@ -181,17 +229,20 @@ def for_vehicle(link, items: Sequence[MissionItem]) -> Sequence[MissionItem]:
 def _receive(link, types: Sequence[str], timeout_s: float, total: Deadline | None = None,
              mission_type: int = MISSION_TYPE):
     """The next message of one of ``types`` addressed to us about ``mission_type``, or None
-    after ``timeout_s`` (cut to what is left of ``total``, which raises once it has passed)."""
-    if total is not None:
-        timeout_s = total.left(timeout_s)
+    after ``timeout_s`` (cut to what is left of ``total``, which raises once it has passed);
+    the link's watch is asked every WATCH_POLL_S meanwhile."""
     deadline = time.monotonic() + timeout_s
     while (left := deadline - time.monotonic()) > 0:
+        if total is not None:
+            left = total.left(left)
+        check_link(link)
         try:
-            message = link.recv_match(type=list(types), blocking=True, timeout=left)
+            message = link.recv_match(type=list(types), blocking=True,
+                                      timeout=min(left, WATCH_POLL_S))
         except (OSError, ConnectionError) as exc:
-            raise VehicleLinkError(f'link lost: {exc}') from exc
+            raise VehicleLinkLostError(f'link lost: {exc}') from exc
         if message is None:
-            return None
+            continue
         if getattr(message, 'mission_type', MISSION_TYPE) != mission_type:
             continue
         target = getattr(message, 'target_system', None)
@@ -205,7 +256,7 @@ def _send(link, message) -> None:
     try:
         link.mav.send(message)
     except (OSError, ConnectionError) as exc:
-        raise VehicleLinkError(f'link lost while sending: {exc}') from exc
+        raise VehicleLinkLostError(f'link lost while sending: {exc}') from exc
 
 
 def _kind(mission_type: int) -> str:

@@ -20,10 +20,19 @@ planning frame's origin, and no position is handed on before it.
 Faults of the link: a connection the vehicle closes (EOF) or resets, and a link on which
 nothing arrives for :data:`SILENCE_S` (wall clock, counted only while the thread reads, so a
 stalled process is not taken for a silent vehicle), end the connection; the thread connects
-again with backoff. Each change of state is one event: 'lost' once when the link goes down
-(whatever the reconnection attempts meet then), 'connected' when it is up again. A mission
-whose upload the loss cut is uploaded again once the link is back. A gap of more than
+again with backoff, in autopilot time as the last connection's clock ran (a simulator at a
+speed-up is asked as often per second of its flight as a real vehicle). During an upload
+the same silence ends it too (a :class:`~.link.LinkWatch` on the connection), and so does
+stopping the bridge. Each change of state is one event: 'lost'
+once when the link goes down (whatever the reconnection attempts meet then), 'connected' when
+it is up again. A mission whose upload the loss cut (a
+:class:`~uav_comm_planner.errors.VehicleLinkLostError` or any OSError, in any step: fence,
+mission, read-back, MISSION_SET_CURRENT) is uploaded again once the link is back; a refusal
+is said and not sent again. A gap of more than
 :data:`TELEMETRY_GAP_S` of autopilot time between two positions is one 'gap' event.
+A wind estimate carries the time of the latest position; one that comes on a connection before
+its first position (whose time is not known yet: WIND carries none) is held, the latest only,
+and handed on with that position's time.
 An upload may carry fence items (:mod:`.fence`): they go first, each time they differ from the
 fence the vehicle was last given on this connection, and are read back too.
 
@@ -32,7 +41,7 @@ Times are the autopilot's (``time_boot_ms`` / 1000, seconds), never the wall clo
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 import threading
 import time
@@ -42,24 +51,30 @@ import numpy as np
 from numpy.typing import ArrayLike
 from pymavlink import mavutil
 
-from uav_comm_planner.errors import VehicleLinkError
+from uav_comm_planner.errors import VehicleLinkError, VehicleLinkLostError
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, TargetStream
 from uav_comm_planner.vehicle.mavlink.home import (HOME_DISTANCE_LIMIT_M, home_of,
                                                    mission_far_from_vehicle, position_of,
                                                    request_home)
 from uav_comm_planner.vehicle.mavlink.items import DEGREES_E7, MissionItem
-from uav_comm_planner.vehicle.mavlink.link import (connect, has_home_row, LinkSettings,
-                                                   upload_and_verify)
+from uav_comm_planner.vehicle.mavlink.link import (check_link, connect, has_home_row,
+                                                   LinkSettings, LinkWatch, upload_and_verify,
+                                                   WATCH_POLL_S)
 
 MAV = mavutil.mavlink
 #: Telemetry rate asked of the autopilot (per second of autopilot time).
 TELEMETRY_RATE_HZ = 10.0
-#: Pause before connecting again after a lost or refused link, seconds (wall clock).
+#: Pause before connecting again after a lost or refused link, seconds of autopilot time (as
+#: the last connection's clock ran against the wall clock; wall seconds before any).
 RECONNECT_PAUSE_S = 1.0
 #: The pause doubles after each failure in a row, up to this many seconds: a vehicle in flight
-#: whose link comes back is found again within this.
+#: whose link comes back is found again within this (autopilot time, as above).
 MAX_RECONNECT_PAUSE_S = 8.0
+#: The shortest pause, wall clock seconds, whatever the autopilot's clock rate.
+MIN_RECONNECT_PAUSE_S = 0.05
+#: A connection's clock rate is measured over at least this many wall seconds of positions.
+CLOCK_RATE_SPAN_S = 1.0
 #: Nothing heard from the vehicle for this long (wall clock, while reading) ends the
 #: connection: a vehicle sends its heartbeat at 1 Hz and positions at ``rate_hz``.
 SILENCE_S = 2.0
@@ -226,7 +241,7 @@ class VehicleBridge:
         self.vehicle_home: Home | None = None
         self._vehicle_position: tuple[float, float] | None = None
         self._last_position_s = math.nan
-        self._gap_cause = ''
+        self._gap_cause, self._clock = '', _ConnectionClock(on_event)
         self._thread = threading.Thread(target=self._run, name='uav_comm_planner.vehicle',
                                         daemon=True)
         self._thread.start()
@@ -244,12 +259,9 @@ class VehicleBridge:
         self._thread.join(timeout_s)
 
     def _run(self) -> None:
-        down = ''           # what was said of the link being down ('' while up or never up)
-        down_since = None
-        failures = 0
+        # down: what was said of the link being down ('' while up or never up).
+        down, down_since, failures = '', None, 0
         while not self._stop.is_set():
-            # Backoff: a vehicle that stays away is asked less and less often.
-            pause_s = min(RECONNECT_PAUSE_S * 2 ** min(failures, 16), MAX_RECONNECT_PAUSE_S)
             try:
                 link = connect(self.url, timeout_s=self._connect_timeout_s,
                                should_stop=self._stop.is_set)
@@ -257,8 +269,9 @@ class VehicleBridge:
                 if not down:            # said once, not at every retry
                     down = str(exc)
                     self._on_event(LinkEvent('error', f'{exc}; retrying'))
+                # Backoff: a vehicle that stays away is asked less and less often.
+                self._stop.wait(reconnect_pause_s(failures, self._clock.rate))
                 failures += 1
-                self._stop.wait(pause_s)
                 continue
             try:
                 again = '' if down_since is None else \
@@ -270,17 +283,18 @@ class VehicleBridge:
                 down, down_since = str(exc), time.monotonic()
                 self._gap_cause = ' (the link was down)'
                 self._on_event(LinkEvent('lost', f'vehicle link lost: {exc}; reconnecting'))
+                self._stop.wait(reconnect_pause_s(failures, self._clock.rate))
                 failures += 1
-                self._stop.wait(pause_s)
             finally:
                 link.close()
 
     def _serve(self, link) -> None:
+        link.watch = LinkWatch(silence_s=SILENCE_S, should_stop=self._stop.is_set)
         request_telemetry(link, self._rate_hz)
         request_wind(link, WIND_RATE_HZ)
         heard = asked = time.monotonic()
         request_home(link)
-        latest_time_s = 0.0
+        clock = self._clock = _ConnectionClock(self._on_event, self._clock.rate)
         mode = None
         waiting_since = None
         while not self._stop.is_set():
@@ -299,7 +313,11 @@ class VehicleBridge:
                                  f'nor its position for {HOME_WAIT_REPORT_S:g} s'))
             if job is not None:
                 waiting_since = None
-                self._upload(link, job)
+                if self.stream is not None:     # a stop of the stream acts on the old mission
+                    self.stream.before_upload(link, clock.time_s, job.tag)
+                verified = self._upload(link, job)
+                if self.stream is not None:
+                    self.stream.uploaded(link, clock.time_s, job.tag, verified)
                 request_telemetry(link, self._rate_hz)
                 heard = time.monotonic()
                 self._gap_cause = ' (the link read no telemetry during an upload)'
@@ -315,22 +333,20 @@ class VehicleBridge:
                 continue
             heard = time.monotonic()
             if kind in ('WIND', 'WIND_COV'):
-                wind = wind_of(message, latest_time_s)
-                if wind is not None:
-                    self._on_event(wind)
+                clock.wind(message)
             elif kind == 'HEARTBEAT':
                 if self.stream is not None:
                     self.stream.on_heartbeat(message)
                 if link.probably_vehicle_heartbeat(message) \
                         and (name := mavutil.mode_string_v10(message)) != mode:
                     mode = name
-                    self._on_event(ModeReport(latest_time_s, mode))
+                    self._on_event(ModeReport(clock.time_s, mode))
             elif kind == 'GLOBAL_POSITION_INT':
-                latest_time_s = message.time_boot_ms / 1000.0
-                if self._position(message, latest_time_s) and self.stream is not None:
-                    self.stream.tick(link, latest_time_s)
+                time_s = clock.position(message.time_boot_ms / 1000.0)
+                if self._position(message, time_s) and self.stream is not None:
+                    self.stream.tick(link, time_s)
             elif kind == 'MISSION_CURRENT':
-                self._on_event(MissionProgressReport(latest_time_s, int(message.seq)))
+                self._on_event(MissionProgressReport(clock.time_s, int(message.seq)))
             elif kind == 'HOME_POSITION':
                 self._heard_home(message)
         if self.stream is not None:
@@ -379,29 +395,85 @@ class VehicleBridge:
             job, self._waiting = self._waiting, None
         return job
 
-    def _upload(self, link, job: _Upload) -> None:
+    def _upload(self, link, job: _Upload) -> bool:
+        """Upload ``job``; whether the vehicle holds it (a loss of the link raises)."""
         reason = mission_far_from_vehicle(job.items, self.vehicle_home, self._vehicle_position,
                                           self._home_limit_m)
         if reason:
             self._on_event(LinkEvent('error', f'mission upload refused: {reason}', job.tag))
-            return
+            return False
         try:
-            fence, note = upload_fence(link, job.fence, self._settings), ''   # the fence first
-            upload_and_verify(link, job.items, self._settings)
-            if job.current_seq is not None:
-                # Sequence numbers count the home row, which a PX4 mission has not.
-                current = job.current_seq - (0 if has_home_row(link) else 1)
-                set_current(link, current)
-                note = f'; current item {current}'
+            note = _put_on_vehicle(link, job, self._settings)
+        except (VehicleLinkLostError, OSError):
+            if self._stop.is_set():
+                return False                # the bridge is being stopped: nothing to say
+            with self._lock:                # uploaded again once the link is back
+                self._waiting = self._waiting or job
+            raise
         except VehicleLinkError as exc:
-            if 'link lost' in str(exc):
-                with self._lock:            # uploaded again once the link is back
-                    self._waiting = self._waiting or job
-                raise
             self._on_event(LinkEvent('error', f'mission upload failed: {exc}', job.tag))
-            return
+            return False
         self._on_event(LinkEvent('uploaded', f'mission of {len(job.items)} items uploaded '
-                                             f'and read back{fence}{note}', job.tag))
+                                             f'and read back{note}', job.tag))
+        return True
+
+
+def reconnect_pause_s(failures: int, clock_rate: float | None) -> float:
+    """Wall seconds to wait before connecting again after ``failures`` failures in a row: the
+    backoff in autopilot time, at ``clock_rate`` autopilot seconds per wall second (a
+    simulator's speed-up; None: unknown, 1)."""
+    autopilot_s = min(RECONNECT_PAUSE_S * 2 ** min(failures, 16), MAX_RECONNECT_PAUSE_S)
+    return max(autopilot_s / (clock_rate or 1.0), MIN_RECONNECT_PAUSE_S)
+
+
+class _ConnectionClock:
+    """The autopilot's time on one connection, that of its latest position (0 before any); a
+    wind estimate heard before the first position (WIND carries no time) is held, the latest
+    only, and handed on with that position's time. ``rate`` is the autopilot seconds per wall
+    second its positions showed (over CLOCK_RATE_SPAN_S at least; else the one given)."""
+
+    def __init__(self, on_event: Callable[[Event], None], rate: float | None = None) -> None:
+        self.time_s = 0.0
+        self.rate = rate
+        self._on_event = on_event
+        self._timed = False
+        self._held: Wind | None = None
+        self._first: tuple[float, float] | None = None
+
+    def position(self, time_s: float) -> float:
+        """A position's time, which it returns; the first hands on the wind held."""
+        self.time_s, now = time_s, time.monotonic()
+        if self._first is None or time_s < self._first[1]:
+            self._first = (now, time_s)     # the first, or a clock restarted
+        elif now - self._first[0] >= CLOCK_RATE_SPAN_S:
+            self.rate = max(1.0, (time_s - self._first[1]) / (now - self._first[0]))
+        if not self._timed:
+            self._timed = True
+            if self._held is not None:
+                self._on_event(replace(self._held, time_s=time_s))
+        return time_s
+
+    def wind(self, message) -> None:
+        """A WIND or WIND_COV message: handed on at the latest position's time, or held."""
+        wind = wind_of(message, self.time_s)
+        if wind is not None and self._timed:
+            self._on_event(wind)
+        elif wind is not None:
+            self._held = wind
+
+
+def _put_on_vehicle(link, job: _Upload, settings: LinkSettings) -> str:
+    """The fence first, the mission read back, then its current item; the note for the
+    'uploaded' event. Raises VehicleLinkError (VehicleLinkLostError or OSError: the link went
+    down)."""
+    fence, note = upload_fence(link, job.fence, settings), ''
+    upload_and_verify(link, job.items, settings)
+    if job.current_seq is not None:
+        # Sequence numbers count the home row, which a PX4 mission has not.
+        current = job.current_seq - (0 if has_home_row(link) else 1)
+        set_current(link, current)
+        note = f'; current item {current}'
+    return fence + note
 
 
 def upload_fence(link, fence: Sequence[MissionItem] | None, settings: LinkSettings) -> str:
@@ -417,14 +489,21 @@ def upload_fence(link, fence: Sequence[MissionItem] | None, settings: LinkSettin
 
 
 def set_current(link, seq: int) -> None:
-    """MISSION_SET_CURRENT until MISSION_CURRENT reports ``seq``; raises VehicleLinkError."""
+    """MISSION_SET_CURRENT until MISSION_CURRENT reports ``seq``; raises VehicleLinkError
+    (VehicleLinkLostError when the link goes down meanwhile)."""
     for _ in range(SET_CURRENT_TRIES):
-        link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
         deadline = time.monotonic() + SET_CURRENT_TIMEOUT_S
-        while (left := deadline - time.monotonic()) > 0:
-            message = link.recv_match(type='MISSION_CURRENT', blocking=True, timeout=left)
-            if message is not None and message.seq == seq:
-                return
+        try:
+            link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
+            while (left := deadline - time.monotonic()) > 0:
+                check_link(link)
+                message = link.recv_match(type='MISSION_CURRENT', blocking=True,
+                                          timeout=min(left, WATCH_POLL_S))
+                if message is not None and message.seq == seq:
+                    return
+        except (OSError, ConnectionError) as exc:
+            raise VehicleLinkLostError(f'link lost while making item {seq} current: '
+                                       f'{exc}') from exc
     raise VehicleLinkError(f'the vehicle did not make item {seq} current after '
                            f'{SET_CURRENT_TRIES} tries of {SET_CURRENT_TIMEOUT_S:g} s')
 
