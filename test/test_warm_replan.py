@@ -19,6 +19,7 @@ from uav_comm_planner.mission.progress import planned_position
 from uav_comm_planner.mission.request import InFlight, MissionRequest
 from uav_comm_planner.ros.flight import MissionFlight
 from uav_comm_planner.ros.params import NodeSettings, PlannerConfig
+from uav_comm_planner.vehicle.flyable import plan_for_vehicle, WIDER_SEARCH_GAIN
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
 SETTINGS = SolverSettings(compute_baselines=False)
@@ -164,14 +165,46 @@ def test_the_vehicle_aware_pipeline_plans_every_speed_warm_then_the_other_tours(
     print(calls)
     assert calls[0] == (MISSION.max_speed_mps, 0, True)
     assert len(calls) >= 2          # the vehicle's slow starts and stops spoil the first plan
-    for (speed, tours, continued), after in zip(calls, calls[1:] + [None]):
-        if tours == 0:
-            assert continued
-            if after is not None:   # the other tours at the same speed, then a slower one
-                assert after == (speed, SETTINGS.screened_tours, False)
-        else:
-            assert after is None or after[0] < speed
-    assert planned.optimised.scenario.max_speed_mps == calls[-1][0]
+    assert len(set(calls)) == len(calls), 'a search repeated at one speed'
+    assert planned.optimised.scenario.max_speed_mps in {speed for speed, _, _ in calls}
+
+
+def test_the_vehicle_ladder_tries_the_wider_search_unless_a_close_slower_plan_flies():
+    """plan_for_vehicle's order with a wider search: the plan at a speed; when the vehicle
+    cannot fly it, the plan at the next speed if that flies and states within
+    WIDER_SEARCH_GAIN of it, else the wider search at the speed; each planned once."""
+    calls = []
+
+    def tagged(tag, slower_share=1.0):
+        def planner(scenario, settings):
+            calls.append((tag, scenario.max_speed_mps))
+            if tag == 'wide':
+                return None                              # nothing to add at any speed
+            result = plan(scenario, SETTINGS)
+            steps = round(MISSION.max_speed_mps - scenario.max_speed_mps)   # 1 m/s a step
+            return dataclasses.replace(result, min_throughput=slower_share ** steps)
+        return planner
+
+    slow = VehicleLimits(max_accel_mpss=1.0)
+    plain = plan_for_vehicle(MISSION, slow, planner=tagged('plan'))
+    ladder = [speed for _, speed in calls]
+    assert len(ladder) == 3 and ladder == sorted(ladder, reverse=True)    # fast to slow
+    assert plain.ideal.scenario.max_speed_mps == ladder[-1]
+    first, second, third = ladder
+    # The slower plans state as much: the one at the third speed flies and is taken as the
+    # look-ahead from the second, without the wider search there.
+    calls.clear()
+    close = plan_for_vehicle(MISSION, slow, planner=tagged('plan'), wider_planner=tagged('wide'))
+    assert calls == [('plan', first), ('plan', second), ('wide', first), ('plan', third)]
+    assert close.ideal.scenario.max_speed_mps == third
+    # Each speed states more than WIDER_SEARCH_GAIN less than the one before: the wider search
+    # runs at each speed first.
+    calls.clear()
+    far = plan_for_vehicle(MISSION, slow, wider_planner=tagged('wide'),
+                           planner=tagged('plan', slower_share=1.0 - 2 * WIDER_SEARCH_GAIN))
+    assert calls == [('plan', first), ('plan', second), ('wide', first), ('plan', third),
+                     ('wide', second)]
+    assert far.ideal.scenario.max_speed_mps == third
 
 
 class StandInVehicle:

@@ -135,20 +135,24 @@ def _plan_scenario(request: MissionRequest, scenario: Scenario, planner: Planner
     (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`), and where the
     vehicle cannot fly a warm replan on time the other tours are searched at the same speed
     before a slower one is tried."""
-    def optimiser(warm: bool | None) -> Callable[[Scenario, SolverSettings | None], PlanResult]:
-        def planned(rest: Scenario, settings: SolverSettings | None) -> PlanResult:
-            extra: dict = {}
-            if problem is not None:
-                settings, extra = problem.for_scenario(settings, rest, warm=warm)
-            return _bound(planner, **options, **extra)(rest, settings)
-        return planned
+    def optimiser(rest: Scenario, settings: SolverSettings | None) -> PlanResult:
+        extra: dict = {}
+        if problem is not None:
+            settings, extra = problem.for_scenario(settings, rest)
+        return _bound(planner, **options, **extra)(rest, settings)
+
+    def other_tours(rest: Scenario, settings: SolverSettings | None) -> PlanResult | None:
+        if problem.for_scenario(settings, rest)[0] is settings:
+            return None                     # the optimiser searched them all at this speed
+        wider, extra = problem.for_scenario(settings, rest, warm=False)
+        return _bound(planner, **options, **extra)(rest, wider)
 
     if not request.vehicle_aware:
-        return optimiser(None)(scenario, request.settings), None
+        return optimiser(scenario, request.settings), None
     vehicle_plan = plan_for_vehicle(
         scenario, request.vehicle, request.settings, firmware=request.firmware,
-        planner=optimiser(None),
-        wider_planner=optimiser(False) if problem is not None and problem.warm else None)
+        planner=optimiser,
+        wider_planner=other_tours if problem is not None and problem.warm else None)
     return vehicle_plan.flown, vehicle_plan
 
 

@@ -27,6 +27,7 @@ the autopilot keeps:
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 import math
 import time
@@ -102,6 +103,12 @@ class VehiclePlan:
     flown: PlanResult
     schedule: Schedule
     limits: VehicleLimits
+
+    def timed_from(self, began_s: float) -> 'VehiclePlan':
+        """This plan with the flown plan's ``solve_time_s`` counted from ``began_s`` (a
+        :func:`time.perf_counter` reading: the whole planning for the vehicle)."""
+        flown = dataclasses.replace(self.flown, solve_time_s=time.perf_counter() - began_s)
+        return dataclasses.replace(self, flown=flown)
 
 
 def hover_runs(points: np.ndarray, merge_radius_m: float) -> list[tuple[int, int]]:
@@ -328,14 +335,11 @@ def check_speed(scenario: Scenario, limits: VehicleLimits) -> None:
             f'{limits.cruise_speed_mps:g} or give the vehicle\'s real limits')
 
 
-def flown_result(ideal: PlanResult, schedule: Schedule,
-                 began_s: float | None = None) -> PlanResult:
+def flown_result(ideal: PlanResult, schedule: Schedule) -> PlanResult:
     """The plan as flown: predicted positions at the slot times, power optimal for them.
 
     A replan in flight keeps its offsets (the data each node already holds): the power is
-    optimal for them and the rates count them, as in the ideal plan. Its ``solve_time_s`` is
-    the time since ``began_s`` (a :func:`time.perf_counter` reading: the whole planning for
-    the vehicle, every speed tried and its timing), else the ideal plan's.
+    optimal for them and the rates count them, as in the ideal plan.
     """
     scenario = ideal.scenario
     q = schedule.flight.positions(scenario.times_s)
@@ -346,9 +350,7 @@ def flown_result(ideal: PlanResult, schedule: Schedule,
         scenario=scenario, trajectory=q, times=scenario.times_s, power=p, rates=rates,
         min_throughput=value, history=(Step('power', value),), baselines=ideal.baselines,
         outer_iterations=ideal.outer_iterations, trajectory_steps=ideal.trajectory_steps,
-        converged=ideal.converged, start=ideal.start,
-        solve_time_s=(ideal.solve_time_s if began_s is None
-                      else time.perf_counter() - began_s),
+        converged=ideal.converged, solve_time_s=ideal.solve_time_s, start=ideal.start,
         upper_bound=ideal.upper_bound, start_throughputs=ideal.start_throughputs,
         offsets=ideal.offsets)
 
@@ -356,8 +358,8 @@ def flown_result(ideal: PlanResult, schedule: Schedule,
 def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
                      settings: SolverSettings | None = None, *, firmware: str = 'ardupilot',
                      planner: Callable[[Scenario, SolverSettings | None], PlanResult] = plan,
-                     wider_planner: Callable[[Scenario, SolverSettings | None], PlanResult]
-                     | None = None) -> VehiclePlan:
+                     wider_planner: Callable[[Scenario, SolverSettings | None],
+                                             PlanResult | None] | None = None) -> VehiclePlan:
     """Plan ``scenario`` for a vehicle with ``limits`` (None: ``firmware``'s defaults,
     :meth:`VehicleLimits.for_firmware`): the mission and what it delivers.
 
@@ -373,8 +375,10 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
     every segment between the mission's waypoints keeps their margin. ``planner`` is the
     optimiser (the core's :func:`~uav_comm_planner.core.optimizer.plan`); ``wider_planner``,
     when given, is tried at the same speed when the vehicle cannot fly ``planner``'s plan on
-    time (a warm replan's full search: another tour may fly where the plan in force no longer
-    does), before a slower speed is. Raises
+    time (a warm replan's other tours: another tour may fly where the plan in force no longer
+    does), before a slower speed is, unless ``planner``'s plan at the next slower speed flies
+    and states within :data:`WIDER_SEARCH_GAIN` of the plan it cannot fly; it returns None
+    where it would search as ``planner`` did. Raises
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
     speed exceeds the vehicle's, or the wind the vehicle's airspeed, and when not even the
     straight line fits the horizon (saying the horizon it needs).
@@ -384,35 +388,92 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
     limits = VehicleLimits.for_firmware(firmware) if limits is None else limits
     check_speed(scenario, limits)
     scenario = in_wind(scenario, limits)
-    first_error = None
     keeps = zone_check(scenario.zones)
-    planners = (planner,) if wider_planner is None else (planner, wider_planner)
-    for share in (1.0,) + SLOWER_PLANNING:
-        for optimiser in planners:
-            try:
-                slower = scenario if share == 1.0 else scenario.replace(
-                    max_speed_mps=share * scenario.max_speed_mps)
-                ideal = optimiser(slower, settings)
-            except WalledInError:
-                raise                       # no slower speed finds a way round the zones
-            except InfeasibleHorizonError as exc:
-                first_error = first_error or exc
-                continue
-            for stop_at_hovers in (True, False):
-                try:
-                    schedule = schedule_flight(ideal, limits, firmware=firmware,
-                                               stop_at_hovers=stop_at_hovers)
-                except InfeasibleHorizonError as exc:
-                    first_error = first_error or exc
-                    continue
-                return VehiclePlan(ideal, flown_result(ideal, schedule, began), schedule,
-                                   limits)
+    errors: list[Exception] = []
+    ladder = _Ladder(scenario, limits, settings, firmware, errors)
+    for step in range(len(ladder.shares)):
+        ideal, flown = ladder.attempt(planner, step)
+        if flown is None and wider_planner is not None:
+            flown = (ladder.close_slower(planner, step, ideal)
+                     or ladder.wider(wider_planner, step))
+        if flown is not None:
+            return flown.timed_from(began)
+    first_error = errors[0] if errors else None
     if keeps is not None and not keeps(np.asarray(scenario.start_m, float),
                                        np.asarray(scenario.goal_m, float)):
         # The straight line would cross a zone: there is no fallback to fly.
         raise first_error
     return _straight_line_plan(scenario, limits, settings, firmware, planner, first_error,
                                began)
+
+
+#: A warm replan's plan at the next slower speed that states at least this share less than
+#: the faster plan the vehicle cannot fly is worth searching the other tours at the faster
+#: speed for (:func:`plan_for_vehicle`'s ``wider_planner``); within it, it is taken as it is.
+WIDER_SEARCH_GAIN = 1e-3
+
+
+class _Ladder:
+    """The planning speeds of :func:`plan_for_vehicle` (1 and :data:`SLOWER_PLANNING` shares
+    of ``max_speed_mps``), each planned by an optimiser at most once."""
+
+    def __init__(self, scenario: Scenario, limits: VehicleLimits,
+                 settings: SolverSettings | None, firmware: str, errors: list[Exception]):
+        self.shares = (1.0,) + SLOWER_PLANNING
+        self._scenario, self._limits, self._settings = scenario, limits, settings
+        self._firmware, self._errors = firmware, errors
+        self._tried: dict[tuple[int, int], tuple[PlanResult | None, VehiclePlan | None]] = {}
+
+    def attempt(self, optimiser: Callable[[Scenario, SolverSettings | None], PlanResult],
+                step: int) -> tuple[PlanResult | None, VehiclePlan | None]:
+        """The ideal plan at speed ``step`` (None when refused) and the vehicle's plan of it
+        (None when the vehicle cannot fly it on time, stopping at its hovers or not)."""
+        key = (id(optimiser), step)
+        if key not in self._tried:
+            self._tried[key] = self._plan(optimiser, self.shares[step])
+        return self._tried[key]
+
+    def close_slower(self, optimiser: Callable[[Scenario, SolverSettings | None], PlanResult],
+                     step: int, ideal: PlanResult | None) -> VehiclePlan | None:
+        """The vehicle's plan by ``optimiser`` at the speed after ``step`` when it flies and
+        states within :data:`WIDER_SEARCH_GAIN` of ``ideal`` (the plan at ``step`` that the
+        vehicle cannot fly); None otherwise."""
+        if ideal is None or step + 1 >= len(self.shares):
+            return None
+        slower, flown = self.attempt(optimiser, step + 1)
+        if flown is None or slower.min_throughput < ideal.min_throughput * (
+                1 - WIDER_SEARCH_GAIN):
+            return None
+        return flown
+
+    def wider(self, optimiser: Callable[[Scenario, SolverSettings | None], PlanResult | None],
+              step: int) -> VehiclePlan | None:
+        """The vehicle's plan by the wider search ``optimiser`` at ``step``; None when it does
+        not fly, or the search has nothing to add there (``optimiser`` returns None)."""
+        return self.attempt(optimiser, step)[1]
+
+    def _plan(self, optimiser, share: float) -> tuple[PlanResult | None, VehiclePlan | None]:
+        scenario = self._scenario
+        try:
+            ideal = optimiser(scenario if share == 1.0 else scenario.replace(
+                max_speed_mps=share * scenario.max_speed_mps), self._settings)
+            if ideal is None:
+                return None, None
+        except WalledInError:
+            raise                           # no slower speed finds a way round the zones
+        except InfeasibleHorizonError as exc:
+            self._errors.append(exc)
+            return None, None
+        for stop_at_hovers in (True, False):
+            try:
+                schedule = schedule_flight(ideal, self._limits, firmware=self._firmware,
+                                           stop_at_hovers=stop_at_hovers)
+            except InfeasibleHorizonError as exc:
+                self._errors.append(exc)
+                continue
+            return ideal, VehiclePlan(ideal, flown_result(ideal, schedule), schedule,
+                                      self._limits)
+        return ideal, None
 
 
 def in_wind(scenario: Scenario, limits: VehicleLimits) -> Scenario:
@@ -457,7 +518,7 @@ def _straight_line_plan(scenario: Scenario, limits: VehicleLimits,
     flight = Flight((Dwell(start, 0.0, hold), leg, Dwell(goal, at_rest, at_rest)))
     schedule = Schedule((Stop(start, hold), Stop(goal, 0.0)), (leg,), flight, firmware,
                         arrival)
-    return VehiclePlan(ideal, flown_result(ideal, schedule, began_s), schedule, limits)
+    return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits).timed_from(began_s)
 
 
 def _no_flyable_plan(scenario: Scenario, limits: VehicleLimits, firmware: str) -> str:
