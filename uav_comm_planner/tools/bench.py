@@ -44,7 +44,8 @@ from uav_comm_planner.core.optimizer import alternate, plan, PlanResult, step_so
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.core.tours import random_tours, scenario_seed
 from uav_comm_planner.tools.flights import flight_cases, fly_case, format_flights
-from uav_comm_planner.tools.replans import format_replans, measure_replans, REPLAN_POINTS
+from uav_comm_planner.tools.replans import (format_replan_drops, format_replans,
+                                            measure_replan_drops, measure_replans, REPLAN_POINTS)
 from uav_comm_planner.vehicle.sitl import why_not_runnable
 
 REFERENCE = dict(power_method='conic', trajectory_method='cvxpy')
@@ -401,7 +402,8 @@ def run(quick: bool = False, out: TextIO | None = None, *, flights: bool = True,
             '(ArduCopter limits, mission items built), warm (the plan in force continued) and '
             'with the full search, median of 2 alternating pairs; target under 150 ms',
             format_replans(measure_replans((1,) if quick else (1, 2, 3),
-                                           points=REPLAN_POINTS[1:2] if quick else REPLAN_POINTS)))
+                                           points=REPLAN_POINTS[1:2] if quick else REPLAN_POINTS))
+            + '\n' + format_replan_drops(measure_replan_drops(range(100, 103 if quick else 140))))
     cases, max_slots = (4, 80) if quick else (24, 199)
     drops = (f'random drops: N 3-20, M 51-{max_slots}, slots 0.5-2 s, V 20-100 m/s; best known: '
              'the best of the default, the letter and 20 other random tours run to '
