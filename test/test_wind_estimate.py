@@ -17,8 +17,8 @@ from uav_comm_planner.mission.wind import WindEstimate
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mavlink.guided import (COPTER_MODES, STREAM_GAP_S, StreamJob,
-                                                     TargetStream)
+from uav_comm_planner.vehicle.mavlink.guided import (COPTER_MODES, MODE_TRIES, STREAM_GAP_S,
+                                                     StreamJob, TargetStream)
 from uav_comm_planner.vehicle.mavlink.telemetry import wind_of
 from uav_comm_planner.vehicle.stream import stream_reference
 
@@ -173,15 +173,68 @@ def test_a_link_closing_mid_stream_resumes_the_mission_at_the_item_ahead_not_the
     assert 'closing' in events[-1].message
 
 
-def test_a_px4_vehicle_is_not_streamed_to_and_keeps_its_mission(reference):
+#: PX4's custom modes, from px4_custom_mode (main mode in byte 2, sub mode in byte 3).
+PX4_OFFBOARD = 0x00060000
+PX4_AUTO_MISSION = 0x04040000
+PX4_AUTO_LOITER = 0x03040000
+
+
+def px4_heartbeat(custom_mode: int):
+    return SimpleNamespace(base_mode=MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                           custom_mode=custom_mode)
+
+
+def test_px4_gets_targets_before_offboard_is_asked_and_goes_on_in_its_mission_after(
+        reference):
+    events = []
+    stream = TargetStream(HOME, events.append)
+    stream.vehicle_home = Home(HOME.latitude_deg, HOME.longitude_deg, 600.5)
+    link = RecordingLink()
+    link.vehicle_autopilot = MAV.MAV_AUTOPILOT_PX4
+    stream.on_heartbeat(px4_heartbeat(PX4_AUTO_MISSION))     # holding q0 in its mission
+    t0 = 20.0
+    stream.start(StreamJob(reference, t0, 100.0, 'auto', lambda elapsed_s: 7))
+    ticks = t0 + np.arange(0, 40) * 0.05
+    for t in ticks[:10]:                                    # 0.45 s of targets: no mode yet
+        stream.tick(link, float(t))
+    assert len(link.targets) == 10 and link.modes == []
+    stream.tick(link, float(ticks[10]))                     # 0.5 s: OFFBOARD asked
+    assert link.modes == [PX4_OFFBOARD]
+    stream.on_heartbeat(px4_heartbeat(PX4_OFFBOARD))
+    for t in ticks[11:]:
+        stream.tick(link, float(t))
+    assert link.modes == [PX4_OFFBOARD] and [event.kind for event in events] == ['started']
+    assert 'OFFBOARD' in events[0].message
+    # Above mean sea level: the vehicle's home altitude and the plan's 100 m.
+    target = link.targets[-1]
+    assert target[3] == MAV.MAV_FRAME_GLOBAL_INT and target[7] == pytest.approx(700.5)
+    assert target[4] == (MAV.POSITION_TARGET_TYPEMASK_YAW_IGNORE
+                         | MAV.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
+    for t in t0 + reference.duration_s + 2.5 + np.arange(0, 1, 0.05):
+        stream.tick(link, float(t))
+    # PX4 numbers its items without the home row: ArduPilot's item 7 is its item 6.
+    assert link.currents == [6] and link.modes[-1] == PX4_AUTO_MISSION
+    assert 'reached qF' in events[-1].message
+    assert 'back in AUTO.MISSION from mission item 6' in events[-1].message
+
+
+def test_px4_refusing_offboard_ends_the_stream_once_held_in_loiter(reference):
     events = []
     stream = TargetStream(HOME, events.append)
     link = RecordingLink()
     link.vehicle_autopilot = MAV.MAV_AUTOPILOT_PX4
-    stream.start(StreamJob(reference, 0.0, 100.0, 'auto', lambda elapsed_s: 3))
-    stream.tick(link, 0.0)
-    assert [event.kind for event in events] == ['error'] and 'PX4' in events[0].message
-    assert link.targets == link.modes == link.currents == [] and not stream.active
+    stream.on_heartbeat(px4_heartbeat(PX4_AUTO_MISSION))
+    stream.start(StreamJob(reference, 0.0, 100.0, 'hold', lambda elapsed_s: 3))
+    for t in np.arange(0, 8, 0.05):                         # it never shows OFFBOARD
+        stream.tick(link, float(t))
+    assert link.modes.count(PX4_OFFBOARD) == MODE_TRIES
+    assert [event.kind for event in events] == ['error']
+    assert f'did not enter OFFBOARD after {MODE_TRIES} requests' in events[0].message
+    assert 'held in AUTO.LOITER' in events[0].message
+    assert link.modes[-1] == PX4_AUTO_LOITER and link.currents == [] and not stream.active
+    # Without the vehicle's home its targets are above home (PX4 takes them too).
+    assert link.targets[0][3] == MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+    assert link.targets[0][7] == 100.0
 
 
 def test_the_node_plans_for_the_wind_measured_publishes_it_and_keeps_its_parameter_else(

@@ -21,6 +21,40 @@ MAV = mavutil.mavlink
 
 
 @dataclass(frozen=True)
+class StreamModes:
+    """The flight modes of a streamed trajectory on one autopilot.
+
+    modes: name -> HEARTBEAT custom_mode (what SET_MODE asks for, with
+    MAV_MODE_FLAG_CUSTOM_MODE_ENABLED); follow: the mode that flies the targets; resume: the
+    mode that flies the mission; hold: the mode that holds the position;
+    lead_s: autopilot seconds of targets sent before ``follow`` is asked (PX4 takes OFFBOARD
+    only while targets are coming);
+    amsl_targets: whether the targets' altitude is sent above mean sea level
+    (MAV_FRAME_GLOBAL_INT, the vehicle's home altitude added) rather than above home. PX4
+    v1.16 turns a MAV_FRAME_GLOBAL_RELATIVE_ALT_INT altitude h into the local down
+    coordinate home - h - origin instead of origin - home - h, which is off by twice the
+    height of its home over its local origin; its GLOBAL_INT altitude is exact.
+    """
+
+    modes: Mapping[str, int]
+    follow: str
+    resume: str
+    hold: str
+    lead_s: float
+    amsl_targets: bool
+
+
+def px4_mode(main: int, sub: int = 0) -> int:
+    """PX4's custom_mode of main mode ``main``, sub mode ``sub`` (px4_custom_mode: the main
+    mode in the third byte, the sub mode in the fourth)."""
+    return main << 16 | sub << 24
+
+
+#: PX4's main modes AUTO (4) and OFFBOARD (6); AUTO's sub modes LOITER (3) and MISSION (4).
+PX4_AUTO, PX4_OFFBOARD, PX4_LOITER, PX4_MISSION = 4, 6, 3, 4
+
+
+@dataclass(frozen=True)
 class Firmware:
     """What a plan, its mission and a parameter file depend on in one autopilot.
 
@@ -39,7 +73,9 @@ class Firmware:
     default_limits: the limits (VehicleLimits field -> SI value) the firmware ships with,
     where they differ from :class:`~uav_comm_planner.vehicle.limits.VehicleLimits`' own
     (which are ArduCopter's): a plan for this firmware without a parameter file or explicit
-    limits uses them.
+    limits uses them;
+    stream_modes: the flight modes the streamed trajectory uses
+    (:mod:`.mavlink.guided`).
     """
 
     autopilot: int
@@ -49,6 +85,7 @@ class Firmware:
     parameters: Mapping[str, tuple[str, float]]
     timing: str
     default_limits: Mapping[str, float]
+    stream_modes: StreamModes
 
 
 FIRMWARES = {
@@ -59,7 +96,10 @@ FIRMWARES = {
                     'WPNAV_ACCEL': ('max_accel_mpss', 0.01),
                     'WPNAV_JERK': ('max_jerk_mpsss', 1.0),
                     'ATC_INPUT_TC': ('jerk_time_s', 2.0)},
-        timing='scurve', default_limits={}),
+        timing='scurve', default_limits={},
+        stream_modes=StreamModes(modes={'AUTO': 3, 'GUIDED': 4, 'BRAKE': 17}, follow='GUIDED',
+                                 resume='AUTO', hold='BRAKE', lead_s=0.0,
+                                 amsl_targets=False)),
     'px4': Firmware(
         autopilot=MAV.MAV_AUTOPILOT_PX4, hold_resolution_s=0.01, max_hold_s=1e9,
         waypoint_yaw=math.nan,
@@ -68,7 +108,14 @@ FIRMWARES = {
                     'MPC_JERK_AUTO': ('max_jerk_mpsss', 1.0)},
         # PX4 v1.16's MPC_XY_CRUISE, MPC_ACC_HOR and MPC_JERK_AUTO defaults.
         timing='px4', default_limits={'max_speed_mps': 5.0, 'max_accel_mpss': 3.0,
-                                      'max_jerk_mpsss': 4.0}),
+                                      'max_jerk_mpsss': 4.0},
+        # PX4 leaves OFFBOARD when no target came for COM_OF_LOSS_T (1 s by default); half a
+        # second of targets at 20 Hz (PX4 asks for more than 2 Hz) comes before the switch.
+        stream_modes=StreamModes(modes={'AUTO.MISSION': px4_mode(PX4_AUTO, PX4_MISSION),
+                                        'OFFBOARD': px4_mode(PX4_OFFBOARD),
+                                        'AUTO.LOITER': px4_mode(PX4_AUTO, PX4_LOITER)},
+                                 follow='OFFBOARD', resume='AUTO.MISSION', hold='AUTO.LOITER',
+                                 lead_s=0.5, amsl_targets=True)),
 }
 
 
@@ -80,4 +127,11 @@ def firmware_named(name: str) -> Firmware:
     return FIRMWARES[name]
 
 
-__all__ = ['FIRMWARES', 'Firmware', 'firmware_named']
+def firmware_of_autopilot(autopilot: int | None) -> Firmware:
+    """The firmware of a heartbeat's MAV_AUTOPILOT: PX4's for PX4, ArduPilot's otherwise
+    (and when the autopilot is not known)."""
+    return FIRMWARES['px4'] if autopilot == MAV.MAV_AUTOPILOT_PX4 else FIRMWARES['ardupilot']
+
+
+__all__ = ['FIRMWARES', 'Firmware', 'StreamModes', 'firmware_named', 'firmware_of_autopilot',
+           'px4_mode']

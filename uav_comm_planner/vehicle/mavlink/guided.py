@@ -1,29 +1,44 @@
-"""The streamed trajectory on the link: position, velocity and acceleration targets in GUIDED.
+"""The streamed trajectory on the link: position, velocity and acceleration targets in
+ArduCopter's GUIDED or PX4's OFFBOARD.
 
 A :class:`TargetStream` lives on the vehicle link's thread (the
 :class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge` calls :meth:`TargetStream.tick`
 with the autopilot time of every position it receives, and :meth:`TargetStream.on_heartbeat`
 with every heartbeat); the node's thread only hands it work (:meth:`TargetStream.start`,
-:meth:`TargetStream.stop`). It switches ArduCopter to GUIDED and sends, for autopilot time t,
-the reference's state at t - t0 (t0: the autopilot time the plan's clock started) as
-SET_POSITION_TARGET_GLOBAL_INT (latitude, longitude through the planning frame's home, the
-plan's altitude above home, velocity and acceleration north-east-down), one per position
-report, so at the telemetry rate in autopilot time whatever the simulator's speed-up.
+:meth:`TargetStream.stop`). It sends, for autopilot time t, the reference's state at t - t0
+(t0: the autopilot time the plan's clock started) as SET_POSITION_TARGET_GLOBAL_INT
+(latitude, longitude through the planning frame's home, the plan's altitude, velocity and
+acceleration north-east-down, yaw left to the autopilot), one per position report, so at the
+telemetry rate in autopilot time whatever the simulator's speed-up, and switches the vehicle
+to the mode that follows them. The modes, and what differs between the autopilots, are the
+firmware table's (:class:`~uav_comm_planner.vehicle.firmware.StreamModes`), chosen by the
+heartbeat's autopilot.
 
-ArduCopter follows such targets with its position controller (the position target, the
-velocity and acceleration as feed-forward: ``ModeGuided::set_destination_posvelaccel``); when
-no target comes for GUID_TIMEOUT (3 s by default) it zeroes the velocity and acceleration and
-holds the last position. When the stream stops (the plan ends, the node asks, or a gap in the
-targets longer than :data:`STREAM_GAP_S` of autopilot time, as after a lost link) the vehicle
-is put back in AUTO at the mission item ahead of the reference (``fallback`` 'auto') or held
-in BRAKE ('hold'), once, with one :class:`StreamEvent`. The fallback is ordered with the
-mission uploads of the same link thread: a stop asked before an upload falls back before that
-upload starts (:meth:`TargetStream.before_upload`), on the mission the vehicle still holds, so
-that its mode change and MISSION_SET_CURRENT never act on the newer mission; a stop that
-resumes the newer mission at an item (a replan in flight) waits for that mission's upload
-(:meth:`TargetStream.uploaded`) and streams on meanwhile. A pilot who takes the vehicle out of
-GUIDED ends the stream, and the node leaves the vehicle alone. Only ArduCopter is streamed to:
-a PX4 vehicle (OFFBOARD, not built) is refused once and flies the uploaded mission.
+ArduCopter (GUIDED) follows such targets with its position controller (the position target,
+the velocity and acceleration as feed-forward: ``ModeGuided::set_destination_posvelaccel``);
+when no target comes for GUID_TIMEOUT (3 s by default) it zeroes the velocity and
+acceleration and holds the last position. PX4 (OFFBOARD, custom main mode 6) takes the same
+message as a trajectory setpoint for its multicopter position controller (velocity and
+acceleration feed-forward too), but only switches to OFFBOARD while targets are coming: the
+first :attr:`~uav_comm_planner.vehicle.firmware.StreamModes.lead_s` of targets (holding q0)
+go out before the mode is asked; when none comes for COM_OF_LOSS_T (1 s by default) PX4 leaves
+OFFBOARD by its own failsafe (COM_OBL_RC_ACT). Its targets' altitude is above mean sea level
+(the vehicle's home altitude added: ``amsl_targets``).
+
+The mode asked is confirmed from the heartbeat; a vehicle that does not show it after
+:data:`MODE_TRIES` requests ends the stream (an 'error'). When the stream stops (the plan
+ends, the node asks, the mode is refused, or a gap in the targets longer than
+:data:`STREAM_GAP_S` of autopilot time, as after a lost link) the vehicle is put back in its
+mission mode (AUTO, PX4's AUTO.MISSION) at the mission item ahead of the reference
+(``fallback`` 'auto', MISSION_SET_CURRENT first, in the vehicle's own numbering) or held
+(BRAKE, PX4's AUTO.LOITER: 'hold'), once, with one :class:`StreamEvent`. The fallback is
+ordered with the mission uploads of the same link thread: a stop asked before an upload falls
+back before that upload starts (:meth:`TargetStream.before_upload`), on the mission the
+vehicle still holds, so that its mode change and MISSION_SET_CURRENT never act on the newer
+mission; a stop that resumes the newer mission at an item (a replan in flight) waits for that
+mission's upload (:meth:`TargetStream.uploaded`) and streams on meanwhile. A pilot (or PX4's
+failsafe) who takes the vehicle out of the streamed mode ends the stream, and the node leaves
+the vehicle alone.
 """
 
 from __future__ import annotations
@@ -36,12 +51,16 @@ from typing import Callable
 import numpy as np
 from pymavlink import mavutil
 
+from uav_comm_planner.vehicle.firmware import firmware_of_autopilot, FIRMWARES, StreamModes
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, Home
+from uav_comm_planner.vehicle.mavlink.link import has_home_row
 from uav_comm_planner.vehicle.stream import StreamReference
 
 MAV = mavutil.mavlink
-#: ArduCopter's flight modes (HEARTBEAT custom_mode).
-COPTER_MODES = {'AUTO': 3, 'GUIDED': 4, 'BRAKE': 17}
+#: ArduCopter's flight modes of a stream (HEARTBEAT custom_mode).
+COPTER_MODES = dict(FIRMWARES['ardupilot'].stream_modes.modes)
+#: PX4's flight modes of a stream (HEARTBEAT custom_mode: main mode << 16 | sub mode << 24).
+PX4_MODES = dict(FIRMWARES['px4'].stream_modes.modes)
 #: What the vehicle does when the stream stops.
 STREAM_FALLBACKS = ('auto', 'hold')
 #: Targets further apart than this in autopilot time are a broken stream (ArduCopter's
@@ -51,7 +70,8 @@ STREAM_GAP_S = 3.0
 SETTLE_S = 2.0
 #: A mode change is asked again after this long without the heartbeat showing it (autopilot s).
 MODE_RETRY_S = 0.5
-#: A fallback's mode is asked at most this many times more.
+#: A mode is asked at most this many times: the streamed mode (then the stream ends, refused)
+#: and a fallback's mode (then it is left to the vehicle).
 MODE_TRIES = 10
 #: How long a fallback waits for the heartbeat to show its mode when the link is closing
 #: (wall clock).
@@ -102,6 +122,8 @@ class TargetStream:
 
     def __init__(self, home: Home, on_event: Callable[[StreamEvent], None]) -> None:
         self.home = home
+        #: The vehicle's own home (HOME_POSITION), for targets above mean sea level.
+        self.vehicle_home: Home | None = None
         self._on_event = on_event
         self._lock = threading.Lock()
         self._job: StreamJob | None = None
@@ -113,6 +135,7 @@ class TargetStream:
         self._last_sent_s: float | None = None
         self._pending_mode: str | None = None
         self._pending_tries = 0
+        self._follow_tries = 0
         self._started_s: float | None = None
         #: Targets sent since the stream started (for tests and diagnostics).
         self.targets_sent = 0
@@ -183,13 +206,12 @@ class TargetStream:
             self._last_sent_s = self._started_s = None
             self._mode_asked_s = -float('inf')
             self._pending_mode = None
+            self._follow_tries = 0
         if job is None:
             self._confirm_fallback(link, time_s)
             return
-        if getattr(link, 'vehicle_autopilot', None) == MAV.MAV_AUTOPILOT_PX4:
-            self._end('stream refused: streaming to PX4 (OFFBOARD) is not built; the vehicle '
-                      'flies the uploaded mission', kind='error')
-            return
+        modes = stream_modes(link)
+        follow = modes.modes[modes.follow]
         elapsed = time_s - job.t0_s
         if reason is None and elapsed > job.reference.duration_s + SETTLE_S:
             reason = 'the plan reached qF'
@@ -197,24 +219,33 @@ class TargetStream:
                 and time_s - self._last_sent_s > STREAM_GAP_S:
             reason = (f'no target reached the vehicle for {time_s - self._last_sent_s:.1f} s '
                       f'(the link was down)')
-        if reason is None and self._guided_seen and self._mode != COPTER_MODES['GUIDED']:
-            self._end(f'stream stopped: the vehicle left GUIDED (mode {self._mode}); it is '
-                      f'left as it is')
+        if reason is None and self._guided_seen and self._mode != follow:
+            self._end(f'stream stopped: the vehicle left {modes.follow} (mode '
+                      f'{_mode_label(modes, self._mode)}); it is left as it is')
+            return
+        if reason is None and self._mode != follow and self._follow_tries >= MODE_TRIES \
+                and time_s - self._mode_asked_s >= MODE_RETRY_S:
+            self._fall_back(link, job, elapsed,
+                            f'the vehicle did not enter {modes.follow} after {MODE_TRIES} '
+                            f'requests', kind='error')
             return
         if reason is not None:
             self._fall_back(link, job, elapsed, reason, resume_seq=resume)
             return
         if self._started_s is None:
             self._started_s = time_s
-        settled = time_s - self._started_s >= MODE_SETTLE_S
-        if self._mode == COPTER_MODES['GUIDED'] and settled:
+        since_s = time_s - self._started_s
+        if self._mode == follow and since_s >= MODE_SETTLE_S:
             if not self._guided_seen:
                 self._guided_seen = True
-                self._emit(StreamEvent('started', f'streaming the plan in GUIDED from '
+                self._emit(StreamEvent('started', f'streaming the plan in {modes.follow} from '
                                                   f'{elapsed:.1f} s after q0'))
-        elif self._mode != COPTER_MODES['GUIDED'] and time_s - self._mode_asked_s >= MODE_RETRY_S:
-            set_mode(link, 'GUIDED')
+        elif self._mode != follow and since_s >= modes.lead_s \
+                and time_s - self._mode_asked_s >= MODE_RETRY_S:
+            # PX4 takes OFFBOARD only while targets come: the first ones went out already.
+            set_mode(link, modes.follow)
             self._mode_asked_s = time_s
+            self._follow_tries += 1
         self._send(link, job, elapsed)
         self._last_sent_s = time_s
 
@@ -222,7 +253,8 @@ class TargetStream:
         """Ask the fallback's mode again until the heartbeat shows it (a few times)."""
         if self._pending_mode is None:
             return
-        if self._mode == COPTER_MODES[self._pending_mode] or self._pending_tries >= MODE_TRIES:
+        if self._mode == stream_modes(link).modes[self._pending_mode] \
+                or self._pending_tries >= MODE_TRIES:
             self._pending_mode = None
             return
         if time_s - self._mode_asked_s >= MODE_RETRY_S:
@@ -256,35 +288,37 @@ class TargetStream:
         position, velocity, accel = (value[0] for value in job.reference.state(elapsed_s))
         latitude, longitude, _ = enu_to_geodetic(np.array([position[0]]),
                                                  np.array([position[1]]), 0.0, self.home)
+        frame, altitude = MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, job.altitude_m
+        if stream_modes(link).amsl_targets and self.vehicle_home is not None:
+            frame, altitude = MAV.MAV_FRAME_GLOBAL_INT, self.vehicle_home.altitude_m + altitude
         # East-north to north-east-down.
         link.mav.set_position_target_global_int_send(
-            0, link.target_system, link.target_component,
-            MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, POS_VEL_ACCEL_MASK,
+            0, link.target_system, link.target_component, frame, POS_VEL_ACCEL_MASK,
             int(round(float(latitude[0]) * 1e7)), int(round(float(longitude[0]) * 1e7)),
-            float(job.altitude_m), float(velocity[1]), float(velocity[0]), 0.0,
+            float(altitude), float(velocity[1]), float(velocity[0]), 0.0,
             float(accel[1]), float(accel[0]), 0.0, 0.0, 0.0)
         self.targets_sent += 1
 
     def _fall_back(self, link, job: StreamJob, elapsed_s: float | None, reason: str, *,
-                   resume_seq: int | None = None) -> int:
-        """Put the vehicle in AUTO at the item ahead (at ``resume_seq`` when given), or in
-        BRAKE; returns the mode asked."""
-        if resume_seq is not None:
-            seq = resume_seq
+                   resume_seq: int | None = None, kind: str = 'stopped') -> int:
+        """Put the vehicle in its mission mode at the item ahead (at ``resume_seq`` when
+        given; both in ArduPilot's numbering), or hold it; returns the mode asked (its
+        custom_mode)."""
+        modes = stream_modes(link)
+        if resume_seq is not None or job.fallback == 'auto':
+            seq = resume_seq if resume_seq is not None else job.resume_item(
+                elapsed_s if elapsed_s is not None else job.reference.duration_s)
+            # The vehicle's own numbering: PX4's missions have no home row.
+            seq -= 0 if has_home_row(link) else 1
             link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
-            name, what = 'AUTO', f'back in AUTO from mission item {seq}'
-        elif job.fallback == 'auto':
-            seq = job.resume_item(elapsed_s if elapsed_s is not None
-                                  else job.reference.duration_s)
-            link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
-            name, what = 'AUTO', f'back in AUTO from mission item {seq}'
+            name, what = modes.resume, f'back in {modes.resume} from mission item {seq}'
         else:
-            name, what = 'BRAKE', 'held in BRAKE'
+            name, what = modes.hold, f'held in {modes.hold}'
         set_mode(link, name)
         self._pending_mode, self._pending_tries = name, 0
         self._mode_asked_s = -float('inf') if elapsed_s is None else job.t0_s + elapsed_s
-        self._end(f'stream stopped ({reason}): the vehicle is {what}')
-        return COPTER_MODES[name]
+        self._end(f'stream stopped ({reason}): the vehicle is {what}', kind=kind)
+        return modes.modes[name]
 
     def _end(self, message: str, *, kind: str = 'stopped') -> None:
         with self._lock:
@@ -298,11 +332,24 @@ class TargetStream:
         self._on_event(event)
 
 
+def stream_modes(link) -> StreamModes:
+    """The stream's modes for ``link``'s vehicle (by its heartbeat's autopilot)."""
+    return firmware_of_autopilot(getattr(link, 'vehicle_autopilot', None)).stream_modes
+
+
 def set_mode(link, mode: str) -> None:
-    """Ask ArduCopter for flight mode ``mode`` (a name of :data:`COPTER_MODES`)."""
+    """Ask ``link``'s vehicle for flight mode ``mode`` (a name of its :func:`stream_modes`:
+    :data:`COPTER_MODES` or :data:`PX4_MODES`). SET_MODE with the custom mode: PX4 turns it
+    into MAV_CMD_DO_SET_MODE(base mode, main mode, sub mode) itself."""
     link.mav.set_mode_send(link.target_system, MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
-                           COPTER_MODES[mode])
+                           stream_modes(link).modes[mode])
 
 
-__all__ = ['COPTER_MODES', 'STREAM_FALLBACKS', 'STREAM_GAP_S', 'StreamEvent', 'StreamJob',
-           'TargetStream', 'set_mode']
+def _mode_label(modes: StreamModes, custom_mode: int | None) -> str:
+    """A mode for a log line: its name when it is one of ``modes``, else its number."""
+    names = {value: name for name, value in modes.modes.items()}
+    return names.get(custom_mode, str(custom_mode))
+
+
+__all__ = ['COPTER_MODES', 'PX4_MODES', 'STREAM_FALLBACKS', 'STREAM_GAP_S', 'StreamEvent',
+           'StreamJob', 'TargetStream', 'set_mode', 'stream_modes']

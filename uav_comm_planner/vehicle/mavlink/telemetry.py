@@ -379,6 +379,8 @@ class VehicleBridge:
         if home is None or home == self.vehicle_home:
             return
         self.vehicle_home = home
+        if self.stream is not None:
+            self.stream.vehicle_home = home
         adopted = self.home is None
         if adopted:
             self.home = home
