@@ -39,7 +39,8 @@ from uav_comm_planner.vehicle.mavlink.guided import STREAM_FALLBACKS
 from uav_comm_planner.vehicle.mavlink.items import MISSION_ENDS
 from uav_comm_planner.vehicle.mavlink.urls import parse_link_url
 
-#: How a plan is flown with a link: a waypoint mission in AUTO, or streamed targets in GUIDED.
+#: How a plan is flown with a link: a waypoint mission in AUTO, or streamed targets in GUIDED
+#: (PX4: OFFBOARD).
 FLIGHT_MODES = ('mission', 'stream')
 #: Node settings that take one of a few names, and the names.
 CHOICES = {'mission_end': MISSION_ENDS, 'mission_firmware': tuple(FIRMWARES),
@@ -66,8 +67,9 @@ class NodeSettings:
     vehicle's telemetry read. A pose replans the rest of the mission only when the UAV is off
     the plan by more than ``replan_distance_m`` or ``replan_delay_s``, and at most once every
     ``replan_interval_s`` (mission clock seconds). ``flight_mode`` 'stream' flies each plan
-    with a link as position, velocity and acceleration targets in GUIDED (the mission uploaded
-    too); when the stream stops the vehicle goes on in AUTO or holds (``stream_fallback``).
+    with a link as position, velocity and acceleration targets in GUIDED or PX4's OFFBOARD (the
+    mission uploaded too); when the stream stops the vehicle goes on in AUTO or holds
+    (``stream_fallback``).
     The autopilot's wind estimate is smoothed with the time constant ``wind_time_constant_s``
     and replaces ``wind_speed_mps`` / ``wind_from_deg`` in every plan; it replans when it is
     farther than ``wind_replan_mps`` from the wind of the plan in force. With a link, the
@@ -237,9 +239,10 @@ DESCRIPTIONS = {
                            'set explicitly; empty: none',
     'flight_mode': 'with mavlink_url, how each plan is flown: mission (uploaded, flown in AUTO) '
                    'or stream (uploaded too, then flown as position, velocity and acceleration '
-                   'targets in GUIDED, timed on the autopilot clock)',
+                   'targets in GUIDED (PX4: OFFBOARD), timed on the autopilot clock)',
     'stream_fallback': 'when the stream stops (plan ended, node stopped, link lost): auto (go '
-                       'on with the uploaded mission from the item ahead) or hold (BRAKE)',
+                       'on with the uploaded mission from the item ahead) or hold (BRAKE; PX4: '
+                       'AUTO.LOITER)',
     'wind_time_constant_s': 'time constant of the smoothing of the autopilot\'s wind estimate '
                             '(autopilot s)',
     'wind_replan_mps': 'replan when the smoothed wind estimate is farther than this from the '

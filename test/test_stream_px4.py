@@ -1,0 +1,187 @@
+"""The streamed mode on PX4 SITL (v1.16, its SIH quadrotor): the node, linked on PX4's onboard
+port, flies its plan as OFFBOARD targets, and the same plan is then flown as a PX4 mission on
+a fresh PX4, side by side in the figures.
+
+The node uploads the plan, the test arms PX4 in AUTO.MISSION on its own ground-station link;
+PX4 takes off and holds q0, where the mission clock starts: the node streams targets (q0
+first), switches PX4 to OFFBOARD and, once the plan has reached qF, puts it back in
+AUTO.MISSION at the qF item (its landing follows). Measured in autopilot time
+(``time_boot_ms``) on the test's own link with the package's ``evaluate_flight``: when each
+planned point was reached against its time, and what the plan's power schedule delivers at
+the positions flown at the slot times against what the plan stated. The figures are printed
+(``pytest -s``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+import threading
+import time
+
+import numpy as np
+from pymavlink import mavutil
+import pytest
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+
+from uav_comm_planner.ros.node import PlannerNode
+from uav_comm_planner.vehicle.evaluation import evaluate_flight
+from uav_comm_planner.vehicle.mavlink.guided import PX4_MODES
+from uav_comm_planner.vehicle.mavlink.link import connect
+from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu
+from uav_comm_planner.vehicle.px4_sitl import (fly_px4_mission, PX4_HOME, quiet_streams,
+                                               start_mission, start_px4, why_px4_not_runnable)
+
+MAV = mavutil.mavlink
+RUN_PX4 = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'px4' / 'run_px4.sh'
+#: This module's PX4 SITL instance (onboard port 14540 + 9, ground station 18570 + 9).
+INSTANCE = 9
+SPEEDUP = 5
+#: Two nodes either side of a 400 m line: 30 slots of 4 s at PX4's 5 m/s cruise.
+PLAN = {'ground_nodes': [-150.0, 150.0, 150.0, 350.0], 'start_m': [0.0, 10.0],
+        'goal_m': [0.0, 400.0], 'max_speed_mps': 5.0, 'horizon_s': 120.0, 'num_slots': 30,
+        'altitude_m': 30.0}
+#: GLOBAL_POSITION_INT per second of autopilot time on the test's link.
+RECORD_RATE_HZ = 10.0
+#: Wall-clock limit of the streamed flight, generous (about 40 s at the speed-up).
+WALL_LIMIT_S = 300.0
+
+pytestmark = [pytest.mark.sitl,
+              pytest.mark.skipif(bool(why_px4_not_runnable(RUN_PX4)),
+                                 reason=why_px4_not_runnable(RUN_PX4))]
+
+
+class StreamedFlight:
+    """PX4 SITL, the node linked to its onboard port in stream mode on one executor thread,
+    and the test's ground-station link recording GLOBAL_POSITION_INT and the flight mode."""
+
+    def __init__(self, ros_context, folder: Path) -> None:
+        self.vehicle = start_px4(folder, INSTANCE, script=RUN_PX4, speedup=SPEEDUP)
+        self.node = self.executor = self.spinner = self.link = None
+        # The onboard port streams much at its rates in simulated time: only what the node
+        # asks for is kept.
+        onboard = connect(self.vehicle.onboard_url, timeout_s=60.0)
+        quiet_streams(onboard)
+        onboard.close()
+        self.link = connect(self.vehicle.ground_station_url, timeout_s=60.0)
+        quiet_streams(self.link)
+        values = {**PLAN, 'compute_baselines': False, 'flight_mode': 'stream',
+                  'mission_firmware': 'px4', 'home_latitude_deg': PX4_HOME.latitude_deg,
+                  'home_longitude_deg': PX4_HOME.longitude_deg,
+                  'home_altitude_m': PX4_HOME.altitude_m,
+                  'mavlink_url': self.vehicle.onboard_url}
+        self.node = PlannerNode(context=ros_context, parameter_overrides=[
+            Parameter(name, value=value) for name, value in values.items()])
+        self.executor = SingleThreadedExecutor(context=ros_context)
+        self.executor.add_node(self.node)
+        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
+        self.spinner.start()
+        self.deadline = time.monotonic() + WALL_LIMIT_S
+        self.times: list[float] = []
+        self.positions: list[tuple[int, int, int]] = []
+        self.modes: list[tuple[float, int]] = []
+        self.now_s: float | None = None
+
+    @property
+    def mode(self) -> int | None:
+        return self.modes[-1][1] if self.modes else None
+
+    def wait(self, condition, what: str) -> None:
+        while not condition():
+            assert time.monotonic() < self.deadline, f'no {what} within {WALL_LIMIT_S} s'
+            self.poll()
+
+    def poll(self) -> None:
+        message = self.link.recv_match(type=['GLOBAL_POSITION_INT', 'HEARTBEAT'],
+                                       blocking=True, timeout=0.2)
+        if message is None or message.get_srcSystem() != self.link.target_system:
+            return
+        if message.get_type() == 'HEARTBEAT':
+            if message.type != 6 and (not self.modes or self.mode != message.custom_mode):
+                self.modes.append((self.now_s, int(message.custom_mode)))
+            return
+        self.now_s = message.time_boot_ms / 1000.0
+        self.times.append(self.now_s)
+        self.positions.append((message.lat, message.lon, message.relative_alt))
+
+    def start(self) -> None:
+        """Arm in AUTO.MISSION once the node's mission is on PX4; record from then on."""
+        self.wait(lambda: self.node.vehicle.uploads_verified >= 1, 'mission on the vehicle')
+        start_mission(self.link)
+        self.link.mav.command_long_send(
+            self.link.target_system, self.link.target_component,
+            MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+            1e6 / RECORD_RATE_HZ, 0, 0, 0, 0, 0)
+        self.wait(lambda: self.node.progress.started, 'mission clock')
+
+    def track(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        latitude, longitude, altitude = np.array(self.positions).T
+        east, north, up = global_position_enu(latitude, longitude, altitude, PX4_HOME)
+        return np.array(self.times), np.column_stack([east, north]), up
+
+    def close(self) -> None:
+        if self.executor is not None:
+            self.executor.shutdown()
+        if self.spinner is not None:
+            self.spinner.join(10)
+        if self.node is not None:
+            self.node.destroy_node()
+        if self.link is not None:
+            self.link.close()
+        self.vehicle.stop()
+
+
+def test_px4_flies_the_streamed_plan_in_offboard_on_time_and_its_mission_after(
+        ros_context, tmp_path):
+    flight = StreamedFlight(ros_context, tmp_path / 'stream')
+    try:
+        node = flight.node
+        flight.start()
+        segment = node.progress.segments[0]
+        result = segment.result
+        scenario = result.scenario
+        end_s = segment.start_s + (scenario.num_slots + 1) * scenario.slot_s
+        flight.wait(lambda: any('stopped' in line for line in node.vehicle.stream_events),
+                    'end of the stream')
+        flight.wait(lambda: flight.now_s > end_s + 5.0
+                    and flight.mode == PX4_MODES['AUTO.MISSION'], 'AUTO.MISSION after it')
+        events = list(node.vehicle.stream_events)
+        outcome = node.current_plan
+        reference = node.vehicle.stream_reference
+        targets = node.vehicle.stream.targets_sent
+    finally:
+        flight.close()
+    print('\nstream events:', events)
+    started = [line for line in events if line.startswith('streaming')]
+    stopped = [line for line in events if 'stopped' in line]
+    assert len(started) == 1 and 'OFFBOARD' in started[0]
+    assert len(stopped) == 1 and 'reached qF' in stopped[0]
+    assert 'back in AUTO.MISSION from mission item' in stopped[0]
+    assert len(node.progress.segments) == 1, 'the stream was replanned in flight'
+    # OFFBOARD from the clock's start (after the first targets) to qF, then AUTO.MISSION.
+    offboard = [when for when, mode in flight.modes if mode == PX4_MODES['OFFBOARD']]
+    assert len(offboard) == 1 and 0.0 <= offboard[0] - segment.start_s <= 2.5
+    after = [mode for when, mode in flight.modes if when is not None and when > offboard[0]]
+    assert after[0] == PX4_MODES['AUTO.MISSION']
+
+    times, positions, up = flight.track()
+    report = evaluate_flight(result, reference.track(), times, positions, segment.start_s)
+    flying = (times >= segment.start_s) & (times <= end_s)
+    height_error = float(np.abs(up[flying] - scenario.altitude_m).max())
+    print(f'stream on PX4: {report.summary()}; {targets} targets sent; height held within '
+          f'{height_error:.2f} m of {scenario.altitude_m:g} m')
+    print('reach errors (slots):', np.round(report.reach_errors_s / scenario.slot_s, 2))
+
+    # The same plan as a PX4 mission, on a fresh PX4.
+    mission = outcome.plan.write(tmp_path / 'mission.plan')
+    flown = fly_px4_mission(outcome.vehicle_plan, mission, tmp_path / 'mission', instance=INSTANCE,
+                            speedup=SPEEDUP, script=RUN_PX4)
+    print(f'mission on PX4: {flown.report.summary()}')
+    print('reach errors (slots):', np.round(flown.report.reach_errors_s / scenario.slot_s, 2))
+
+    assert report.worst_reach_slots <= 0.5
+    assert report.median_reach_slots <= 0.15
+    assert report.flown_to_stated >= 0.99
+    assert height_error <= 2.0
+    # The stream keeps the plan's time at its worst point better than the mission does.
+    assert report.worst_reach_slots < flown.report.worst_reach_slots
