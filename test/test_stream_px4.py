@@ -9,7 +9,8 @@ AUTO.MISSION at the qF item (its landing follows). Measured in autopilot time
 (``time_boot_ms``) on the test's own link with the package's ``evaluate_flight``: when each
 planned point was reached against its time, and what the plan's power schedule delivers at
 the positions flown at the slot times against what the plan stated. The figures are printed
-(``pytest -s``).
+(``pytest -s``). A second flight stops the node in the middle of the stream with
+``stream_fallback`` hold: PX4 is held in AUTO.LOITER where it was, and the node says so.
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ class StreamedFlight:
     """PX4 SITL, the node linked to its onboard port in stream mode on one executor thread,
     and the test's ground-station link recording GLOBAL_POSITION_INT and the flight mode."""
 
-    def __init__(self, ros_context, folder: Path) -> None:
+    def __init__(self, ros_context, folder: Path, **parameters) -> None:
         self.vehicle = start_px4(folder, INSTANCE, script=RUN_PX4, speedup=SPEEDUP)
         self.node = self.executor = self.spinner = self.link = None
         # The onboard port streams much at its rates in simulated time: only what the node
@@ -69,7 +70,7 @@ class StreamedFlight:
                   'mission_firmware': 'px4', 'home_latitude_deg': PX4_HOME.latitude_deg,
                   'home_longitude_deg': PX4_HOME.longitude_deg,
                   'home_altitude_m': PX4_HOME.altitude_m,
-                  'mavlink_url': self.vehicle.onboard_url}
+                  'mavlink_url': self.vehicle.onboard_url, **parameters}
         self.node = PlannerNode(context=ros_context, parameter_overrides=[
             Parameter(name, value=value) for name, value in values.items()])
         self.executor = SingleThreadedExecutor(context=ros_context)
@@ -185,3 +186,38 @@ def test_px4_flies_the_streamed_plan_in_offboard_on_time_and_its_mission_after(
     assert height_error <= 2.0
     # The stream keeps the plan's time at its worst point better than the mission does.
     assert report.worst_reach_slots < flown.report.worst_reach_slots
+
+
+def test_a_node_stopped_mid_stream_leaves_px4_held_in_loiter_and_says_so(ros_context,
+                                                                         tmp_path):
+    flight = StreamedFlight(ros_context, tmp_path, stream_fallback='hold')
+    try:
+        node = flight.node
+        flight.start()
+        began = node.progress.segments[0].start_s
+        flight.wait(lambda: flight.now_s > began + 20.0
+                    and flight.mode == PX4_MODES['OFFBOARD'], 'stream in OFFBOARD')
+        flight.executor.shutdown()
+        flight.spinner.join(10)
+        flight.executor = flight.spinner = None
+        events = node.vehicle.stream.events
+        node.destroy_node()
+        flight.node = None
+        stopped_s = flight.now_s
+        flight.wait(lambda: flight.mode == PX4_MODES['AUTO.LOITER'], 'AUTO.LOITER after it')
+        flight.wait(lambda: flight.now_s > stopped_s + 15.0, 'fifteen seconds held')
+    finally:
+        flight.close()
+    print('\nstream events:', [event.message for event in events])
+    stopped = [event.message for event in events if event.kind == 'stopped']
+    assert len(stopped) == 1 and 'closing' in stopped[0] and 'AUTO.LOITER' in stopped[0]
+    times, positions, _ = flight.track()
+    # PX4 brakes from the stream's speed to its hold point, then holds it.
+    at_stop = positions[np.searchsorted(times, stopped_s)]
+    for since_s in (3, 6, 9, 12, 15):
+        where = positions[np.searchsorted(times, stopped_s + since_s)]
+        print(f'{since_s} s after: {np.linalg.norm(where - at_stop):.2f} m from the stop')
+    held = positions[times >= stopped_s + 10.0]
+    spread = float(np.linalg.norm(held - held.mean(axis=0), axis=1).max())
+    print(f'held within {spread:.2f} m from 10 s to 15 s after the node stopped')
+    assert spread <= 0.5
