@@ -1,8 +1,10 @@
-"""What several test modules share: seeded random scenarios, the six-node field, and the node
-harness (the planner node, a probe node and one executor, on real rclpy)."""
+"""What several test modules share: seeded random scenarios, the six-node field, the node
+harness (the planner node, a probe node and one executor, on real rclpy), and the record a
+SITL test's own MAVLink link keeps of the vehicle."""
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import Callable
 
@@ -68,6 +70,76 @@ def small_scenario(nodes=NODES_A, **changes):
     """The scenario the harness's node plans for ``nodes``, as the core sees it."""
     return paper_scenario('I', ground_nodes_m=nodes, num_slots=SLOTS, horizon_s=HORIZON_S,
                           **changes)
+
+
+class SpunNode:
+    """A :class:`PlannerNode` with the parameters ``values``, spun on one executor thread of
+    its own (as a SITL test runs the node beside its vehicle); :meth:`stop` ends both."""
+
+    def __init__(self, ros_context, values: dict) -> None:
+        self.node: PlannerNode | None = PlannerNode(context=ros_context, parameter_overrides=[
+            Parameter(name, value=value) for name, value in values.items()])
+        self.executor: SingleThreadedExecutor | None = SingleThreadedExecutor(
+            context=ros_context)
+        self.executor.add_node(self.node)
+        self.spinner: threading.Thread | None = threading.Thread(target=self.executor.spin,
+                                                                 daemon=True)
+        self.spinner.start()
+
+    def stop_spinning(self) -> None:
+        """The executor stopped (the node not yet destroyed)."""
+        if self.executor is not None:
+            self.executor.shutdown()
+        if self.spinner is not None:
+            self.spinner.join(10)
+        self.executor = self.spinner = None
+
+    def stop(self) -> None:
+        self.stop_spinning()
+        if self.node is not None:
+            self.node.destroy_node()
+        self.node = None
+
+
+class LinkRecord:
+    """What a test's own MAVLink link ``link`` hears of its vehicle: every GLOBAL_POSITION_INT
+    (``times`` in autopilot seconds, ``positions`` as latitude and longitude x 1e7 and the
+    height above home in mm) and every change of flight mode (``modes``: autopilot time of the
+    latest position, custom_mode). :meth:`wait` reads it until a condition holds, at most
+    ``limit_s`` of wall clock from now."""
+
+    def __init__(self, link, limit_s: float) -> None:
+        self.link = link
+        self.limit_s = limit_s
+        self.deadline = time.monotonic() + limit_s
+        self.times: list[float] = []
+        self.positions: list[tuple[int, int, int]] = []
+        self.modes: list[tuple[float | None, int]] = []
+        self.now_s: float | None = None
+
+    @property
+    def mode(self) -> int | None:
+        """The vehicle's latest flight mode (None before its heartbeat)."""
+        return self.modes[-1][1] if self.modes else None
+
+    def wait(self, condition: Callable[[], bool], what: str) -> None:
+        while not condition():
+            assert time.monotonic() < self.deadline, f'no {what} within {self.limit_s} s'
+            self.poll()
+
+    def poll(self) -> None:
+        message = self.link.recv_match(type=['GLOBAL_POSITION_INT', 'HEARTBEAT'],
+                                       blocking=True, timeout=0.2)
+        if message is None or message.get_srcSystem() != self.link.target_system:
+            return
+        if message.get_type() == 'HEARTBEAT':
+            # Type 6 is a ground station's heartbeat relayed.
+            if message.type != 6 and message.custom_mode != self.mode:
+                self.modes.append((self.now_s, int(message.custom_mode)))
+            return
+        self.now_s = message.time_boot_ms / 1000.0
+        self.times.append(self.now_s)
+        self.positions.append((message.lat, message.lon, message.relative_alt))
 
 
 class Harness:

@@ -16,16 +16,12 @@ the positions flown at the slot times against what the plan stated. The figures 
 from __future__ import annotations
 
 from pathlib import Path
-import threading
-import time
 
+from helpers import LinkRecord, SpunNode
 import numpy as np
 from pymavlink import mavutil
 import pytest
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.parameter import Parameter
 
-from uav_comm_planner.ros.node import PlannerNode
 from uav_comm_planner.vehicle.evaluation import evaluate_flight
 from uav_comm_planner.vehicle.mavlink.guided import PX4_MODES
 from uav_comm_planner.vehicle.mavlink.link import connect
@@ -52,13 +48,13 @@ pytestmark = [pytest.mark.sitl,
                                  reason=why_px4_not_runnable(RUN_PX4))]
 
 
-class StreamedFlight:
+class StreamedFlight(LinkRecord):
     """PX4 SITL, the node linked to its onboard port in stream mode on one executor thread,
     and the test's ground-station link recording GLOBAL_POSITION_INT and the flight mode."""
 
     def __init__(self, ros_context, folder: Path, **parameters) -> None:
         self.vehicle = start_px4(folder, INSTANCE, script=RUN_PX4, speedup=SPEEDUP)
-        self.node = self.executor = self.spinner = self.link = None
+        self.spun = self.link = None
         # The onboard port streams much at its rates in simulated time: only what the node
         # asks for is kept.
         onboard = connect(self.vehicle.onboard_url, timeout_s=60.0)
@@ -66,44 +62,13 @@ class StreamedFlight:
         onboard.close()
         self.link = connect(self.vehicle.ground_station_url, timeout_s=60.0)
         quiet_streams(self.link)
-        values = {**PLAN, 'compute_baselines': False, 'flight_mode': 'stream',
-                  'mission_firmware': 'px4', 'home_latitude_deg': PX4_HOME.latitude_deg,
-                  'home_longitude_deg': PX4_HOME.longitude_deg,
-                  'home_altitude_m': PX4_HOME.altitude_m,
-                  'mavlink_url': self.vehicle.onboard_url, **parameters}
-        self.node = PlannerNode(context=ros_context, parameter_overrides=[
-            Parameter(name, value=value) for name, value in values.items()])
-        self.executor = SingleThreadedExecutor(context=ros_context)
-        self.executor.add_node(self.node)
-        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
-        self.spinner.start()
-        self.deadline = time.monotonic() + WALL_LIMIT_S
-        self.times: list[float] = []
-        self.positions: list[tuple[int, int, int]] = []
-        self.modes: list[tuple[float, int]] = []
-        self.now_s: float | None = None
-
-    @property
-    def mode(self) -> int | None:
-        return self.modes[-1][1] if self.modes else None
-
-    def wait(self, condition, what: str) -> None:
-        while not condition():
-            assert time.monotonic() < self.deadline, f'no {what} within {WALL_LIMIT_S} s'
-            self.poll()
-
-    def poll(self) -> None:
-        message = self.link.recv_match(type=['GLOBAL_POSITION_INT', 'HEARTBEAT'],
-                                       blocking=True, timeout=0.2)
-        if message is None or message.get_srcSystem() != self.link.target_system:
-            return
-        if message.get_type() == 'HEARTBEAT':
-            if message.type != 6 and (not self.modes or self.mode != message.custom_mode):
-                self.modes.append((self.now_s, int(message.custom_mode)))
-            return
-        self.now_s = message.time_boot_ms / 1000.0
-        self.times.append(self.now_s)
-        self.positions.append((message.lat, message.lon, message.relative_alt))
+        self.spun = SpunNode(ros_context, {
+            **PLAN, 'compute_baselines': False, 'flight_mode': 'stream',
+            'mission_firmware': 'px4', 'home_latitude_deg': PX4_HOME.latitude_deg,
+            'home_longitude_deg': PX4_HOME.longitude_deg, 'home_altitude_m': PX4_HOME.altitude_m,
+            'mavlink_url': self.vehicle.onboard_url, **parameters})
+        self.node = self.spun.node
+        super().__init__(self.link, WALL_LIMIT_S)
 
     def start(self) -> None:
         """Arm in AUTO.MISSION once the node's mission is on PX4; record from then on."""
@@ -121,12 +86,8 @@ class StreamedFlight:
         return np.array(self.times), np.column_stack([east, north]), up
 
     def close(self) -> None:
-        if self.executor is not None:
-            self.executor.shutdown()
-        if self.spinner is not None:
-            self.spinner.join(10)
-        if self.node is not None:
-            self.node.destroy_node()
+        if self.spun is not None:
+            self.spun.stop()
         if self.link is not None:
             self.link.close()
         self.vehicle.stop()
@@ -197,13 +158,10 @@ def test_a_node_stopped_mid_stream_leaves_px4_held_in_loiter_and_says_so(ros_con
         began = node.progress.segments[0].start_s
         flight.wait(lambda: flight.now_s > began + 20.0
                     and flight.mode == PX4_MODES['OFFBOARD'], 'stream in OFFBOARD')
-        flight.executor.shutdown()
-        flight.spinner.join(10)
-        flight.executor = flight.spinner = None
+        flight.spun.stop_spinning()
         events = node.vehicle.stream.events
         reference = node.vehicle.stream_reference
-        node.destroy_node()
-        flight.node = None
+        flight.spun.stop()              # the link closes: the stream falls back
         stopped_s = flight.now_s
         flight.wait(lambda: flight.mode == PX4_MODES['AUTO.LOITER'], 'AUTO.LOITER after it')
         flight.wait(lambda: flight.now_s > stopped_s + 15.0, 'fifteen seconds held')

@@ -10,16 +10,11 @@ middle of the stream: the vehicle is held (BRAKE) and the node says so.
 
 from __future__ import annotations
 
-import threading
-import time
-
 from geometry_msgs.msg import Vector3Stamped
+from helpers import LinkRecord, SpunNode
 import numpy as np
 import pytest
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.parameter import Parameter
 
-from uav_comm_planner.ros.node import PlannerNode
 from uav_comm_planner.ros.wind import PREFLIGHT_RESOLUTION_MPS, TOPIC_WIND, WIND_QOS
 from uav_comm_planner.vehicle.evaluation import evaluate_flight
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
@@ -47,52 +42,25 @@ pytestmark = [pytest.mark.sitl,
               pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())]
 
 
-class Flight:
+class Flight(LinkRecord):
     """The SITL vehicle, the node linked to it on its second port, one executor thread, and
     the test's own link recording GLOBAL_POSITION_INT and the flight mode."""
 
     def __init__(self, ros_context, folder, **parameters) -> None:
         self.sitl = start_sitl(folder, HOME, speedup=SPEEDUP, instances=INSTANCES)
-        self.node = self.executor = self.spinner = None
+        self.spun = None
         self.link = open_link(self.sitl)
         for name, value in {'FENCE_ENABLE': 0, **WIND, **DRAG}.items():
             set_parameter(self.link, name, value)
         url = f'tcp:127.0.0.1:{5762 + 10 * self.sitl.instance}'
-        values = {**PLAN, 'compute_baselines': False, 'flight_mode': 'stream',
-                  'home_latitude_deg': HOME.latitude_deg,
-                  'home_longitude_deg': HOME.longitude_deg,
-                  'home_altitude_m': HOME.altitude_m, 'mavlink_url': url, **parameters}
-        self.node = PlannerNode(context=ros_context, parameter_overrides=[
-            Parameter(name, value=value) for name, value in values.items()])
+        self.spun = SpunNode(ros_context, {
+            **PLAN, 'compute_baselines': False, 'flight_mode': 'stream',
+            'home_latitude_deg': HOME.latitude_deg, 'home_longitude_deg': HOME.longitude_deg,
+            'home_altitude_m': HOME.altitude_m, 'mavlink_url': url, **parameters})
+        self.node = self.spun.node
         self.winds: list[Vector3Stamped] = []
         self.node.create_subscription(Vector3Stamped, TOPIC_WIND, self.winds.append, WIND_QOS)
-        self.executor = SingleThreadedExecutor(context=ros_context)
-        self.executor.add_node(self.node)
-        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
-        self.spinner.start()
-        self.deadline = time.monotonic() + WALL_LIMIT_S
-        self.times: list[float] = []
-        self.latlon: list[tuple[float, float]] = []
-        self.mode: int | None = None
-        self.now_s: float | None = None
-
-    def wait(self, condition, what: str) -> None:
-        while not condition():
-            assert time.monotonic() < self.deadline, f'no {what} within {WALL_LIMIT_S} s'
-            self.poll()
-
-    def poll(self) -> None:
-        message = self.link.recv_match(type=['GLOBAL_POSITION_INT', 'HEARTBEAT'],
-                                       blocking=True, timeout=0.2)
-        if message is None:
-            return
-        if message.get_type() == 'HEARTBEAT':
-            if message.get_srcSystem() == self.link.target_system and message.type != 6:
-                self.mode = int(message.custom_mode)
-            return
-        self.now_s = message.time_boot_ms / 1000.0
-        self.times.append(self.now_s)
-        self.latlon.append((message.lat / 1e7, message.lon / 1e7))
+        super().__init__(self.link, WALL_LIMIT_S)
 
     def start(self) -> None:
         """Take off, wait for the autopilot's wind estimate to settle (it rises over the first
@@ -115,18 +83,14 @@ class Flight:
         self.wait(lambda: node.progress.started, 'mission clock')
 
     def track(self) -> tuple[np.ndarray, np.ndarray]:
-        latlon = np.array(self.latlon)
-        east, north, _ = geodetic_to_enu(latlon[:, 0], latlon[:, 1],
-                                         np.full(len(latlon), HOME.altitude_m), HOME)
+        latitude, longitude, _ = np.array(self.positions).T
+        east, north, _ = geodetic_to_enu(latitude / 1e7, longitude / 1e7,
+                                         np.full(len(latitude), HOME.altitude_m), HOME)
         return np.array(self.times), np.column_stack([east, north])
 
     def close(self) -> None:
-        if self.executor is not None:
-            self.executor.shutdown()
-        if self.spinner is not None:
-            self.spinner.join(10)
-        if self.node is not None:
-            self.node.destroy_node()
+        if self.spun is not None:
+            self.spun.stop()
         self.link.close()
         self.sitl.stop()
 
@@ -185,12 +149,9 @@ def test_a_node_stopped_mid_stream_leaves_the_vehicle_held_and_says_so(ros_conte
         began = node.progress.segments[0].start_s
         flight.wait(lambda: flight.now_s is not None and flight.now_s > began + 30.0
                     and flight.mode == COPTER_MODES['GUIDED'], 'stream in GUIDED')
-        flight.executor.shutdown()
-        flight.spinner.join(10)
-        flight.executor = flight.spinner = None
+        flight.spun.stop_spinning()
         events = node.vehicle.stream.events
-        node.destroy_node()
-        flight.node = None
+        flight.spun.stop()
         stopped = [event.message for event in events if event.kind == 'stopped']
         print('stream events:', [event.message for event in events])
         assert len(stopped) == 1 and 'closing' in stopped[0] and 'BRAKE' in stopped[0]
