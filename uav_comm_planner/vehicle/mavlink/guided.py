@@ -246,7 +246,8 @@ class TargetStream:
             set_mode(link, modes.follow)
             self._mode_asked_s = time_s
             self._follow_tries += 1
-        self._send(link, job, elapsed)
+        send_target(link, job, elapsed, self.home, self.vehicle_home)
+        self.targets_sent += 1
         self._last_sent_s = time_s
 
     def _confirm_fallback(self, link, time_s: float) -> None:
@@ -284,21 +285,6 @@ class TargetStream:
             if message is not None and message.get_srcSystem() == link.target_system:
                 self.on_heartbeat(message)
 
-    def _send(self, link, job: StreamJob, elapsed_s: float) -> None:
-        position, velocity, accel = (value[0] for value in job.reference.state(elapsed_s))
-        latitude, longitude, _ = enu_to_geodetic(np.array([position[0]]),
-                                                 np.array([position[1]]), 0.0, self.home)
-        frame, altitude = MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, job.altitude_m
-        if stream_modes(link).amsl_targets and self.vehicle_home is not None:
-            frame, altitude = MAV.MAV_FRAME_GLOBAL_INT, self.vehicle_home.altitude_m + altitude
-        # East-north to north-east-down.
-        link.mav.set_position_target_global_int_send(
-            0, link.target_system, link.target_component, frame, POS_VEL_ACCEL_MASK,
-            int(round(float(latitude[0]) * 1e7)), int(round(float(longitude[0]) * 1e7)),
-            float(altitude), float(velocity[1]), float(velocity[0]), 0.0,
-            float(accel[1]), float(accel[0]), 0.0, 0.0, 0.0)
-        self.targets_sent += 1
-
     def _fall_back(self, link, job: StreamJob, elapsed_s: float | None, reason: str, *,
                    resume_seq: int | None = None, kind: str = 'stopped') -> int:
         """Put the vehicle in its mission mode at the item ahead (at ``resume_seq`` when
@@ -332,6 +318,26 @@ class TargetStream:
         self._on_event(event)
 
 
+def send_target(link, job: StreamJob, elapsed_s: float, home: Home,
+                vehicle_home: Home | None) -> None:
+    """SET_POSITION_TARGET_GLOBAL_INT of ``job``'s reference ``elapsed_s`` after q0: latitude
+    and longitude through the planning frame's ``home``, the plan's altitude above the
+    vehicle's home (above mean sea level where the vehicle takes only that exactly and its
+    ``vehicle_home`` is known), velocity and acceleration north-east-down."""
+    position, velocity, accel = (value[0] for value in job.reference.state(elapsed_s))
+    latitude, longitude, _ = enu_to_geodetic(np.array([position[0]]), np.array([position[1]]),
+                                             0.0, home)
+    frame, altitude = MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, job.altitude_m
+    if stream_modes(link).amsl_targets and vehicle_home is not None:
+        frame, altitude = MAV.MAV_FRAME_GLOBAL_INT, vehicle_home.altitude_m + altitude
+    # East-north to north-east-down.
+    link.mav.set_position_target_global_int_send(
+        0, link.target_system, link.target_component, frame, POS_VEL_ACCEL_MASK,
+        int(round(float(latitude[0]) * 1e7)), int(round(float(longitude[0]) * 1e7)),
+        float(altitude), float(velocity[1]), float(velocity[0]), 0.0,
+        float(accel[1]), float(accel[0]), 0.0, 0.0, 0.0)
+
+
 def stream_modes(link) -> StreamModes:
     """The stream's modes for ``link``'s vehicle (by its heartbeat's autopilot)."""
     return firmware_of_autopilot(getattr(link, 'vehicle_autopilot', None)).stream_modes
@@ -352,4 +358,4 @@ def _mode_label(modes: StreamModes, custom_mode: int | None) -> str:
 
 
 __all__ = ['COPTER_MODES', 'PX4_MODES', 'STREAM_FALLBACKS', 'STREAM_GAP_S', 'StreamEvent',
-           'StreamJob', 'TargetStream', 'set_mode', 'stream_modes']
+           'StreamJob', 'TargetStream', 'send_target', 'set_mode', 'stream_modes']

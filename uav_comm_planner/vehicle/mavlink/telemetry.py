@@ -379,13 +379,11 @@ class VehicleBridge:
         if home is None or home == self.vehicle_home:
             return
         self.vehicle_home = home
-        if self.stream is not None:
-            self.stream.vehicle_home = home
         adopted = self.home is None
         if adopted:
             self.home = home
-            if self.stream is not None:
-                self.stream.home = home     # its targets are in the same frame
+        if self.stream is not None:     # its targets are in the same frame
+            self.stream.home, self.stream.vehicle_home = self.home, home
         self._on_event(HomeReport(home, adopted))
 
     def _next_job(self) -> _Upload | None:
