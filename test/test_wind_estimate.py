@@ -19,6 +19,7 @@ from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.guided import (COPTER_MODES, MODE_TRIES, STREAM_GAP_S,
                                                      StreamJob, TargetStream)
+from uav_comm_planner.vehicle.mavlink.items import Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.telemetry import wind_of
 from uav_comm_planner.vehicle.stream import stream_reference
 
@@ -235,6 +236,23 @@ def test_px4_refusing_offboard_ends_the_stream_once_held_in_loiter(reference):
     # Without the vehicle's home its targets are above home (PX4 takes them too).
     assert link.targets[0][3] == MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
     assert link.targets[0][7] == 100.0
+
+
+def test_a_replan_resumes_px4_at_its_q0_item_in_its_own_numbering_once_uploaded(reference):
+    events = []
+    stream = TargetStream(HOME, events.append)
+    link = RecordingLink()
+    link.vehicle_autopilot = MAV.MAV_AUTOPILOT_PX4
+    stream.start(StreamJob(reference, 0.0, 100.0, 'hold', lambda elapsed_s: 5))
+    stream.on_heartbeat(px4_heartbeat(PX4_OFFBOARD))
+    for t in np.arange(0, 2, 0.05):
+        stream.tick(link, float(t))
+    stream.stop('a new plan is in force', resume_seq=Q0_SEQ, mission='replan')
+    stream.tick(link, 2.0)                  # streamed on until the replan is on board
+    assert stream.active and link.currents == []
+    stream.uploaded(link, 2.05, 'replan', True)
+    assert link.currents == [Q0_SEQ - 1] and link.modes[-1] == PX4_AUTO_MISSION
+    assert f'back in AUTO.MISSION from mission item {Q0_SEQ - 1}' in events[-1].message
 
 
 def test_the_node_plans_for_the_wind_measured_publishes_it_and_keeps_its_parameter_else(
