@@ -8,7 +8,7 @@ import pytest
 
 from uav_comm_planner.core.drops import random_scenario
 from uav_comm_planner.tools import cli
-from uav_comm_planner.tools.bench import peak_memory_mib
+from uav_comm_planner.tools.bench import peak_memory_mib, share_lower_bound
 
 
 @pytest.fixture(scope='module')
@@ -88,20 +88,44 @@ def test_quality_tables_compare_the_default_with_the_letter_the_best_known_and_t
     header, *rows = section(output, title)
     assert header.split() == ['N', 'M', 'letter_bps', 'default_bps', 'best_bps', 'bound_bps',
                               'default/letter', 'gap_to_best', 'gap_to_bound', 'old_gap',
-                              'letter_s', 'default_s', 'start']
+                              'letter_s', 'default_s', 'start', 'best_from']
     cases = rows[:-2]
-    assert len(cases) == (4 if title == 'Quality:' else 2)
+    assert len(cases) == 3
+    within = 0
     for row in cases:
-        n, m, letter, default, best, bound, ratio, gap_best, gap_bound, *_ = row.split()
+        n, m, letter, default, best, bound, ratio, gap_best, gap_bound, *_, source = row.split()
         assert 3 <= int(n) <= 20 and 51 <= int(m) <= 80
         assert float(ratio) == pytest.approx(float(default) / float(letter), rel=1e-5)
         assert float(letter) <= float(default) <= float(best) <= float(bound)
-        assert float(gap_best.rstrip('%')) == pytest.approx(
-            100 * (1 - float(default) / float(best)), abs=1e-3)
+        gap = float(gap_best.rstrip('%'))
+        assert gap == pytest.approx(100 * (1 - float(default) / float(best)), abs=1e-3)
+        assert source in ('default', 'letter', 'tours')
+        if source != 'tours':     # the default holds the letter's run: never below it
+            assert gap == 0.0
+        within += gap <= 0.1
     summary = re.match(r'default below the letter in (\d+) of (\d+) drops .*; within 0.1 % of '
-                       r'the best known in (\d+) of (\d+)', rows[-2])
+                       r'the best known in (\d+) of (\d+) \((\d+)%, target 95%: (met|not met); '
+                       r'90 % lower confidence bound (\d+)%\)', rows[-2])
     assert summary is not None and summary.group(1) == '0'
+    assert int(summary.group(3)) == within and int(summary.group(4)) == len(cases)
+    assert summary.group(6) == ('met' if within >= 0.95 * len(cases) else 'not met')
+    assert int(summary.group(7)) <= int(summary.group(5))
     assert rows[-1].startswith('gap of the default to the dual bound: median ')
+
+
+@pytest.mark.parametrize('hits, total', [(0, 5), (1, 1), (11, 12), (38, 40), (40, 40)])
+def test_the_share_lower_bound_leaves_the_stated_chance_of_seeing_as_many_hits(hits, total):
+    bound = share_lower_bound(hits, total)
+    if hits == 0:
+        assert bound == 0.0
+        return
+
+    def chance_of_at_least_hits(p):
+        return sum(math.comb(total, k) * p ** k * (1 - p) ** (total - k)
+                   for k in range(hits, total + 1))
+
+    assert 0.0 < bound <= hits / total
+    assert chance_of_at_least_hits(bound) == pytest.approx(0.1, abs=1e-9)
 
 
 def test_peak_memory_counts_what_the_call_allocates():
