@@ -219,3 +219,31 @@ def test_screened_tours_are_flyable_and_the_same_for_the_same_scenario():
     second = plan(scenario, SolverSettings(compute_baselines=False))
     assert first.start == second.start
     np.testing.assert_array_equal(first.trajectory, second.trajectory)
+
+
+def _visits(q: np.ndarray, nodes: np.ndarray) -> tuple[list[int], list[int]]:
+    """The nodes a tour start stops at, in order, and the hover slots at each (the slots of q
+    at a node after the one it arrives in)."""
+    at = [np.flatnonzero(np.all(np.isclose(q, w, rtol=0.0, atol=1e-9), axis=1)) for w in nodes]
+    order = sorted((slots[0], n) for n, slots in enumerate(at) if slots.size)
+    return [n for _, n in order], [at[n].size - 1 for _, n in order]
+
+
+def test_screened_tours_hover_in_random_shares_and_mostly_keep_the_order_drawn():
+    # Slots to spare, so every tour visits every node: the tours, read back from their slots.
+    scenario = random_scenario(12, nodes=7, slots=140)
+    start, goal = np.asarray(scenario.start_m), np.asarray(scenario.goal_m)
+    tours = random_tours(scenario, 24)
+    assert len(tours) == 24
+    visits = {name: _visits(q, scenario.nodes) for name, q in tours.items()}
+    spare = {sum(hovers) for _, hovers in visits.values()}
+    assert all(sorted(order) == list(range(7)) for order, _ in visits.values())
+    # The spare slots go to the nodes in shares that differ from tour to tour, seldom evenly.
+    uneven = [name for name, (_, hovers) in visits.items() if max(hovers) - min(hovers) > 1]
+    assert len(uneven) >= 20 and len({tuple(h) for _, h in visits.values()}) >= 20
+    assert len(spare) > 1     # orders of other lengths leave other numbers of slots to spare
+    # Every fourth order is a 2-opt local optimum of the tour length; the others as drawn.
+    shortest = {name: two_opt(start, goal, scenario.nodes, order) == order
+                for name, (order, _) in visits.items()}
+    assert all(shortest[f'tour {k}'] for k in range(4, 25, 4))
+    assert sum(not shortest[f'tour {k}'] for k in range(1, 25) if k % 4) >= 12
