@@ -59,6 +59,7 @@ def random_tours(scenario: Scenario, count: int,
     rng = np.random.default_rng(scenario_seed(scenario) if seed is None else seed)
     start, goal = np.asarray(scenario.start_m, float), np.asarray(scenario.goal_m, float)
     tours: dict[str, np.ndarray] = {}
+    drawn: set[bytes] = set()                   # the tours so far, as bytes: a repeat is one
     legs: dict[tuple[int, ...], tuple] = {}     # the legs of each order, worked out once
     for k in range(1, count + 1):
         order = [int(i) for i in rng.permutation(scenario.num_nodes)]
@@ -68,7 +69,8 @@ def random_tours(scenario: Scenario, count: int,
         if key not in legs:
             legs[key] = initial.tour_legs(scenario, order)
         q = initial.fly_legs(scenario, legs[key], random_split(rng))
-        if not any(np.array_equal(q, other) for other in tours.values()):
+        if q.tobytes() not in drawn:
+            drawn.add(q.tobytes())
             tours[f'tour {k}'] = q
     return tours
 
