@@ -358,7 +358,7 @@ class SolverSettings:
     max_node_slots: int = MAX_NODE_SLOTS
     compute_baselines: bool = True
     starts: tuple[str, ...] = START_NAMES
-    screened_tours: int = 40
+    screened_tours: int = 80
     fast_steps: bool = True
 
     @classmethod
