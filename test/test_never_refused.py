@@ -76,3 +76,25 @@ def test_no_feasible_request_is_refused():
         fallbacks += len(vehicle_plan.schedule.legs) == 1
     print(f'{REQUESTS} requests, none refused; {fallbacks} flown as one leg')
     assert refused == []
+
+
+@pytest.mark.parametrize('firmware', ['ardupilot', 'px4'])
+def test_the_quick_check_never_refuses_what_the_planning_flies(firmware):
+    """check_goal_in_time (run when the parameters are set) against plan_for_vehicle on long
+    slots (10 s, where the quarter slot qF may come late is more than the holds): for goals
+    around the limit, a refusal by the check is a refusal by the planning too."""
+    from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+    from uav_comm_planner.mission.request import check_goal_in_time
+    limits = VehicleLimits.for_firmware(firmware)
+    both = 0
+    for distance in np.linspace(0.85, 0.999, 11) * limits.cruise_speed_mps * 110.0:
+        scenario = Scenario(ground_nodes_m=((distance / 2, 50.0),), start_m=(0.0, 0.0),
+                            goal_m=(float(distance), 0.0), num_slots=10, horizon_s=100.0,
+                            max_speed_mps=limits.cruise_speed_mps)
+        try:
+            check_goal_in_time(scenario, limits, firmware)
+        except InvalidScenarioError:
+            with pytest.raises(InfeasibleHorizonError):
+                plan_for_vehicle(scenario, limits, firmware=firmware)
+            both += 1
+    assert 0 < both < 11

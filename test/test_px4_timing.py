@@ -122,7 +122,7 @@ def test_the_quick_refusal_and_the_horizon_it_asks_for_use_the_firmwares_leg_tim
     px4_s = leg_model('px4').timed_s(leg_model('px4').profile(line, 5.0, limits))
     scurve_s = Profile.rest_to_rest(1000.0, 5.0, limits).duration_s
     assert px4_s > scurve_s + 0.5
-    end_s = (px4_s + scurve_s) / 2                      # (M + 1) delta between the two
+    end_s = scurve_s + 0.1                  # (M + 1) delta: px4_s is beyond its quarter slot
     slots = 100
     scenario = paper_scenario('I', ground_nodes_m=[(500.0, 100.0)], start_m=(0.0, 0.0),
                               goal_m=(1000.0, 0.0), max_speed_mps=5.0, num_slots=slots,

@@ -205,6 +205,24 @@ def test_the_vehicle_ladder_tries_the_wider_search_unless_a_close_slower_plan_fl
     assert calls == [('plan', first), ('plan', second), ('wide', first), ('plan', third),
                      ('wide', second)]
     assert far.ideal.scenario.max_speed_mps == third
+    # A wider search that flies, but delivers less as flown than the slower plan that flies
+    # beside it, is not taken over it.
+    calls.clear()
+
+    def spoilt(scenario, settings):
+        calls.append(('wide', scenario.max_speed_mps))
+        if scenario.max_speed_mps == first:
+            return None
+        result = plan(scenario, SETTINGS)
+        worse = np.repeat(result.trajectory[:1], len(result.trajectory), axis=0)
+        return dataclasses.replace(result, trajectory=worse)      # hovers at its first point
+    kept = plan_for_vehicle(MISSION, slow, wider_planner=spoilt,
+                            planner=tagged('plan', slower_share=1.0 - 2 * WIDER_SEARCH_GAIN))
+    assert ('wide', second) in calls
+    assert kept.ideal.scenario.max_speed_mps == third
+    spoilt_flown = plan_for_vehicle(MISSION.replace(max_speed_mps=second), slow,
+                                    planner=spoilt).flown.min_throughput
+    assert spoilt_flown < kept.flown.min_throughput
 
 
 class StandInVehicle:

@@ -17,7 +17,7 @@ from uav_comm_planner.core.feasibility import within_speed_limit
 from uav_comm_planner.core.model import average_rates, flown_path, snr_per_watt
 from uav_comm_planner.core.optimizer import optimal_power, plan
 from uav_comm_planner.core.power import waterfilling_power
-from uav_comm_planner.core.receding import FlownSlots, replan
+from uav_comm_planner.core.receding import CLEAR_START_MAX_M, FlownSlots, replan
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.core.trajectory import trajectory_step_cvxpy
 from uav_comm_planner.core.zone_rows import _outward_edges, ZONE_CUSHION_M, zone_model
@@ -399,7 +399,7 @@ def test_a_replan_in_flight_keeps_the_zones_and_leaves_out_a_rest_that_would_cut
     assert ('previous' in receding.result.start_throughputs) == kept
 
 
-@pytest.mark.parametrize('inside_m', [0.3, 4.0])
+@pytest.mark.parametrize('inside_m', [0.3, 2.0])
 def test_a_replan_from_just_inside_the_margin_starts_at_the_margin(across, inside_m):
     """A vehicle flying a plan that hugs the margin drifts a little inside it: the rest starts
     at the nearest point that keeps the margin, not refused."""
@@ -419,9 +419,14 @@ def test_a_replan_from_just_inside_the_margin_starts_at_the_margin(across, insid
     np.testing.assert_allclose(start, position + (inside_m + GRAPH_CLEARANCE_M) * away,
                                atol=1e-9)
     check_plan(receding.result, rest)
-    # In the disc itself the position stays refused.
-    with pytest.raises(InvalidScenarioError, match='zone'):
-        replan(mission, centre + (disc.radius_m - 1.0) * away, flown)
+    # In the disc itself, or farther inside the margin than the node counts the vehicle at q0
+    # from, the position stays refused.
+    from uav_comm_planner.ros.flight import START_RADIUS_M
+    assert CLEAR_START_MAX_M == START_RADIUS_M
+    for depth_m in (mission.zones.margin_m + 1.0, CLEAR_START_MAX_M + 0.5):
+        with pytest.raises(InvalidScenarioError, match='zone'):
+            replan(mission, centre + (disc.radius_m + mission.zones.margin_m - depth_m) * away,
+                   flown)
 
 
 def test_a_many_sided_non_convex_zone_across_the_letter_s_line_is_kept_out():

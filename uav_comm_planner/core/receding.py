@@ -147,13 +147,19 @@ def rest_of_mission(mission: Scenario, position_m: Sequence[float],
                            horizon_s=remaining * mission.slot_s, power_budget_w=budget_left)
 
 
+#: The farthest :func:`clear_start` moves a replan's start: the node's radius for holding q0
+#: (``ros.flight.START_RADIUS_M``), so that the vehicle where it was asked is still at the
+#: new q0 and its first leg is not longer than the plan says by more than that.
+CLEAR_START_MAX_M = 2.5
+
+
 def clear_start(mission: Scenario, position_m: Sequence[float]) -> tuple[float, float]:
     """Where the rest of ``mission`` starts from ``position_m``: the position itself, or, when
     it is closer to a zone's edge than the margin but not in a zone (a vehicle tracking a plan
     that keeps the margin exactly drifts a little inside it), the nearest point that keeps the
-    margin (:func:`~uav_comm_planner.core.detour.outside_point`) when that is no farther than
-    the margin; the vehicle flies there first. A position in a zone, or farther in, is kept
-    (and refused by the scenario)."""
+    margin (:func:`~uav_comm_planner.core.detour.outside_point`) when that is at most
+    :data:`CLEAR_START_MAX_M` away; the vehicle flies there first. A position in a zone, or
+    farther in, is kept (and refused by the scenario)."""
     position = (float(position_m[0]), float(position_m[1]))
     zones = mission.zones
     if zones is None or zones.empty:
@@ -162,7 +168,7 @@ def clear_start(mission: Scenario, position_m: Sequence[float]) -> tuple[float, 
     if clearance >= zones.margin_m or clearance < 0.0:
         return position
     moved = detour.outside_point(zones, np.asarray(position))
-    if moved is None or math.dist(moved, position) > zones.margin_m + detour.GRAPH_CLEARANCE_M:
+    if moved is None or math.dist(moved, position) > CLEAR_START_MAX_M:
         return position
     return float(moved[0]), float(moved[1])
 
@@ -285,7 +291,7 @@ class RecedingProblem:
         the plan in force already is the best tour the screening found for these nodes, and
         the replan only moves its start to where the UAV is, so continuing it (one SCA step
         per power step, as the default continues its best tour) gives at least what flying on
-        with it would, in a few trajectory steps instead of the screening's forty tours. That
+        with it would, in a few trajectory steps instead of the screening's tours. That
         is what lets a replan in flight come back within a fraction of a second. Where the
         previous plan gives no start for ``scenario``, the tours are screened as usual.
         """
@@ -372,6 +378,7 @@ def mission_rates_flown(mission: Scenario, power_w: np.ndarray,
     return delivered_bits(mission, flown) / mission.horizon_s
 
 
-__all__ = ['PREVIOUS_PLAN_START', 'WARM_STARTS', 'FlownSlots', 'RecedingPlan', 'RecedingProblem',
+__all__ = ['CLEAR_START_MAX_M', 'PREVIOUS_PLAN_START', 'WARM_STARTS', 'FlownSlots', 'RecedingPlan',
+           'RecedingProblem',
            'delivered_bits', 'lengthened', 'mission_rates_flown', 'power_for_nodes',
            'clear_start', 'receding_problem', 'rejoined', 'replan', 'rest_of_mission']

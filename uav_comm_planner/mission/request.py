@@ -20,6 +20,7 @@ from uav_comm_planner.core.receding import FlownSlots
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.vehicle.flyable import GOAL_TOLERANCE_SLOTS
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 from uav_comm_planner.vehicle.leg_models import leg_model
 from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
@@ -74,13 +75,15 @@ def check_goal_in_time(scenario: Scenario, limits: VehicleLimits,
     line from q0 to qF, one leg from rest at the cruise speed (the fastest any plan flies it,
     in any wind, since the waypoint speed bounds the ground speed) timed as ``firmware`` times
     a leg (:func:`~uav_comm_planner.vehicle.leg_models.leg_model`), takes longer than the
-    mission's M + 1 slots. Cheap, and run when the parameters are set, so that a node never
-    accepts limits every later plan would fail on."""
+    mission's M + 1 slots and the share of a slot qF may come after them
+    (:data:`~uav_comm_planner.vehicle.flyable.GOAL_TOLERANCE_SLOTS`). Cheap, and run when the
+    parameters are set, so that a node never accepts limits every later plan would fail on;
+    it never refuses what the vehicle-aware planning would fly (that adds the holds to it)."""
     length_m = math.dist(scenario.start_m, scenario.goal_m)
     model = leg_model(firmware)
     line = np.array([scenario.start_m, scenario.goal_m], dtype=float)
     seconds = model.timed_s(model.profile(line, limits.cruise_speed_mps, limits))
-    end_s = scenario.slot_s * (scenario.num_slots + 1)
+    end_s = scenario.slot_s * (scenario.num_slots + 1 + GOAL_TOLERANCE_SLOTS)
     if seconds > end_s:
         raise InvalidScenarioError(
             f'the vehicle cannot reach qF in time with these limits: the straight line from q0 '

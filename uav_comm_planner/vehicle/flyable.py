@@ -377,8 +377,9 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
     when given, is tried at the same speed when the vehicle cannot fly ``planner``'s plan on
     time (a warm replan's other tours: another tour may fly where the plan in force no longer
     does), before a slower speed is, unless ``planner``'s plan at the next slower speed flies
-    and states within :data:`WIDER_SEARCH_GAIN` of the plan it cannot fly; it returns None
-    where it would search as ``planner`` did. Raises
+    and states within :data:`WIDER_SEARCH_GAIN` of the plan it cannot fly; the better flown of
+    the two is kept (:meth:`_Ladder.slower_or_wider`). It returns None where it would search as
+    ``planner`` did. Raises
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
     speed exceeds the vehicle's, or the wind the vehicle's airspeed, and when not even the
     straight line fits the horizon (saying the horizon it needs).
@@ -394,8 +395,7 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
     for step in range(len(ladder.shares)):
         ideal, flown = ladder.attempt(planner, step)
         if flown is None and wider_planner is not None:
-            flown = (ladder.close_slower(planner, step, ideal)
-                     or ladder.wider(wider_planner, step))
+            flown = ladder.slower_or_wider(planner, wider_planner, step, ideal)
         if flown is not None:
             return flown.timed_from(began)
     first_error = errors[0] if errors else None
@@ -433,24 +433,23 @@ class _Ladder:
             self._tried[key] = self._plan(optimiser, self.shares[step])
         return self._tried[key]
 
-    def close_slower(self, optimiser: Callable[[Scenario, SolverSettings | None], PlanResult],
-                     step: int, ideal: PlanResult | None) -> VehiclePlan | None:
-        """The vehicle's plan by ``optimiser`` at the speed after ``step`` when it flies and
-        states within :data:`WIDER_SEARCH_GAIN` of ``ideal`` (the plan at ``step`` that the
-        vehicle cannot fly); None otherwise."""
-        if ideal is None or step + 1 >= len(self.shares):
-            return None
-        slower, flown = self.attempt(optimiser, step + 1)
-        if flown is None or slower.min_throughput < ideal.min_throughput * (
-                1 - WIDER_SEARCH_GAIN):
-            return None
-        return flown
-
-    def wider(self, optimiser: Callable[[Scenario, SolverSettings | None], PlanResult | None],
-              step: int) -> VehiclePlan | None:
-        """The vehicle's plan by the wider search ``optimiser`` at ``step``; None when it does
-        not fly, or the search has nothing to add there (``optimiser`` returns None)."""
-        return self.attempt(optimiser, step)[1]
+    def slower_or_wider(self, optimiser: Callable[[Scenario, SolverSettings | None], PlanResult],
+                        wider: Callable[[Scenario, SolverSettings | None], PlanResult | None],
+                        step: int, ideal: PlanResult | None) -> VehiclePlan | None:
+        """Where the vehicle cannot fly ``optimiser``'s plan ``ideal`` at ``step``: its plan at
+        the next speed when that flies and the optimiser states it within
+        :data:`WIDER_SEARCH_GAIN` of ``ideal``; else the one of that plan and the plan of the
+        ``wider`` search at ``step`` that delivers more as flown (None when neither flies;
+        ``wider`` returns None where it has nothing to add)."""
+        slower = None
+        if ideal is not None and step + 1 < len(self.shares):
+            slower = self.attempt(optimiser, step + 1)[1]
+            if slower is not None and slower.ideal.min_throughput >= ideal.min_throughput * (
+                    1 - WIDER_SEARCH_GAIN):
+                return slower
+        wide = self.attempt(wider, step)[1]
+        flown = [plan for plan in (wide, slower) if plan is not None]
+        return max(flown, key=lambda plan: plan.flown.min_throughput) if flown else None
 
     def _plan(self, optimiser, share: float) -> tuple[PlanResult | None, VehiclePlan | None]:
         scenario = self._scenario
