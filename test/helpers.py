@@ -43,6 +43,20 @@ def random_scenario(seed: int, nodes: int = 6, slots: int = 60, *, side_m: float
     return drops.random_scenario(nodes, slots, seed, side_m=side_m, **changes)
 
 
+def two_node_stream_reference():
+    """The stream reference of a short vehicle plan (two nodes, 700 m, 30 slots of 4 s at
+    10 m/s, ArduCopter's limits): what the stream tests send targets from."""
+    from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+    from uav_comm_planner.vehicle.limits import VehicleLimits
+    from uav_comm_planner.vehicle.stream import stream_reference
+
+    scenario = paper_scenario('I', ground_nodes_m=((200.0, 150.0), (500.0, -100.0)),
+                              goal_m=(700.0, 0.0), max_speed_mps=10.0, horizon_s=120.0,
+                              num_slots=30)
+    vehicle = plan_for_vehicle(scenario, VehicleLimits())
+    return stream_reference(vehicle.flown, vehicle.limits)
+
+
 def waterfilling_multipliers(allocation, a: np.ndarray) -> tuple[np.ndarray, float]:
     """The Lagrange multipliers of a water-filling answer for SNR per watt ``a`` (N, M):
     p = (mu_n - 1/a)^+ is the inner maximiser of the dual at lambda_n = M ln2 nu mu_n, so

@@ -8,6 +8,7 @@ import errno
 import time
 
 from fake_vehicle import Events, FakeVehicle
+from helpers import two_node_stream_reference
 import pytest
 
 from uav_comm_planner.errors import VehicleLinkError, VehicleLinkLostError
@@ -193,16 +194,7 @@ def test_winds_heard_before_a_reconnections_first_position_keep_the_smoothing():
 
 @pytest.fixture(scope='module')
 def reference():
-    from uav_comm_planner import paper_scenario
-    from uav_comm_planner.vehicle.flyable import plan_for_vehicle
-    from uav_comm_planner.vehicle.limits import VehicleLimits
-    from uav_comm_planner.vehicle.stream import stream_reference
-
-    scenario = paper_scenario('I', ground_nodes_m=((200.0, 150.0), (500.0, -100.0)),
-                              goal_m=(700.0, 0.0), max_speed_mps=10.0, horizon_s=120.0,
-                              num_slots=30)
-    vehicle = plan_for_vehicle(scenario, VehicleLimits())
-    return stream_reference(vehicle.flown, vehicle.limits)
+    return two_node_stream_reference()
 
 
 @pytest.mark.parametrize('replan', [False, True], ids=['new plan', 'replan in flight'])

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from types import SimpleNamespace
 
+from helpers import two_node_stream_reference
 import numpy as np
 from pymavlink import mavutil
 import pytest
@@ -14,14 +15,11 @@ import pytest
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.mission.wind import WindEstimate
-from uav_comm_planner.vehicle.flyable import plan_for_vehicle
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
-from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.guided import (COPTER_MODES, MODE_TRIES, STREAM_GAP_S,
                                                      StreamJob, TargetStream)
 from uav_comm_planner.vehicle.mavlink.items import Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.telemetry import wind_of
-from uav_comm_planner.vehicle.stream import stream_reference
 
 MAV = mavutil.mavlink
 HOME = Home(-35.363262, 149.165237, 584.0)
@@ -85,11 +83,7 @@ def heartbeat(mode: str):
 
 @pytest.fixture(scope='module')
 def reference():
-    scenario = paper_scenario('I', ground_nodes_m=((200.0, 150.0), (500.0, -100.0)),
-                              goal_m=(700.0, 0.0), max_speed_mps=10.0, horizon_s=120.0,
-                              num_slots=30)
-    vehicle = plan_for_vehicle(scenario, VehicleLimits())
-    return stream_reference(vehicle.flown, vehicle.limits)
+    return two_node_stream_reference()
 
 
 def test_targets_are_the_reference_at_the_autopilot_time_and_the_plan_end_falls_back(

@@ -25,7 +25,7 @@ import numpy as np
 
 from uav_comm_planner.core.drops import random_scenario
 from uav_comm_planner.core.scenario import Scenario
-from uav_comm_planner.mission.pipeline import plan_mission
+from uav_comm_planner.mission.pipeline import MissionPlan, plan_mission
 from uav_comm_planner.mission.progress import MissionProgress, planned_position
 from uav_comm_planner.mission.request import InFlight, MissionRequest
 
@@ -56,10 +56,34 @@ class ReplanRow:
         return self.warm_bps / self.full_bps - 1.0
 
 
-def _timed(request: MissionRequest) -> tuple[float, float]:
+def _timed(scenario: Scenario, in_flight: InFlight) -> tuple[float, float]:
     began = time.perf_counter()
-    planned = plan_mission(request)
+    planned = plan_mission(MissionRequest(scenario, in_flight=in_flight))
     return time.perf_counter() - began, planned.min_throughput
+
+
+def _replan_row(seed: int, scenario: Scenario, first: MissionPlan, slots: int,
+                offset_m: np.ndarray, repeats: int) -> ReplanRow:
+    """The plan ``first`` of ``scenario`` begun as the node begins it, its clock started at
+    q0, and the vehicle ``offset_m`` (2,) off it after ``slots`` slots: the node's request
+    replanned warm and with the full search, in alternation ``repeats`` times (median wall
+    times)."""
+    progress = MissionProgress()
+    progress.begin(scenario, first.result, planned=first.optimised)
+    progress.start_clock(0.0)
+    time_s = (slots + 0.5) * scenario.slot_s
+    position = planned_position(first.result, time_s) + offset_m
+    warm = progress.in_flight(scenario, time_s, tuple(position), None)
+    requests = {True: warm, False: dataclasses.replace(warm, warm=False)}
+    times: dict[bool, list[float]] = {True: [], False: []}
+    values = {}
+    for _ in range(repeats):
+        for kind, in_flight in requests.items():
+            seconds, values[kind] = _timed(scenario, in_flight)
+            times[kind].append(seconds)
+    return ReplanRow(seed, slots, float(np.linalg.norm(offset_m)),
+                     statistics.median(times[False]), statistics.median(times[True]),
+                     values[False], values[True])
 
 
 def measure_replans(seeds: Sequence[int], repeats: int = 2,
@@ -70,27 +94,9 @@ def measure_replans(seeds: Sequence[int], repeats: int = 2,
     for seed in seeds:
         scenario = replan_mission(seed)
         first = plan_mission(MissionRequest(scenario, items=False))
-        for slots, east_m in points:
-            progress = MissionProgress()
-            progress.begin(scenario, first.result, planned=first.optimised)
-            progress.start_clock(0.0)
-            time_s = (slots + 0.5) * scenario.slot_s
-            position = planned_position(first.result, time_s) + np.array([east_m, 0.0])
-            warm = progress.in_flight(scenario, time_s, tuple(position), None)
-            requests = {True: warm, False: dataclasses.replace(warm, warm=False)}
-            times: dict[bool, list[float]] = {True: [], False: []}
-            values = {}
-            for _ in range(repeats):
-                for kind, in_flight in requests.items():
-                    seconds, values[kind] = _timed(_request(scenario, in_flight))
-                    times[kind].append(seconds)
-            rows.append(ReplanRow(seed, slots, east_m, statistics.median(times[False]),
-                                  statistics.median(times[True]), values[False], values[True]))
+        rows += [_replan_row(seed, scenario, first, slots, np.array([east_m, 0.0]), repeats)
+                 for slots, east_m in points]
     return rows
-
-
-def _request(scenario: Scenario, in_flight: InFlight) -> MissionRequest:
-    return MissionRequest(scenario, in_flight=in_flight)
 
 
 def replan_drop(seed: int) -> tuple[Scenario, int, np.ndarray]:
@@ -116,17 +122,7 @@ def measure_replan_drops(seeds: Sequence[int]) -> list[ReplanRow]:
     for seed in seeds:
         mission, slots, offset = replan_drop(seed)
         first = plan_mission(MissionRequest(mission, items=False))
-        progress = MissionProgress()
-        progress.begin(mission, first.result, planned=first.optimised)
-        progress.start_clock(0.0)
-        time_s = (slots + 0.5) * mission.slot_s
-        position = planned_position(first.result, time_s) + offset
-        warm = progress.in_flight(mission, time_s, tuple(position), None)
-        (warm_s, warm_bps), (full_s, full_bps) = (
-            _timed(_request(mission, in_flight))
-            for in_flight in (warm, dataclasses.replace(warm, warm=False)))
-        rows.append(ReplanRow(seed, slots, float(np.linalg.norm(offset)), full_s, warm_s,
-                              full_bps, warm_bps))
+        rows.append(_replan_row(seed, mission, first, slots, offset, repeats=1))
     return rows
 
 

@@ -390,15 +390,14 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
     check_speed(scenario, limits)
     scenario = in_wind(scenario, limits)
     keeps = zone_check(scenario.zones)
-    errors: list[Exception] = []
-    ladder = _Ladder(scenario, limits, settings, firmware, errors)
+    ladder = _Ladder(scenario, limits, settings, firmware)
     for step in range(len(ladder.shares)):
         ideal, flown = ladder.attempt(planner, step)
         if flown is None and wider_planner is not None:
             flown = ladder.slower_or_wider(planner, wider_planner, step, ideal)
         if flown is not None:
             return flown.timed_from(began)
-    first_error = errors[0] if errors else None
+    first_error = ladder.errors[0] if ladder.errors else None
     if keeps is not None and not keeps(np.asarray(scenario.start_m, float),
                                        np.asarray(scenario.goal_m, float)):
         # The straight line would cross a zone: there is no fallback to fly.
@@ -415,20 +414,23 @@ WIDER_SEARCH_GAIN = 1e-3
 
 class _Ladder:
     """The planning speeds of :func:`plan_for_vehicle` (1 and :data:`SLOWER_PLANNING` shares
-    of ``max_speed_mps``), each planned by an optimiser at most once."""
+    of ``max_speed_mps``), each planned by an optimiser at most once; ``errors``: why each
+    plan that was refused or not flyable was, in the order met."""
 
     def __init__(self, scenario: Scenario, limits: VehicleLimits,
-                 settings: SolverSettings | None, firmware: str, errors: list[Exception]):
+                 settings: SolverSettings | None, firmware: str):
         self.shares = (1.0,) + SLOWER_PLANNING
+        self.errors: list[Exception] = []
         self._scenario, self._limits, self._settings = scenario, limits, settings
-        self._firmware, self._errors = firmware, errors
-        self._tried: dict[tuple[int, int], tuple[PlanResult | None, VehiclePlan | None]] = {}
+        self._firmware = firmware
+        self._tried: dict[tuple[Callable, int], tuple[PlanResult | None,
+                                                      VehiclePlan | None]] = {}
 
     def attempt(self, optimiser: Callable[[Scenario, SolverSettings | None], PlanResult],
                 step: int) -> tuple[PlanResult | None, VehiclePlan | None]:
         """The ideal plan at speed ``step`` (None when refused) and the vehicle's plan of it
         (None when the vehicle cannot fly it on time, stopping at its hovers or not)."""
-        key = (id(optimiser), step)
+        key = (optimiser, step)
         if key not in self._tried:
             self._tried[key] = self._plan(optimiser, self.shares[step])
         return self._tried[key]
@@ -461,14 +463,14 @@ class _Ladder:
         except WalledInError:
             raise                           # no slower speed finds a way round the zones
         except InfeasibleHorizonError as exc:
-            self._errors.append(exc)
+            self.errors.append(exc)
             return None, None
         for stop_at_hovers in (True, False):
             try:
                 schedule = schedule_flight(ideal, self._limits, firmware=self._firmware,
                                            stop_at_hovers=stop_at_hovers)
             except InfeasibleHorizonError as exc:
-                self._errors.append(exc)
+                self.errors.append(exc)
                 continue
             return ideal, VehiclePlan(ideal, flown_result(ideal, schedule), schedule,
                                       self._limits)
