@@ -12,6 +12,8 @@ import pytest
 from uav_comm_planner import plan, SolverSettings
 from uav_comm_planner.core.drops import random_scenario
 from uav_comm_planner.core.feasibility import retimed, within_speed_limit
+from uav_comm_planner.core.model import average_rates, snr_per_watt
+from uav_comm_planner.core.power import conic_power
 from uav_comm_planner.core.receding import (FlownSlots, PREVIOUS_PLAN_START, receding_problem,
                                             rejoined, replan, WARM_STARTS)
 from uav_comm_planner.mission.pipeline import plan_mission
@@ -121,6 +123,37 @@ def test_warm_only_where_the_plan_in_force_is_a_start(first):
     assert not lost.warm and 'extra_starts' not in lost.plan_options
 
 
+def test_the_plan_in_force_kept_is_its_start_with_the_power_optimal_for_it(first):
+    """RecedingProblem.kept: the rejoined plan in force (retimed for a slower speed), no
+    trajectory step, its power max-min optimal (against the exponential-cone program) and its
+    rates by the letter's formula counting the offsets; the warm replan never states less."""
+    k = 40
+    position = first.trajectory[k] + np.array([0.0, 20.0])
+    problem = receding_problem(MISSION, position, flown(first, k),
+                               previous_q=first.trajectory[k:], warm=True)
+    for share in (1.0, 0.9):
+        rest = problem.rest.replace(max_speed_mps=share * MISSION.max_speed_mps)
+        kept = problem.kept(rest, SETTINGS)
+        start = problem.for_scenario(SETTINGS, rest)[1]['extra_starts'][PREVIOUS_PLAN_START]
+        np.testing.assert_array_equal(kept.trajectory, start)
+        assert within_speed_limit(kept.trajectory, rest)
+        assert kept.outer_iterations == 0 and kept.start == PREVIOUS_PLAN_START
+        assert kept.power.sum() <= rest.power_budget_w
+        a = snr_per_watt(kept.trajectory, rest)
+        cone = conic_power(a, rest.power_budget_w, offsets=problem.offsets)
+        by_cone = average_rates(kept.trajectory, cone.p, rest, problem.offsets).min()
+        assert kept.min_throughput == pytest.approx(by_cone, rel=1e-5)
+        per_use = rest.bandwidth_hz / rest.num_nodes
+        by_letter = [per_use * (offset + np.mean(np.log2(1 + p * gain)))
+                     for offset, p, gain in zip(problem.offsets, kept.power, a)]
+        np.testing.assert_allclose(kept.rates, by_letter, rtol=1e-12)
+        warm = plan(rest, *problem.for_scenario(SETTINGS, rest)[:1],
+                    **problem.for_scenario(SETTINGS, rest)[1])
+        assert warm.min_throughput >= kept.min_throughput
+    slowest = problem.rest.replace(max_speed_mps=0.6 * MISSION.max_speed_mps)
+    assert problem.kept(slowest, SETTINGS) is None          # its path no longer fits
+
+
 def test_retimed_keeps_its_path_and_the_slower_limit_and_reaches_qf(first):
     path = np.vstack([MISSION.start_m, first.trajectory, MISSION.goal_m])
     length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
@@ -223,6 +256,51 @@ def test_the_vehicle_ladder_tries_the_wider_search_unless_a_close_slower_plan_fl
     spoilt_flown = plan_for_vehicle(MISSION.replace(max_speed_mps=second), slow,
                                     planner=spoilt).flown.min_throughput
     assert spoilt_flown < kept.flown.min_throughput
+
+
+def test_the_vehicle_ladder_takes_the_plan_in_force_kept_where_it_flies_close():
+    """With ``kept_planner``: where the vehicle cannot fly the warm plan at a speed, the plan
+    in force flown on is tried first at that speed and taken when it delivers, as flown, within
+    WIDER_SEARCH_GAIN of what the warm plan stated; otherwise the ladder goes on and the kept
+    plan is one of those the best flown is chosen from."""
+    slow = VehicleLimits(max_accel_mpss=1.0)
+    calls = []
+    speeds = []
+
+    def measured(scenario, settings):
+        speeds.append(scenario.max_speed_mps)
+        return plan(scenario, SETTINGS)
+    plan_for_vehicle(MISSION, slow, planner=measured)
+    first, second, third = speeds                # the vehicle flies the third speed's plan
+
+    def kept(scenario, settings):
+        calls.append(('kept', scenario.max_speed_mps))
+        flyable = plan(scenario.replace(max_speed_mps=third), SETTINGS)
+        return dataclasses.replace(flyable, scenario=scenario)
+    held = plan_for_vehicle(MISSION, slow, planner=kept).flown.min_throughput
+
+    def stating(share):
+        def planner(scenario, settings):
+            calls.append(('plan', scenario.max_speed_mps))
+            return dataclasses.replace(plan(scenario, SETTINGS), min_throughput=held / share)
+        return planner
+
+    def wide(scenario, settings):
+        calls.append(('wide', scenario.max_speed_mps))
+        return None
+    calls.clear()
+    close = plan_for_vehicle(MISSION, slow, planner=stating(1 - 0.5 * WIDER_SEARCH_GAIN),
+                             wider_planner=wide, kept_planner=kept)
+    assert calls == [('plan', first), ('kept', first)]
+    assert close.ideal.scenario.max_speed_mps == first
+    assert close.flown.min_throughput == held
+    calls.clear()
+    far = plan_for_vehicle(MISSION, slow, planner=stating(1 - 2 * WIDER_SEARCH_GAIN),
+                           wider_planner=wide, kept_planner=kept)
+    # The second speed's plan does not fly and the wider search adds none: the kept plan is
+    # the one candidate left, taken over planning a third speed.
+    assert calls == [('plan', first), ('kept', first), ('plan', second), ('wide', first)]
+    assert far.flown.min_throughput == held and far.ideal.scenario.max_speed_mps == first
 
 
 class StandInVehicle:

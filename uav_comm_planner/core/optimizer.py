@@ -552,6 +552,28 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
         start_throughputs=values, offsets=offsets)
 
 
+def plan_along(scenario: Scenario, q: np.ndarray, settings: SolverSettings | None = None, *,
+               name: str, offsets: np.ndarray | None = None) -> PlanResult:
+    """The plan that flies the trajectory q (M, 2) metres of ``scenario`` as it is, with the
+    power optimal for it: no trajectory step (``start`` is ``name``; the baselines as
+    ``settings`` asks). q must keep the speed limit; ``offsets`` as in :func:`plan`."""
+    settings = SolverSettings() if settings is None else settings
+    offsets = checked_offsets(offsets, scenario.num_nodes)
+    began = time.perf_counter()
+    q = np.asarray(q, dtype=float)
+    p = optimal_power(q, scenario, offsets=offsets)
+    rates = average_rates(q, p, scenario, offsets)
+    value = float(rates.min())
+    baselines = (baseline_rates(scenario, offsets=offsets) if settings.compute_baselines
+                 else {})
+    return PlanResult(
+        scenario=scenario, trajectory=q, times=scenario.times_s, power=p, rates=rates,
+        min_throughput=value, history=(Step('power', value),), baselines=baselines,
+        solve_time_s=time.perf_counter() - began, start=name,
+        upper_bound=(throughput_upper_bound(scenario) if offsets is None else math.inf),
+        start_throughputs={name: value}, offsets=offsets)
+
+
 __all__ = ['PlanResult', 'Run', 'Start', 'Step', 'StopCheck', 'alternate',
-           'baseline_rates', 'letter_rules', 'optimal_power', 'plan', 'step_solvers',
+           'baseline_rates', 'letter_rules', 'optimal_power', 'plan', 'plan_along', 'step_solvers',
            'spectral_efficiency_to_rate', 'throughput_upper_bound']

@@ -36,7 +36,7 @@ import numpy as np
 from uav_comm_planner.core import detour
 from uav_comm_planner.core.feasibility import retimed, within_speed_limit
 from uav_comm_planner.core.model import snr_per_watt, spectral_efficiencies
-from uav_comm_planner.core.optimizer import plan, PlanResult, ZoneKeeper
+from uav_comm_planner.core.optimizer import plan, plan_along, PlanResult, ZoneKeeper
 from uav_comm_planner.core.scenario import DUPLICATE_NODE_DISTANCE_M, Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 
@@ -311,6 +311,19 @@ class RecedingProblem:
             return settings, options
         return dataclasses.replace(settings or SolverSettings(), starts=WARM_STARTS,
                                    screened_tours=0), options
+
+    def kept(self, scenario: Scenario | None = None,
+             settings: SolverSettings | None = None) -> PlanResult | None:
+        """The plan in force flown on as it is from where the UAV is (its start for
+        ``scenario``, :meth:`for_scenario`), with the power optimal for it and no trajectory
+        step: what going on with it gives. None when it gives no start for ``scenario``."""
+        scenario = self.rest if scenario is None else scenario
+        start = self.for_scenario(settings, scenario)[1].get('extra_starts', {}).get(
+            PREVIOUS_PLAN_START)
+        if start is None:
+            return None
+        return plan_along(scenario, start, settings, name=PREVIOUS_PLAN_START,
+                          offsets=self.offsets)
 
     def outcome(self, result: PlanResult) -> RecedingPlan:
         """What the plan ``result`` of :attr:`rest` (its rates counting the offsets) promises

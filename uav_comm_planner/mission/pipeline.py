@@ -133,8 +133,8 @@ def _plan_scenario(request: MissionRequest, scenario: Scenario, planner: Planner
     """``scenario`` planned for ``request``; for the rest of a mission in flight, every
     scenario the vehicle-aware planning tries gets ``problem``'s settings and options for it
     (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`), and where the
-    vehicle cannot fly a warm replan on time the other tours are searched at the same speed
-    before a slower one is tried."""
+    vehicle cannot fly a warm replan on time the plan in force flown on as it is, then the
+    other tours, are tried at the same speed before a slower one is."""
     def optimiser(rest: Scenario, settings: SolverSettings | None) -> PlanResult:
         extra: dict = {}
         if problem is not None:
@@ -149,10 +149,11 @@ def _plan_scenario(request: MissionRequest, scenario: Scenario, planner: Planner
 
     if not request.vehicle_aware:
         return optimiser(scenario, request.settings), None
+    warm = problem is not None and problem.warm
     vehicle_plan = plan_for_vehicle(
         scenario, request.vehicle, request.settings, firmware=request.firmware,
-        planner=optimiser,
-        wider_planner=other_tours if problem is not None and problem.warm else None)
+        planner=optimiser, wider_planner=other_tours if warm else None,
+        kept_planner=problem.kept if warm else None)
     return vehicle_plan.flown, vehicle_plan
 
 

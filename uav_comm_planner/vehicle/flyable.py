@@ -359,7 +359,9 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
                      settings: SolverSettings | None = None, *, firmware: str = 'ardupilot',
                      planner: Callable[[Scenario, SolverSettings | None], PlanResult] = plan,
                      wider_planner: Callable[[Scenario, SolverSettings | None],
-                                             PlanResult | None] | None = None) -> VehiclePlan:
+                                             PlanResult | None] | None = None,
+                     kept_planner: Callable[[Scenario, SolverSettings | None],
+                                            PlanResult | None] | None = None) -> VehiclePlan:
     """Plan ``scenario`` for a vehicle with ``limits`` (None: ``firmware``'s defaults,
     :meth:`VehicleLimits.for_firmware`): the mission and what it delivers.
 
@@ -377,9 +379,11 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
     when given, is tried at the same speed when the vehicle cannot fly ``planner``'s plan on
     time (a warm replan's other tours: another tour may fly where the plan in force no longer
     does), before a slower speed is, unless ``planner``'s plan at the next slower speed flies
-    and states within :data:`WIDER_SEARCH_GAIN` of the plan it cannot fly; the better flown of
-    the two is kept (:meth:`_Ladder.slower_or_wider`). It returns None where it would search as
-    ``planner`` did. Raises
+    and states within :data:`WIDER_SEARCH_GAIN` of the plan it cannot fly; the best flown of
+    them is kept (:meth:`_Ladder.slower_or_wider`). It returns None where it
+    would search as ``planner`` did. ``kept_planner``, when given, is tried first there: the
+    plan in force flown on as it is (no trajectory step), taken when the vehicle flies it
+    within :data:`WIDER_SEARCH_GAIN` of what ``planner`` stated. Raises
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
     speed exceeds the vehicle's, or the wind the vehicle's airspeed, and when not even the
     straight line fits the horizon (saying the horizon it needs).
@@ -394,7 +398,7 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
     for step in range(len(ladder.shares)):
         ideal, flown = ladder.attempt(planner, step)
         if flown is None and wider_planner is not None:
-            flown = ladder.slower_or_wider(planner, wider_planner, step, ideal)
+            flown = ladder.slower_or_wider(planner, wider_planner, step, ideal, kept_planner)
         if flown is not None:
             return flown.timed_from(began)
     first_error = ladder.errors[0] if ladder.errors else None
@@ -437,20 +441,28 @@ class _Ladder:
 
     def slower_or_wider(self, optimiser: Callable[[Scenario, SolverSettings | None], PlanResult],
                         wider: Callable[[Scenario, SolverSettings | None], PlanResult | None],
-                        step: int, ideal: PlanResult | None) -> VehiclePlan | None:
-        """Where the vehicle cannot fly ``optimiser``'s plan ``ideal`` at ``step``: its plan at
-        the next speed when that flies and the optimiser states it within
-        :data:`WIDER_SEARCH_GAIN` of ``ideal``; else the one of that plan and the plan of the
-        ``wider`` search at ``step`` that delivers more as flown (None when neither flies;
-        ``wider`` returns None where it has nothing to add)."""
+                        step: int, ideal: PlanResult | None,
+                        kept: Callable[[Scenario, SolverSettings | None],
+                                       PlanResult | None] | None = None) -> VehiclePlan | None:
+        """Where the vehicle cannot fly ``optimiser``'s plan ``ideal`` at ``step``: ``kept``'s
+        plan at ``step`` when the vehicle flies it within :data:`WIDER_SEARCH_GAIN` of
+        ``ideal``; else ``optimiser``'s plan at the next speed when that flies and the
+        optimiser states it within :data:`WIDER_SEARCH_GAIN` of ``ideal``; else the one of
+        those plans and the plan of the ``wider`` search at ``step`` that delivers more as
+        flown (None when none flies; ``wider`` and ``kept`` return None where they have
+        nothing to add)."""
+        within = (lambda value: ideal is not None
+                  and value >= ideal.min_throughput * (1 - WIDER_SEARCH_GAIN))
+        held = None if kept is None else self.attempt(kept, step)[1]
+        if held is not None and within(held.flown.min_throughput):
+            return held
         slower = None
         if ideal is not None and step + 1 < len(self.shares):
             slower = self.attempt(optimiser, step + 1)[1]
-            if slower is not None and slower.ideal.min_throughput >= ideal.min_throughput * (
-                    1 - WIDER_SEARCH_GAIN):
+            if slower is not None and within(slower.ideal.min_throughput):
                 return slower
         wide = self.attempt(wider, step)[1]
-        flown = [plan for plan in (wide, slower) if plan is not None]
+        flown = [plan for plan in (wide, slower, held) if plan is not None]
         return max(flown, key=lambda plan: plan.flown.min_throughput) if flown else None
 
     def _plan(self, optimiser, share: float) -> tuple[PlanResult | None, VehiclePlan | None]:
