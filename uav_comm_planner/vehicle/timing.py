@@ -22,6 +22,7 @@ over legs of 99 to 400 m.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import functools
 import math
 from typing import Callable, Sequence
 
@@ -33,6 +34,20 @@ from uav_comm_planner.vehicle.limits import VehicleLimits
 LEG_LATENCY_S = 0.7
 #: Kinds of jerk piece: constant, raised-cosine rise, raised-cosine fall.
 CONSTANT, RISE, FALL = 0, 1, 2
+
+
+@functools.lru_cache(maxsize=4096)
+def _largest_peak(half_m: float, accel: float, jerk: float, tj: float) -> float:
+    """Bisection: the largest peak acceleration a <= ``accel`` whose ramp a (a / J + tj)^2
+    fits in half a leg (the same for every speed asked of the leg, so it is kept)."""
+    low, high = 0.0, accel
+    for _ in range(100):
+        middle = 0.5 * (low + high)
+        if middle * (middle / jerk + tj) ** 2 < half_m:
+            low = middle
+        else:
+            high = middle
+    return 0.5 * (low + high)
 
 
 def _ramp_shape(length_m: float, speed_mps: float,
@@ -64,14 +79,7 @@ def _ramp_shape(length_m: float, speed_mps: float,
         if speed_mps < accel * c or half < accel * c * c:
             # The acceleration limit is not reached: the largest peak that fits.
             by_speed = 0.5 * jerk * (math.sqrt(tj * tj + 4 * speed_mps / jerk) - tj)
-            low, high = 0.0, accel
-            for _ in range(100):
-                middle = 0.5 * (low + high)
-                if middle * (middle / jerk + tj) ** 2 < half:
-                    low = middle
-                else:
-                    high = middle
-            accel = min(accel, by_speed, 0.5 * (low + high))
+            accel = min(accel, by_speed, _largest_peak(half, accel, jerk, tj))
             t2, t4 = accel / jerk - tj, 0.0
         else:
             t2 = accel / jerk - tj
@@ -110,7 +118,9 @@ def leg_time(length_m: float, speed_mps: float, limits: VehicleLimits) -> float:
     """Seconds of a rest-to-rest leg asked to cruise at ``speed_mps`` (latency excluded)."""
     if length_m <= 0.0:
         return 0.0
-    return sum(duration for duration, _, _ in scurve_pieces(length_m, speed_mps, limits))
+    _, tj, t2, t4, t15 = _ramp_shape(length_m, speed_mps, limits)
+    # The pieces' durations of scurve_pieces, added in their order.
+    return (tj + t2 + tj + t4 + tj + t2 + tj + t15 + tj + t2 + tj + t4 + tj + t2 + tj)
 
 
 def ramp_time(speed_mps: float, limits: VehicleLimits) -> float:
