@@ -319,6 +319,32 @@ def test_the_lengthened_replan_states_the_whole_mission_over_the_longer_horizon(
           f'the first plan stated {result.min_throughput:.4f} bit/s over 400 s')
 
 
+def test_a_lengthened_replan_counts_every_horizon_tried_in_its_solve_time():
+    """The vehicle cannot fly the fewest slots that reach qF (it starts and stops), so the
+    rest is lengthened again; the plan's solve_time_s covers every attempt, each planned by a
+    planner that takes at least ``pause_s``."""
+    pause_s = 0.02
+    calls = []
+
+    def slow_planner(scenario, settings, **options):
+        calls.append(scenario.num_slots)
+        time.sleep(pause_s)
+        return plan(scenario, settings, **options)
+    result = plan(SCENARIO, SolverSettings(compute_baselines=False))
+    k = 80
+    in_flight = InFlight(position_m=(-200.0, 0.0),
+                         flown=FlownSlots(result.power[:, :k], result.trajectory[:k]),
+                         previous_q=np.asarray(result.trajectory[k:]), mission_id=1,
+                         segment=0, slots_kept=k)
+    planned = plan_mission(MissionRequest(SCENARIO, SolverSettings(compute_baselines=False),
+                                          VehicleLimits(), in_flight=in_flight),
+                           planner=slow_planner)
+    print(f'rest slots tried: {calls}; solve time {planned.result.solve_time_s:.3f} s')
+    assert len(set(calls)) >= 2                     # lengthened again for the vehicle
+    assert planned.result.solve_time_s >= pause_s * len(calls)
+    assert planned.vehicle_plan.flown.solve_time_s == planned.result.solve_time_s
+
+
 def test_the_node_lengthens_a_mission_it_cannot_finish_in_time_and_flies_on_with_it(harness):
     from std_srvs.srv import Trigger
 

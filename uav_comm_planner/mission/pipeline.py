@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 import math
 import os
 from pathlib import Path
+import time
 from typing import Callable
 
 from uav_comm_planner.core.optimizer import plan, PlanResult
@@ -164,6 +165,7 @@ def _plan_rest(request: MissionRequest, planner: Planner,
     or by the vehicle's timing), the mission is lengthened by whole slots until it can, and
     the plan promises the whole mission over that longer horizon. A warm replan continues the
     plan in force (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`)."""
+    began = time.perf_counter()
     rest = request.in_flight
     mission = lengthened(rest.mission(request.planned_scenario), rest.position_m, rest.flown)
     attempts = 0
@@ -183,6 +185,12 @@ def _plan_rest(request: MissionRequest, planner: Planner,
             more = max(1, math.ceil(problem.rest.num_slots / 10))
             mission = lengthened(mission, rest.position_m, rest.flown, extra_slots=more)
             continue
+        # The plan's solve time is the whole replan's, the shorter horizons tried included.
+        if vehicle_plan is not None:
+            vehicle_plan = vehicle_plan.timed_from(began)
+            result = vehicle_plan.flown
+        else:
+            result = replace(result, solve_time_s=time.perf_counter() - began)
         return result, vehicle_plan, problem.outcome(result)
 
 
