@@ -12,8 +12,10 @@ from helpers import two_node_stream_reference
 import pytest
 
 from uav_comm_planner.errors import VehicleLinkError, VehicleLinkLostError
+from uav_comm_planner.tools import cli
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink import telemetry
+from uav_comm_planner.vehicle.mavlink.files import write_mission_file
 from uav_comm_planner.vehicle.mavlink.items import MissionItem, NAV_WAYPOINT
 from uav_comm_planner.vehicle.mavlink.link import (connect, LinkSettings, LinkWatch,
                                                    upload_and_verify)
@@ -74,6 +76,22 @@ def test_an_upload_cut_on_any_transport_is_a_link_loss_not_a_refusal(cut, said):
     print(f'{cut.__name__}: lost after {took:.2f} s')
     # Found by the cut itself or the silence, not by the retries (5 x 2 s).
     assert took < SILENCE_S + 1.0
+
+
+def test_the_command_line_upload_finds_a_silent_link_in_the_silence_not_the_retries(
+        tmp_path, capsys):
+    path = write_mission_file(ITEMS, tmp_path / 'mission.waypoints', HOME)
+    with FakeVehicle('good') as vehicle:
+        vehicle.quiet_on = 'MISSION_ITEM_INT'
+        code = cli.main(['upload', str(path), '--connect', vehicle.url, '--timeout', '2',
+                         '--retries', '5', '--max-home-distance', 'inf'])
+        took = time.monotonic() - vehicle.quiet_at
+    error = capsys.readouterr().err.strip()
+    print(f'silent link found {took:.2f} s after it went quiet: {error}')
+    assert code == 2 and '\n' not in error
+    assert 'nothing heard from the vehicle for 2 s' in error
+    assert took < SILENCE_S + 1.0                   # the retries alone would take 10 s
+    assert counts(vehicle, 'MISSION_COUNT') == 1
 
 
 def test_a_vehicle_that_heartbeats_but_never_answers_is_still_a_refusal():

@@ -46,6 +46,9 @@ WATCH_POLL_S = 0.1
 #: A longer time between two looks is the process stalled, not the link silent: it counts as
 #: this much silence only.
 WATCH_STALL_S = 0.5
+#: Nothing heard from the vehicle for this long (wall clock, while reading) is a lost link: a
+#: vehicle sends its heartbeat at 1 Hz (the node's connection and the command line's upload).
+SILENCE_S = 2.0
 #: What each mission type is called in messages.
 MISSION_TYPE_NAMES = {MAV.MAV_MISSION_TYPE_MISSION: 'mission',
                       MAV.MAV_MISSION_TYPE_FENCE: 'fence',

@@ -59,8 +59,8 @@ from uav_comm_planner.vehicle.mavlink.home import (HOME_DISTANCE_LIMIT_M, home_o
                                                    request_home)
 from uav_comm_planner.vehicle.mavlink.items import DEGREES_E7, MissionItem
 from uav_comm_planner.vehicle.mavlink.link import (check_link, connect, has_home_row,
-                                                   LinkSettings, LinkWatch, upload_and_verify,
-                                                   WATCH_POLL_S)
+                                                   LinkSettings, LinkWatch, SILENCE_S,
+                                                   upload_and_verify, WATCH_POLL_S)
 
 MAV = mavutil.mavlink
 #: Telemetry rate asked of the autopilot (per second of autopilot time).
@@ -75,9 +75,6 @@ MAX_RECONNECT_PAUSE_S = 8.0
 MIN_RECONNECT_PAUSE_S = 0.05
 #: A connection's clock rate is measured over at least this many wall seconds of positions.
 CLOCK_RATE_SPAN_S = 1.0
-#: Nothing heard from the vehicle for this long (wall clock, while reading) ends the
-#: connection: a vehicle sends its heartbeat at 1 Hz and positions at ``rate_hz``.
-SILENCE_S = 2.0
 #: Positions further apart than this (autopilot seconds) are a gap in the telemetry, said once.
 TELEMETRY_GAP_S = 2.0
 #: HOME_POSITION is asked for again this often (wall clock) until the vehicle has told it.

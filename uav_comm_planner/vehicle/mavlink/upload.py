@@ -17,7 +17,8 @@ from uav_comm_planner.vehicle.fence import read_checked_fence
 from uav_comm_planner.vehicle.mavlink.fence import fence_items, MISSION_TYPE_FENCE
 from uav_comm_planner.vehicle.mavlink.files import read_mission_file
 from uav_comm_planner.vehicle.mavlink.home import check_mission_home, HOME_DISTANCE_LIMIT_M
-from uav_comm_planner.vehicle.mavlink.link import connect, LinkSettings, upload_and_verify
+from uav_comm_planner.vehicle.mavlink.link import (connect, LinkSettings, LinkWatch, SILENCE_S,
+                                                   upload_and_verify)
 from uav_comm_planner.vehicle.mavlink.urls import parse_link_url
 
 
@@ -41,7 +42,8 @@ def upload_files(url: str, *, mission: str | os.PathLike | None = None,
     uploaded (infinite: not checked). Raises InvalidLinkUrlError for a URL it does not open,
     MissionFileError (FenceFileError) for a file it cannot read, MissionTooFarError for a
     mission planned for another place, VehicleLinkError for the link or a refusal, each with
-    the reason; each transfer ends by ``settings.deadline_s`` whatever the vehicle does."""
+    the reason (VehicleLinkLostError when the link goes down or silent for SILENCE_S during a
+    transfer); each transfer ends by ``settings.deadline_s`` whatever the vehicle does."""
     if mission is None and fence is None:
         raise MissionFileError('nothing to upload: give a mission file, a fence file or both')
     parse_link_url(url)
@@ -51,6 +53,7 @@ def upload_files(url: str, *, mission: str | os.PathLike | None = None,
     items = read_mission_file(mission) if mission is not None else None
     zones = fence_items(read_checked_fence(fence)) if fence is not None else None
     link = connect(url, timeout_s=connect_timeout_s)
+    link.watch = LinkWatch(silence_s=SILENCE_S)     # a cut UDP or serial link only goes quiet
     try:
         if items is not None:
             check_mission_home(link, items, home_limit_m, timeout_s=connect_timeout_s)
