@@ -9,7 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from uav_comm_planner.core.detour import (around_zones, GRAPH_CLEARANCE_M, hover_start,
+from uav_comm_planner.core.detour import (_corner_graph, around_zones, GRAPH_CHUNK,
+                                          GRAPH_CLEARANCE_M, graph_corners, hover_start,
                                           outside_point, path_length, segments_clear,
                                           shortest_path)
 from uav_comm_planner.core.fast_trajectory import trajectory_step_clarabel
@@ -22,7 +23,8 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.core.trajectory import trajectory_step_cvxpy
 from uav_comm_planner.core.zone_rows import _outward_edges, ZONE_CUSHION_M, zone_model
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, OperatingArea, Zones
-from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError, WalledInError
+from uav_comm_planner.errors import (InfeasibleHorizonError, InvalidScenarioError,
+                                     PlanCancelledError, WalledInError)
 from uav_comm_planner.mission.pipeline import plan_mission
 from uav_comm_planner.mission.request import InFlight, MissionRequest
 from uav_comm_planner.tools.serialize import scenario_from_dict, scenario_to_dict
@@ -442,6 +444,34 @@ def test_a_many_sided_non_convex_zone_across_the_letter_s_line_is_kept_out():
     result = plan(scenario)
     check_plan(result, scenario)
     assert result.min_throughput > result.baselines['straight']
+
+
+def test_a_plan_cancelled_while_its_visibility_graph_is_built_stops_there():
+    """Zones of many corners make the visibility graph the long part of a plan (it grows
+    with their cube): the plan's should_stop is asked between chunks of it, and a cancelled
+    graph is not kept."""
+    discs = tuple(KeepOutCircle((x, 0.0 if x == 1000.0 else 350.0), 40.0)
+                  for x in np.linspace(200.0, 1800.0, 9))     # the middle one on the line
+    zones = Zones(area=AREA, keep_out=discs)
+    corners = len(graph_corners(zones))
+    pairs = corners * (corners - 1) // 2
+    assert pairs > 2 * GRAPH_CHUNK
+    scenario = paper_scenario('I', zones=zones)
+    asked = []
+
+    def should_stop() -> bool:
+        asked.append(True)
+        return len(asked) >= 2          # the first two asks are the graph's first chunks
+    before = _corner_graph.cache_info()
+    with pytest.raises(PlanCancelledError):
+        plan(scenario, should_stop=should_stop)
+    after = _corner_graph.cache_info()
+    print(f'{corners} corners, {pairs} pairs: asked {len(asked)} times')
+    assert len(asked) == 2
+    assert after.currsize == before.currsize and after.misses == before.misses + 1
+    # Not cancelled, the same plan is made and the graph is kept.
+    check_plan(plan(scenario), scenario)
+    assert _corner_graph.cache_info().currsize == before.currsize + 1
 
 
 def test_the_hover_start_hovers_at_each_node_s_nearest_point_outside_the_zones(across):

@@ -19,8 +19,11 @@ A request with no path around the zones, or none that fits the horizon at V, is 
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
 import math
+from typing import Callable, Iterator
 
 import numpy as np
 from scipy.sparse import csr_matrix
@@ -40,6 +43,11 @@ CIRCLE_SIDES = 16
 GRAPH_CLEARANCE_M = 0.05
 #: Segment-edge pairs tested at once (bounds the work arrays' memory).
 CHUNK_PAIRS = 500_000
+#: Corner pairs of the visibility graph tested between two asks of :func:`stoppable`'s check.
+GRAPH_CHUNK = 2000
+#: The check :func:`stoppable` sets (None: nothing to ask).
+_STOP_CHECK: contextvars.ContextVar[Callable[[], None] | None] = contextvars.ContextVar(
+    'detour_stop_check', default=None)
 #: An arc of a circumscribed polygon turns at most this much per corner.
 MAX_ARC_STEP_RAD = math.pi / 8
 
@@ -114,17 +122,23 @@ def _point_segment(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarr
 def _against_polygon(a: np.ndarray, b: np.ndarray,
                      vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For segments ab (S, 2) and a polygon (V, 2): whether each meets its boundary, whether
-    its end a is inside, and its distance to the boundary when they do not meet."""
+    its end a is inside, and its distance to the boundary when they do not meet (0 where a
+    segment crosses it: the distances are measured only for the others)."""
     c, d = vertices[None], np.roll(vertices, -1, axis=0)[None]
     a2, b2 = a[:, None], b[:, None]
     o1, o2, o3, o4 = _orient(a2, b2, c), _orient(a2, b2, d), _orient(c, d, a2), _orient(c, d, b2)
-    distance = np.minimum.reduce([_point_segment(a2, c, d).min(axis=1),
-                                  _point_segment(b2, c, d).min(axis=1),
-                                  _point_segment(vertices[None], a2, b2).min(axis=1)])
+    crossing = ((o1 * o2 < 0) & (o3 * o4 < 0)).any(axis=1)
+    distance = np.zeros(len(a))
+    rest = ~crossing
+    if rest.any():
+        a3, b3 = a2[rest], b2[rest]
+        distance[rest] = np.minimum.reduce([_point_segment(a3, c, d).min(axis=1),
+                                            _point_segment(b3, c, d).min(axis=1),
+                                            _point_segment(vertices[None], a3, b3).min(axis=1)])
     # A proper crossing, or touching (distance 0: a margin of 0 then still keeps off the
     # boundary). Orientations alone would count any segment on the line through an edge,
     # however far from it, and any hover (a zero-length leg) on such a line.
-    meets = ((o1 * o2 < 0) & (o3 * o4 < 0)).any(axis=1) | (distance <= 0.0)
+    meets = crossing | (distance <= 0.0)
     return meets, inside_polygon(a, vertices), distance
 
 
@@ -164,16 +178,35 @@ def clear(zones: Zones, a: np.ndarray, b: np.ndarray) -> bool:
 
 @functools.lru_cache(maxsize=16)
 def _corner_graph(zones: Zones) -> tuple[np.ndarray, np.ndarray]:
-    """The graph's corners (K, 2) and their visibility (K, K), lengths or 0 (none)."""
+    """The graph's corners (K, 2) and their visibility (K, K), lengths or 0 (none); the
+    check of :func:`stoppable` is asked every :data:`GRAPH_CHUNK` corner pairs."""
     corners = graph_corners(zones)
     i, j = np.triu_indices(len(corners), k=1)
-    visible = segments_clear(zones, corners[i], corners[j])
+    visible = np.zeros(len(i), dtype=bool)
+    for first in range(0, len(i), GRAPH_CHUNK):
+        check = _STOP_CHECK.get()
+        if check is not None:
+            check()
+        pairs = slice(first, first + GRAPH_CHUNK)
+        visible[pairs] = segments_clear(zones, corners[i[pairs]], corners[j[pairs]])
     lengths = np.zeros((len(corners), len(corners)))
     i, j = i[visible], j[visible]
     lengths[i, j] = np.linalg.norm(corners[j] - corners[i], axis=1)
     for array in (corners, lengths):
         array.setflags(write=False)
     return corners, lengths
+
+
+@contextlib.contextmanager
+def stoppable(check: Callable[[], None]) -> Iterator[None]:
+    """Within it, building a visibility graph (the work that grows with the zones' corners,
+    cubed) asks ``check`` between chunks of it; ``check`` raises to give up (a plan being
+    cancelled), and nothing is kept of the graph then."""
+    token = _STOP_CHECK.set(check)
+    try:
+        yield
+    finally:
+        _STOP_CHECK.reset(token)
 
 
 def shortest_path(zones: Zones, start: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
@@ -405,4 +438,4 @@ def _joined(pieces: list[np.ndarray],
 
 
 __all__ = ['around_zones', 'graph_corners', 'hover_start', 'outside_point', 'shortest_path',
-           'static_start', 'straight_start']
+           'static_start', 'stoppable', 'straight_start']

@@ -514,6 +514,17 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
         raise InvalidScenarioError(f'should_stop must be callable, got {should_stop!r}')
     check_stop = _stop_checker(should_stop)
     offsets = checked_offsets(offsets, scenario.num_nodes)
+    with detour.stoppable(check_stop):      # the paths around the zones ask it too
+        return _best_plan(scenario, settings, power_method, trajectory_method, should_stop,
+                          offsets, extra_starts)
+
+
+def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
+               trajectory_method: str, should_stop: StopCheck | None,
+               offsets: np.ndarray | None,
+               extra_starts: Mapping[str, np.ndarray] | None) -> PlanResult:
+    """:func:`plan`'s work once its arguments are checked."""
+    check_stop = _stop_checker(should_stop)
     began = time.perf_counter()
     power_solver, trajectory_solver = step_solvers(scenario, power_method, trajectory_method)
     starts = {name: STARTS[name] for name in settings.starts}
