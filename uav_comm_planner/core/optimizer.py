@@ -220,7 +220,7 @@ def alternate(scenario: Scenario, q: np.ndarray, settings: SolverSettings, *,
     None).
     """
     history: list[Step] = []
-    check_stop = _stop_checker(should_stop)
+    check_stop = stop_checker(should_stop)
     offsets = checked_offsets(offsets, scenario.num_nodes)
     extra = _offset_keywords(offsets)
 
@@ -441,7 +441,8 @@ def throughput_upper_bound(scenario: Scenario) -> float:
     return float(spectral_efficiency_to_rate(np.float64(bits), scenario))
 
 
-def _stop_checker(should_stop: StopCheck | None) -> Callable[[], None]:
+def stop_checker(should_stop: StopCheck | None) -> Callable[[], None]:
+    """A check that raises PlanCancelledError when ``should_stop`` (None: never) says so."""
     def check() -> None:
         if should_stop is not None and should_stop():
             raise PlanCancelledError('plan cancelled between steps: a newer request came')
@@ -512,19 +513,18 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     settings.check(scenario)
     if should_stop is not None and not callable(should_stop):
         raise InvalidScenarioError(f'should_stop must be callable, got {should_stop!r}')
-    check_stop = _stop_checker(should_stop)
+    check_stop = stop_checker(should_stop)
     offsets = checked_offsets(offsets, scenario.num_nodes)
     with detour.stoppable(check_stop):      # the paths around the zones ask it too
         return _best_plan(scenario, settings, power_method, trajectory_method, should_stop,
-                          offsets, extra_starts)
+                          check_stop, offsets, extra_starts)
 
 
 def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
                trajectory_method: str, should_stop: StopCheck | None,
-               offsets: np.ndarray | None,
+               check_stop: Callable[[], None], offsets: np.ndarray | None,
                extra_starts: Mapping[str, np.ndarray] | None) -> PlanResult:
     """:func:`plan`'s work once its arguments are checked."""
-    check_stop = _stop_checker(should_stop)
     began = time.perf_counter()
     power_solver, trajectory_solver = step_solvers(scenario, power_method, trajectory_method)
     starts = {name: STARTS[name] for name in settings.starts}
@@ -567,7 +567,9 @@ def plan_along(scenario: Scenario, q: np.ndarray, settings: SolverSettings | Non
                name: str, offsets: np.ndarray | None = None) -> PlanResult:
     """The plan that flies the trajectory q (M, 2) metres of ``scenario`` as it is, with the
     power optimal for it: no trajectory step (``start`` is ``name``; the baselines as
-    ``settings`` asks). q must keep the speed limit; ``offsets`` as in :func:`plan`."""
+    ``settings`` asks); ``offsets`` as in :func:`plan`. Unlike :func:`plan` it checks neither
+    ``settings``' limits nor that q keeps the speed limit: q is a plan already made (the
+    plan in force, a flown prediction)."""
     settings = SolverSettings() if settings is None else settings
     offsets = checked_offsets(offsets, scenario.num_nodes)
     began = time.perf_counter()
@@ -587,4 +589,4 @@ def plan_along(scenario: Scenario, q: np.ndarray, settings: SolverSettings | Non
 
 __all__ = ['PlanResult', 'Run', 'Start', 'Step', 'StopCheck', 'alternate',
            'baseline_rates', 'letter_rules', 'optimal_power', 'plan', 'plan_along', 'step_solvers',
-           'spectral_efficiency_to_rate', 'throughput_upper_bound']
+           'spectral_efficiency_to_rate', 'stop_checker', 'throughput_upper_bound']

@@ -26,7 +26,8 @@ from pathlib import Path
 import time
 from typing import Callable
 
-from uav_comm_planner.core.optimizer import plan, PlanResult
+from uav_comm_planner.core import detour
+from uav_comm_planner.core.optimizer import plan, PlanResult, stop_checker
 from uav_comm_planner.core.receding import (lengthened, receding_problem, RecedingPlan,
                                             RecedingProblem)
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
@@ -111,14 +112,19 @@ def _bound(planner: Planner, **options) -> Callable[[Scenario, SolverSettings | 
 def plan_mission(request: MissionRequest, *, planner: Planner = plan,
                  should_stop: Callable[[], bool] | None = None) -> MissionPlan:
     """Plan ``request`` (module docstring); ``should_stop`` is passed on to the planner, which
-    asks it between steps. Raises the planner's errors
-    (:class:`~uav_comm_planner.errors.PlannerError` and its subclasses)."""
-    if request.in_flight is None:
-        result, vehicle_plan = _plan_scenario(request, request.planned_scenario, planner,
-                                              {'should_stop': should_stop})
-        receding = None
-    else:
-        result, vehicle_plan, receding = _plan_rest(request, planner, should_stop)
+    asks it between steps, and so does the building of paths around the zones outside the
+    planner (a replan's start moved out of a zone's margin, the plan in force flown on).
+    Raises the planner's errors (:class:`~uav_comm_planner.errors.PlannerError` and its
+    subclasses)."""
+    if should_stop is not None and not callable(should_stop):
+        raise InvalidScenarioError(f'should_stop must be callable, got {should_stop!r}')
+    with detour.stoppable(stop_checker(should_stop)):
+        if request.in_flight is None:
+            result, vehicle_plan = _plan_scenario(request, request.planned_scenario, planner,
+                                                  {'should_stop': should_stop})
+            receding = None
+        else:
+            result, vehicle_plan, receding = _plan_rest(request, planner, should_stop)
     items = _items(request, vehicle_plan or result) if request.items else {}
     return MissionPlan(request, result, vehicle_plan, receding, **items)
 

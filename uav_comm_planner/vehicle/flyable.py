@@ -36,8 +36,8 @@ from typing import Callable, Optional
 import numpy as np
 
 from uav_comm_planner.core.detour import segments_clear
-from uav_comm_planner.core.model import average_rates, flown_path
-from uav_comm_planner.core.optimizer import optimal_power, plan, PlanResult, Step
+from uav_comm_planner.core.model import flown_path
+from uav_comm_planner.core.optimizer import plan, plan_along, PlanResult
 from uav_comm_planner.core.scenario import MIN_STEP_M, Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InfeasibleHorizonError, WalledInError
@@ -342,17 +342,14 @@ def flown_result(ideal: PlanResult, schedule: Schedule) -> PlanResult:
     optimal for them and the rates count them, as in the ideal plan.
     """
     scenario = ideal.scenario
-    q = schedule.flight.positions(scenario.times_s)
-    p = optimal_power(q, scenario, offsets=ideal.offsets)
-    rates = average_rates(q, p, scenario, ideal.offsets)
-    value = float(rates.min())
-    return PlanResult(
-        scenario=scenario, trajectory=q, times=scenario.times_s, power=p, rates=rates,
-        min_throughput=value, history=(Step('power', value),), baselines=ideal.baselines,
-        outer_iterations=ideal.outer_iterations, trajectory_steps=ideal.trajectory_steps,
-        converged=ideal.converged, solve_time_s=ideal.solve_time_s, start=ideal.start,
-        upper_bound=ideal.upper_bound, start_throughputs=ideal.start_throughputs,
-        offsets=ideal.offsets)
+    flown = plan_along(scenario, schedule.flight.positions(scenario.times_s),
+                       SolverSettings(compute_baselines=False), name=ideal.start,
+                       offsets=ideal.offsets)
+    return dataclasses.replace(
+        flown, baselines=ideal.baselines, outer_iterations=ideal.outer_iterations,
+        trajectory_steps=ideal.trajectory_steps, converged=ideal.converged,
+        solve_time_s=ideal.solve_time_s, upper_bound=ideal.upper_bound,
+        start_throughputs=ideal.start_throughputs, offsets=ideal.offsets)
 
 
 def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
@@ -381,9 +378,10 @@ def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
     does), before a slower speed is, unless ``planner``'s plan at the next slower speed flies
     and states within :data:`WIDER_SEARCH_GAIN` of the plan it cannot fly; the best flown of
     them is kept (:meth:`_Ladder.slower_or_wider`). It returns None where it
-    would search as ``planner`` did. ``kept_planner``, when given, is tried first there: the
-    plan in force flown on as it is (no trajectory step), taken when the vehicle flies it
-    within :data:`WIDER_SEARCH_GAIN` of what ``planner`` stated. Raises
+    would search as ``planner`` did. ``kept_planner``, when given with ``wider_planner``, is
+    tried first there: the plan in force flown on as it is (no trajectory step), taken when
+    the vehicle flies it within :data:`WIDER_SEARCH_GAIN` of what ``planner`` stated, else
+    one of those the best flown is chosen from. Raises
     :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
     speed exceeds the vehicle's, or the wind the vehicle's airspeed, and when not even the
     straight line fits the horizon (saying the horizon it needs).

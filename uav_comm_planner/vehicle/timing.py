@@ -119,8 +119,8 @@ def leg_time(length_m: float, speed_mps: float, limits: VehicleLimits) -> float:
     if length_m <= 0.0:
         return 0.0
     _, tj, t2, t4, t15 = _ramp_shape(length_m, speed_mps, limits)
-    # The pieces' durations of scurve_pieces, added in their order.
-    return (tj + t2 + tj + t4 + tj + t2 + tj + t15 + tj + t2 + tj + t4 + tj + t2 + tj)
+    # The durations of scurve_pieces' pieces, summed in their order as sum() sums them.
+    return sum((tj, t2, tj, t4, tj, t2, tj, t15, tj, t2, tj, t4, tj, t2, tj))
 
 
 def ramp_time(speed_mps: float, limits: VehicleLimits) -> float:
