@@ -44,7 +44,8 @@ SPEEDUP = 5
 #: (three PX4s side by side on two cores): over ten runs the case I 10 m/s median was 0.01 to
 #: 0.28 slot, the legs flown up to about 0.4 s per stop later than PX4's leg timing says, and
 #: one case I 5 m/s run at a speed-up of 3 gave 0.38. A quarter of a slot held in eight of
-#: the ten (docs/flying.md, "Measured on PX4").
+#: the ten. With the braking lead refitted to those legs, three runs gave 0.07-0.08 at 10 m/s
+#: and 0.00-0.15 for the other two (docs/flying.md, "Measured on PX4").
 MEDIAN_SLOTS = 0.4
 
 pytestmark = [pytest.mark.sitl,
