@@ -28,6 +28,7 @@ from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.evaluation import evaluate_flight
+from uav_comm_planner.vehicle.firmware import PX4_AUTO, PX4_MISSION
 from uav_comm_planner.vehicle.flyable import VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink.files import read_mission_file
@@ -62,7 +63,7 @@ RECEIVE_BUFFER_BYTES = 8 * 1024 * 1024
 #: PX4 arms once its estimator has settled (about 5 s of autopilot time): tried this long.
 READY_TIMEOUT_S = 120.0
 #: MAV_CMD_DO_SET_MODE (base mode custom, main mode AUTO, sub mode MISSION).
-AUTO_MISSION = (1.0, 4.0, 4.0)
+AUTO_MISSION = (1.0, float(PX4_AUTO), float(PX4_MISSION))
 
 
 def px4_run_script(path: str | os.PathLike | None = None) -> Path | None:

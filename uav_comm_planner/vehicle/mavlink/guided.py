@@ -53,7 +53,7 @@ from pymavlink import mavutil
 
 from uav_comm_planner.vehicle.firmware import firmware_of_autopilot, FIRMWARES, StreamModes
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, Home
-from uav_comm_planner.vehicle.mavlink.link import has_home_row
+from uav_comm_planner.vehicle.mavlink.link import vehicle_seq
 from uav_comm_planner.vehicle.stream import StreamReference
 
 MAV = mavutil.mavlink
@@ -294,8 +294,7 @@ class TargetStream:
         if resume_seq is not None or job.fallback == 'auto':
             seq = resume_seq if resume_seq is not None else job.resume_item(
                 elapsed_s if elapsed_s is not None else job.reference.duration_s)
-            # The vehicle's own numbering: PX4's missions have no home row.
-            seq -= 0 if has_home_row(link) else 1
+            seq = vehicle_seq(link, seq)
             link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
             name, what = modes.resume, f'back in {modes.resume} from mission item {seq}'
         else:

@@ -223,6 +223,12 @@ def has_home_row(link) -> bool:
     return getattr(link, 'vehicle_autopilot', None) != MAV.MAV_AUTOPILOT_PX4
 
 
+def vehicle_seq(link, seq: int) -> int:
+    """Mission item ``seq`` (counting the home row, as the mission files do) in ``link``'s
+    vehicle's own numbering: one less for PX4, whose missions have no home row."""
+    return seq if has_home_row(link) else seq - 1
+
+
 def for_vehicle(link, items: Sequence[MissionItem]) -> Sequence[MissionItem]:
     """``items`` (row 0 is home, as the mission files hold them) as ``link``'s vehicle takes
     them: without the home row for PX4."""

@@ -58,9 +58,9 @@ from uav_comm_planner.vehicle.mavlink.home import (HOME_DISTANCE_LIMIT_M, home_o
                                                    mission_far_from_vehicle, position_of,
                                                    request_home)
 from uav_comm_planner.vehicle.mavlink.items import DEGREES_E7, MissionItem
-from uav_comm_planner.vehicle.mavlink.link import (check_link, connect, has_home_row,
-                                                   LinkSettings, LinkWatch, SILENCE_S,
-                                                   upload_and_verify, WATCH_POLL_S)
+from uav_comm_planner.vehicle.mavlink.link import (check_link, connect, LinkSettings,
+                                                   LinkWatch, SILENCE_S, upload_and_verify,
+                                                   vehicle_seq, WATCH_POLL_S)
 
 MAV = mavutil.mavlink
 #: Telemetry rate asked of the autopilot (per second of autopilot time).
@@ -466,8 +466,7 @@ def _put_on_vehicle(link, job: _Upload, settings: LinkSettings) -> str:
     fence, note = upload_fence(link, job.fence, settings), ''
     upload_and_verify(link, job.items, settings)
     if job.current_seq is not None:
-        # Sequence numbers count the home row, which a PX4 mission has not.
-        current = job.current_seq - (0 if has_home_row(link) else 1)
+        current = vehicle_seq(link, job.current_seq)
         set_current(link, current)
         note = f'; current item {current}'
     return fence + note
