@@ -148,11 +148,16 @@ def fly_legs(scenario: Scenario, tour: tuple[list[int], np.ndarray, np.ndarray],
     if not order:
         return straight_line(scenario)
     hovers = split(scenario.num_slots + 1 - int(legs.sum()), len(order))
-    waypoints = [np.asarray(scenario.start_m, dtype=float)]
-    for k, count in enumerate(legs):
-        fractions = np.arange(1, count + 1) / count
-        waypoints.extend(points[k] + fractions[:, None] * (points[k + 1] - points[k]))
-        if k < len(order):
-            waypoints.extend([points[k + 1]] * int(hovers[k]))
-    # waypoints runs q0, q[1], ..., q[M], qF: M + 2 points joined by M + 1 legs.
-    return np.asarray(waypoints[1:-1])
+    # Stretch k from points[k] to points[k + 1] gives legs[k] rows points[k] + (i / legs[k])
+    # (points[k + 1] - points[k]), i = 1..legs[k], then hovers[k] rows at points[k + 1] (none
+    # after the last): q0 left out, these are q[1], ..., q[M], qF.
+    rows = legs + np.append(np.asarray(hovers, dtype=int), 0)
+    stretch = np.repeat(np.arange(len(legs)), rows)
+    within = np.arange(int(rows.sum())) - (np.cumsum(rows) - rows)[stretch]
+    count = legs[stretch]
+    fraction = (within + 1) / np.maximum(count, 1)
+    here, there = points[stretch], points[stretch + 1]
+    q = here + fraction[:, None] * (there - here)
+    hovering = within >= count
+    q[hovering] = there[hovering]
+    return q[:-1]
