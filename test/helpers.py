@@ -138,8 +138,16 @@ class LinkRecord:
 
     def wait(self, condition: Callable[[], bool], what: str) -> None:
         while not condition():
-            assert time.monotonic() < self.deadline, f'no {what} within {self.limit_s} s'
+            assert time.monotonic() < self.deadline, \
+                f'no {what} within {self.limit_s} s; {self.describe()}'
             self.poll()
+
+    def describe(self) -> str:
+        """What the link last heard, for a failure's message."""
+        if not self.positions:
+            return f'no position heard; modes {self.modes[-3:]}'
+        return (f'last heard at {self.now_s:.1f} s (autopilot time), '
+                f'{self.positions[-1][2] / 1000.0:.1f} m above home; modes {self.modes[-3:]}')
 
     def poll(self) -> None:
         message = self.link.recv_match(type=['GLOBAL_POSITION_INT', 'HEARTBEAT'],

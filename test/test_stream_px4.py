@@ -80,6 +80,14 @@ class StreamedFlight(LinkRecord):
             1e6 / RECORD_RATE_HZ, 0, 0, 0, 0, 0)
         self.wait(lambda: self.node.progress.started, 'mission clock')
 
+    def describe(self) -> str:
+        vehicle = self.node.vehicle
+        said = [line.strip() for line in (self.vehicle.folder / 'px4.log').read_text(
+            errors='replace').splitlines() if line.startswith(('WARN', 'ERROR'))]
+        return (f'{super().describe()}; the node: mode {vehicle.mode}, speed '
+                f'{vehicle.speed_mps:.2f} m/s, last pose {self.node.flight.track.latest}; '
+                f'PX4 warned: {said[-5:]}')
+
     def track(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         latitude, longitude, altitude = np.array(self.positions).T
         east, north, up = global_position_enu(latitude, longitude, altitude, PX4_HOME)

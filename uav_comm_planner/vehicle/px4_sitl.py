@@ -62,6 +62,11 @@ RECORD_AFTER_S = 8.0
 RECEIVE_BUFFER_BYTES = 8 * 1024 * 1024
 #: PX4 arms once its estimator has settled (about 5 s of autopilot time): tried this long.
 READY_TIMEOUT_S = 120.0
+#: PX4 has taken off once this high above home (metres)...
+TAKEOFF_HEIGHT_M = 1.0
+#: ... which it is within this many autopilot seconds of an arming that starts the mission
+#: (it climbs at about 1.5 m/s at once); else it is armed again.
+TAKEOFF_WAIT_S = 20.0
 #: MAV_CMD_DO_SET_MODE (base mode custom, main mode AUTO, sub mode MISSION).
 AUTO_MISSION = (1.0, float(PX4_AUTO), float(PX4_MISSION))
 
@@ -182,15 +187,54 @@ def upload_with_retries(mission: Path, url: str) -> None:
 
 
 def start_mission(link) -> None:
-    """AUTO.MISSION on the ground, then arm as soon as PX4 allows: it takes off and flies."""
+    """AUTO.MISSION on the ground, then arm as soon as PX4 allows, until it takes off: PX4
+    may accept the arming and still not start the mission (one just uploaded and not yet
+    checked, say), then disarms on the ground after COM_DISARM_PRFLT; it is armed again."""
     deadline = time.monotonic() + READY_TIMEOUT_S
+    said: list[str] = []
+    link.mav.command_long_send(link.target_system, link.target_component,
+                               MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                               MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 1e6 / POSITION_RATE_HZ,
+                               0, 0, 0, 0, 0)
     while time.monotonic() < deadline:
         if (_command(link, MAV.MAV_CMD_DO_SET_MODE, *AUTO_MISSION) == MAV.MAV_RESULT_ACCEPTED
                 and _command(link, MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-                == MAV.MAV_RESULT_ACCEPTED):
+                == MAV.MAV_RESULT_ACCEPTED and _took_off(link, deadline, said)):
             return
         time.sleep(0.5)
-    raise VehicleLinkError(f'PX4 did not arm in AUTO.MISSION within {READY_TIMEOUT_S:g} s')
+    heard = f'; PX4 said: {" | ".join(said[-5:])}' if said else ''
+    raise VehicleLinkError(f'PX4 did not take off in AUTO.MISSION within '
+                           f'{READY_TIMEOUT_S:g} s{heard}')
+
+
+def _took_off(link, deadline: float, said: list[str]) -> bool:
+    """After an accepted arming: True once PX4 is TAKEOFF_HEIGHT_M above home, still armed;
+    False when it disarms first or stays on the ground for TAKEOFF_WAIT_S of autopilot time.
+    PX4's status texts are added to ``said``."""
+    armed_s = None
+    armed = False           # a heartbeat sent before the arming may still come after its ack
+    while time.monotonic() < deadline:
+        message = link.recv_match(type=['HEARTBEAT', 'GLOBAL_POSITION_INT', 'STATUSTEXT'],
+                                  blocking=True, timeout=1.0)
+        if message is None or message.get_srcSystem() != link.target_system:
+            continue
+        kind = message.get_type()
+        if kind == 'STATUSTEXT':
+            said.append(message.text)
+        elif kind == 'HEARTBEAT':
+            if message.type != MAV.MAV_TYPE_GCS:
+                now_armed = bool(message.base_mode & MAV.MAV_MODE_FLAG_SAFETY_ARMED)
+                if armed and not now_armed:
+                    return False
+                armed = now_armed
+        else:
+            now_s = message.time_boot_ms / 1000.0
+            armed_s = now_s if armed_s is None else armed_s
+            if message.relative_alt >= TAKEOFF_HEIGHT_M * 1000.0:
+                return True
+            if now_s - armed_s > TAKEOFF_WAIT_S:
+                return False
+    return False
 
 
 def record_mission(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRecord:
