@@ -27,7 +27,8 @@ from uav_comm_planner.vehicle.mavlink.guided import PX4_MODES
 from uav_comm_planner.vehicle.mavlink.link import connect
 from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu
 from uav_comm_planner.vehicle.px4_sitl import (fly_px4_mission, PX4_HOME, quiet_streams,
-                                               start_mission, start_px4, why_px4_not_runnable)
+                                               start_mission, start_px4, TAKEOFF_HEIGHT_M,
+                                               why_px4_not_runnable)
 
 MAV = mavutil.mavlink
 RUN_PX4 = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'px4' / 'run_px4.sh'
@@ -74,6 +75,11 @@ class StreamedFlight(LinkRecord):
         """Arm in AUTO.MISSION once the node's mission is on PX4; record from then on."""
         self.wait(lambda: self.node.vehicle.uploads_verified >= 1, 'mission on the vehicle')
         start_mission(self.link)
+        # start_mission returns once PX4 has taken off, not on the arming's ack alone.
+        before = len(self.positions)
+        self.wait(lambda: len(self.positions) > before, 'position after the takeoff')
+        assert self.positions[before][2] >= 0.9 * TAKEOFF_HEIGHT_M * 1000.0, \
+            self.positions[before]
         self.link.mav.command_long_send(
             self.link.target_system, self.link.target_component,
             MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,

@@ -62,7 +62,7 @@ RECORD_AFTER_S = 8.0
 RECEIVE_BUFFER_BYTES = 8 * 1024 * 1024
 #: PX4 arms once its estimator has settled (about 5 s of autopilot time): tried this long.
 READY_TIMEOUT_S = 120.0
-#: PX4 has taken off once this high above home (metres)...
+#: PX4 has taken off once it has climbed this much since the arming (metres)...
 TAKEOFF_HEIGHT_M = 1.0
 #: ... which it is within this many autopilot seconds of an arming that starts the mission
 #: (it climbs at about 1.5 m/s at once); else it is armed again.
@@ -208,10 +208,11 @@ def start_mission(link) -> None:
 
 
 def _took_off(link, deadline: float, said: list[str]) -> bool:
-    """After an accepted arming: True once PX4 is TAKEOFF_HEIGHT_M above home, still armed;
-    False when it disarms first or stays on the ground for TAKEOFF_WAIT_S of autopilot time.
-    PX4's status texts are added to ``said``."""
-    armed_s = None
+    """After an accepted arming: True once PX4 has climbed TAKEOFF_HEIGHT_M above the lowest
+    altitude it reported since (mean sea level: wherever home is), still armed; False when it
+    disarms first or stays on the ground for TAKEOFF_WAIT_S of autopilot time. PX4's status
+    texts are added to ``said``."""
+    armed_s = lowest_mm = None
     armed = False           # a heartbeat sent before the arming may still come after its ack
     while time.monotonic() < deadline:
         message = link.recv_match(type=['HEARTBEAT', 'GLOBAL_POSITION_INT', 'STATUSTEXT'],
@@ -230,7 +231,8 @@ def _took_off(link, deadline: float, said: list[str]) -> bool:
         else:
             now_s = message.time_boot_ms / 1000.0
             armed_s = now_s if armed_s is None else armed_s
-            if message.relative_alt >= TAKEOFF_HEIGHT_M * 1000.0:
+            lowest_mm = message.alt if lowest_mm is None else min(lowest_mm, message.alt)
+            if message.alt - lowest_mm >= TAKEOFF_HEIGHT_M * 1000.0:
                 return True
             if now_s - armed_s > TAKEOFF_WAIT_S:
                 return False
@@ -343,5 +345,6 @@ def fly_px4_mission(vehicle_plan: VehiclePlan, mission: Path, folder: Path, *, i
     return SitlFlight(report, record.reached[last_waypoint] - start_s, record)
 
 
-__all__ = ['PX4_HOME', 'PX4_SPEEDUP', 'Px4Sitl', 'fly_px4_mission', 'px4_run_script',
-           'runnable_copy', 'start_px4', 'why_px4_not_runnable']
+__all__ = ['PX4_HOME', 'PX4_SPEEDUP', 'Px4Sitl', 'TAKEOFF_HEIGHT_M', 'fly_px4_mission',
+           'px4_run_script', 'runnable_copy', 'start_mission', 'start_px4',
+           'why_px4_not_runnable']
