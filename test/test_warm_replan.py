@@ -181,7 +181,7 @@ def distance_to_segment(point, a, b) -> float:
 
 
 def test_the_vehicle_aware_pipeline_plans_every_speed_warm_then_the_other_tours(first):
-    k = 40
+    k = 20
     calls = []
 
     def recording(scenario, settings, **options):

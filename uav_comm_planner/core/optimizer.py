@@ -23,7 +23,8 @@ from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per
 from uav_comm_planner.core.power import (checked_offsets, conic_power, PowerAllocation,
                                          waterfilling_power)
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
-from uav_comm_planner.core.tours import random_tours
+from uav_comm_planner.core.splits import resplit
+from uav_comm_planner.core.tours import distinct_tours, tour_draws
 from uav_comm_planner.core.trajectory import trajectory_step_cvxpy, TrajectoryStep
 from uav_comm_planner.core.zone_rows import zone_model
 from uav_comm_planner.errors import InvalidScenarioError, PlanCancelledError, SolverError
@@ -109,7 +110,8 @@ class PlanResult:
     baselines: min throughput of the straight line ('straight') and the static access point
     ('static'), each with its optimal power, bit/s.
     start: the initial trajectory of the kept plan ('straight', 'hover', a screened
-    'tour k' of :func:`~uav_comm_planner.core.tours.random_tours`, or an extra start's name);
+    'tour k' of :func:`~uav_comm_planner.core.tours.random_tours`, 'tour k resplit' for that
+    tour with its hover split searched (:mod:`.splits`), or an extra start's name);
     start_throughputs: the min throughput Algorithm 1 reached from each start tried, bit/s
     (for a screened start not continued, where its screening left it);
     upper_bound: :func:`throughput_upper_bound`, no plan can exceed it, bit/s (inf with
@@ -370,13 +372,13 @@ def _set_tolerance(trajectory_solver: TrajectorySolver, tolerance: float | None)
 
 
 def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: SolverSettings,
-                   run_from: Callable[..., Run],
-                   trajectory_solver: TrajectorySolver) -> dict[str, Run]:
+                   run_from: Callable[..., Run], trajectory_solver: TrajectorySolver,
+                   draws: Mapping[str, tuple] | None = None) -> dict[str, Run]:
     """Runs from every start, screened: the straight start runs the letter's Algorithm 1
     exactly (:func:`letter_rules`), every other start is screened by one power step on it;
     the best :data:`SHORTLIST` of those get one outer iteration, the best :data:`CONTINUED`
-    of these are continued under ``settings`` to convergence, and then the letter's run too
-    if it is still ahead of them.
+    of these are continued under ``settings`` to convergence (a tour of ``draws`` also with
+    its split searched, :func:`.splits.resplit`), then the letter's run if still ahead of them.
 
     Continuing with ``fast_steps`` alternates one SCA step at :data:`LOOSE_TOLERANCE` per
     power step until a power step gains at most the tolerance, then :data:`FINAL_SCA_STEPS`
@@ -419,6 +421,11 @@ def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: So
     screened = ranked(shortlist)
     for name in screened[:CONTINUED]:
         runs[name] = continued(runs[name])
+        if name in (draws or {}):   # a screened tour: its split searched by water-filling
+            q = resplit(scenario, draws[name], lambda q: run_from(
+                q, screen, sca_steps=0, power_solver=waterfilling_power))
+            if q is not None:
+                runs[f'{name} resplit'] = continued(run_from(q, screen, sca_steps=0))
     for name in letter:
         if all(runs[name].min_throughput > runs[other].min_throughput
                for other in screened[:CONTINUED]):
@@ -538,13 +545,14 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
                                  trajectory_solver=trajectory_solver, should_stop=should_stop,
                                  offsets=offsets)
     if settings.fast_steps or settings.screened_tours:
-        for name, trajectory in random_tours(scenario, settings.screened_tours).items():
+        draws = tour_draws(scenario, settings.screened_tours)
+        for name, trajectory in distinct_tours(scenario, draws).items():
             if keeper is None or keeper.keeps(trajectory):   # tours that cross a zone are left out
                 starts.setdefault(name, Start.given(name, trajectory))
-        runs = _screened_runs(scenario, starts, settings, run_from, trajectory_solver)
+        runs = _screened_runs(scenario, starts, settings, run_from, trajectory_solver, draws)
     else:
         runs = {name: run_from(start.make(scenario), settings) for name, start in starts.items()}
-    order = list(starts)
+    order = list(runs)
     values = {name: run.min_throughput for name, run in runs.items()}
     best = max(values, key=lambda name: (values[name], -order.index(name)))
     run = runs[best]

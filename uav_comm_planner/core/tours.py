@@ -49,17 +49,14 @@ def random_split(rng: np.random.Generator):
     return split
 
 
-def random_tours(scenario: Scenario, count: int,
-                 seed: int | None = None) -> dict[str, np.ndarray]:
-    """Up to ``count`` tour starts q (M, 2) metres by name ('tour 1', ...; a tour that repeats
-    an earlier one is left out), reproducible for the scenario: each a random visiting order
-    (tours 4, 8, ... improved by 2-opt, the others as drawn) with the spare slots split in
-    random shares (:func:`random_split`). ``seed`` draws other tours (:func:`scenario_seed`
-    when None)."""
+def tour_draws(scenario: Scenario, count: int,
+               seed: int | None = None) -> dict[str, tuple[tuple, np.ndarray]]:
+    """The tours of :func:`random_tours` before they are flown: by name, the tour's legs
+    (:func:`~uav_comm_planner.core.initial.tour_legs`) and its hover split (integers, one per
+    visited node), as drawn."""
     rng = np.random.default_rng(scenario_seed(scenario) if seed is None else seed)
     start, goal = np.asarray(scenario.start_m, float), np.asarray(scenario.goal_m, float)
-    tours: dict[str, np.ndarray] = {}
-    drawn: set[bytes] = set()                   # the tours so far, as bytes: a repeat is one
+    draws: dict[str, tuple[tuple, np.ndarray]] = {}
     legs: dict[tuple[int, ...], tuple] = {}     # the legs of each order, worked out once
     for k in range(1, count + 1):
         order = [int(i) for i in rng.permutation(scenario.num_nodes)]
@@ -68,11 +65,42 @@ def random_tours(scenario: Scenario, count: int,
         key = tuple(order)
         if key not in legs:
             legs[key] = initial.tour_legs(scenario, order)
-        q = initial.fly_legs(scenario, legs[key], random_split(rng))
+        tour = legs[key]
+        spare = scenario.num_slots + 1 - int(tour[2].sum())
+        # A tour that visits no node is the straight line, and draws no split.
+        hovers = random_split(rng)(spare, len(tour[0])) if tour[0] else np.zeros(0, int)
+        draws[f'tour {k}'] = (tour, np.asarray(hovers))
+    return draws
+
+
+def fly_draw(scenario: Scenario, draw: tuple[tuple, np.ndarray]) -> np.ndarray:
+    """q (M, 2) metres of a :func:`tour_draws` tour with its hover split."""
+    tour, hovers = draw
+    return initial.fly_legs(scenario, tour, lambda spare, stops: hovers)
+
+
+def random_tours(scenario: Scenario, count: int,
+                 seed: int | None = None) -> dict[str, np.ndarray]:
+    """Up to ``count`` tour starts q (M, 2) metres by name ('tour 1', ...; a tour that repeats
+    an earlier one is left out), reproducible for the scenario: each a random visiting order
+    (tours 4, 8, ... improved by 2-opt, the others as drawn) with the spare slots split in
+    random shares (:func:`random_split`). ``seed`` draws other tours (:func:`scenario_seed`
+    when None)."""
+    return distinct_tours(scenario, tour_draws(scenario, count, seed))
+
+
+def distinct_tours(scenario: Scenario,
+                   draws: dict[str, tuple[tuple, np.ndarray]]) -> dict[str, np.ndarray]:
+    """The :func:`tour_draws` flown, by name, a tour that repeats an earlier one left out."""
+    tours: dict[str, np.ndarray] = {}
+    drawn: set[bytes] = set()                   # the tours so far, as bytes: a repeat is one
+    for name, draw in draws.items():
+        q = fly_draw(scenario, draw)
         if q.tobytes() not in drawn:
             drawn.add(q.tobytes())
-            tours[f'tour {k}'] = q
+            tours[name] = q
     return tours
 
 
-__all__ = ['random_split', 'random_tours', 'scenario_seed']
+__all__ = ['distinct_tours', 'fly_draw', 'random_split', 'random_tours', 'scenario_seed',
+           'tour_draws']
