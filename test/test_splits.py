@@ -10,6 +10,7 @@ import pytest
 from uav_comm_planner import plan, SolverSettings
 from uav_comm_planner.core.model import average_rates, leg_lengths
 from uav_comm_planner.core.optimizer import optimal_power
+from uav_comm_planner.core.power import conic_power, waterfilling_power
 from uav_comm_planner.core.splits import resplit, searched_split
 from uav_comm_planner.core.tours import fly_draw, tour_draws
 
@@ -67,8 +68,8 @@ def test_the_climb_never_loses_and_keeps_a_split_with_no_better_neighbour():
 def test_a_resplit_tour_keeps_the_path_and_the_speed_limit_and_serves_better():
     # Low SNR, where the split decides the plan: the tour flown with the searched split is
     # the same path (only the hover counts move), keeps the speed limit and, given its
-    # optimal power (computed here independently of the search), serves its worst node
-    # better than the split drawn.
+    # optimal power (the search's water-filling; checked by the conic power step, another
+    # solver), serves its worst node better than the split drawn.
     scenario = random_scenario(3, nodes=6, slots=120, bandwidth_hz=1e6, reference_gain=1e-6)
     draws = tour_draws(scenario, 8)
     gained = 0
@@ -83,6 +84,8 @@ def test_a_resplit_tour_keeps_the_path_and_the_speed_limit_and_serves_better():
         assert {tuple(p) for p in np.round(after, 6)} <= {tuple(p) for p in np.round(before, 6)}
         assert _power_only(scenario, after).min_throughput > \
             _power_only(scenario, before).min_throughput
+        conic = [_power_only(scenario, q, conic_power).min_throughput for q in (before, after)]
+        assert conic[1] > conic[0] * (1 + 1e-6)
     assert gained >= 4
 
 
@@ -91,9 +94,9 @@ class _Valued:
         self.min_throughput = value
 
 
-def _power_only(scenario, q):
+def _power_only(scenario, q, power_solver=waterfilling_power):
     """The min throughput of q with its optimal power, no trajectory step."""
-    p = optimal_power(q, scenario)
+    p = optimal_power(q, scenario, power_solver)
     return _Valued(float(average_rates(q, p, scenario).min()))
 
 

@@ -181,6 +181,8 @@ def distance_to_segment(point, a, b) -> float:
 
 
 def test_the_vehicle_aware_pipeline_plans_every_speed_warm_then_the_other_tours(first):
+    # After 20 slots the vehicle cannot fly the warm plan nor the plan in force on time (after
+    # 40, with the first plan's split searched, it flies the warm plan at once).
     k = 20
     calls = []
 

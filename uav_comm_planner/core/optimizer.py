@@ -378,15 +378,14 @@ def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: So
     exactly (:func:`letter_rules`), every other start is screened by one power step on it;
     the best :data:`SHORTLIST` of those get one outer iteration, the best :data:`CONTINUED`
     of these are continued under ``settings`` to convergence (a tour of ``draws`` also with
-    its split searched, :func:`.splits.resplit`), then the letter's run if still ahead of them.
+    its split searched, :func:`.splits.resplit`), then the letter's run if still ahead of all.
 
     Continuing with ``fast_steps`` alternates one SCA step at :data:`LOOSE_TOLERANCE` per
     power step until a power step gains at most the tolerance, then :data:`FINAL_SCA_STEPS`
     SCA steps per power step at the tight tolerance until the same rule stops it, so the last
     steps are tight. Every continuation keeps a step only when it does not lower the true
-    minimum rate, and a continuation that ends below where it began (by round-off, in its
-    first power step) is dropped, so no run ends below where it was screened and the straight
-    start never below the letter's own run.
+    minimum rate, and one that ends below where it began (by round-off, in its first power
+    step) is dropped: no run ends below its screening, the straight start below the letter's.
     """
     loose = LOOSE_TOLERANCE if settings.fast_steps else None
     sca_steps = 1 if settings.fast_steps else None
@@ -418,17 +417,17 @@ def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: So
     _set_tolerance(trajectory_solver, loose)
     for name in shortlist:
         runs[name] = _joined(runs[name], run_from(runs[name].q, screen, sca_steps=sca_steps))
-    screened = ranked(shortlist)
-    for name in screened[:CONTINUED]:
+    done = ranked(shortlist)[:CONTINUED]
+    for name in list(done):
         runs[name] = continued(runs[name])
         if name in (draws or {}):   # a screened tour: its split searched by water-filling
             q = resplit(scenario, draws[name], lambda q: run_from(
                 q, screen, sca_steps=0, power_solver=waterfilling_power))
             if q is not None:
-                runs[f'{name} resplit'] = continued(run_from(q, screen, sca_steps=0))
+                done.append(f'{name} resplit')
+                runs[done[-1]] = continued(run_from(q, screen, sca_steps=0))
     for name in letter:
-        if all(runs[name].min_throughput > runs[other].min_throughput
-               for other in screened[:CONTINUED]):
+        if all(runs[name].min_throughput > runs[other].min_throughput for other in done):
             runs[name] = continued(runs[name])
     _set_tolerance(trajectory_solver, None)
     return runs
@@ -546,10 +545,11 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
                                  offsets=offsets)
     if settings.fast_steps or settings.screened_tours:
         draws = tour_draws(scenario, settings.screened_tours)
-        for name, trajectory in distinct_tours(scenario, draws).items():
-            if keeper is None or keeper.keeps(trajectory):   # tours that cross a zone are left out
-                starts.setdefault(name, Start.given(name, trajectory))
-        runs = _screened_runs(scenario, starts, settings, run_from, trajectory_solver, draws)
+        tours = {name: q for name, q in distinct_tours(scenario, draws).items() if name not in
+                 starts and (keeper is None or keeper.keeps(q))}    # none crossing a zone
+        starts.update({name: Start.given(name, q) for name, q in tours.items()})
+        runs = _screened_runs(scenario, starts, settings, run_from, trajectory_solver,
+                              {name: draws[name] for name in tours})
     else:
         runs = {name: run_from(start.make(scenario), settings) for name, start in starts.items()}
     order = list(runs)

@@ -65,7 +65,7 @@ READY_TIMEOUT_S = 120.0
 #: PX4 has taken off once it has climbed this much since the arming (metres)...
 TAKEOFF_HEIGHT_M = 1.0
 #: ... which it is within this many autopilot seconds of an arming that starts the mission
-#: (it climbs at about 1.5 m/s at once); else it is armed again.
+#: (it climbs at about 1.5 m/s at once); else AUTO.MISSION and the arming are asked again.
 TAKEOFF_WAIT_S = 20.0
 #: MAV_CMD_DO_SET_MODE (base mode custom, main mode AUTO, sub mode MISSION).
 AUTO_MISSION = (1.0, float(PX4_AUTO), float(PX4_MISSION))
@@ -189,7 +189,8 @@ def upload_with_retries(mission: Path, url: str) -> None:
 def start_mission(link) -> None:
     """AUTO.MISSION on the ground, then arm as soon as PX4 allows, until it takes off: PX4
     may accept the arming and still not start the mission (one just uploaded and not yet
-    checked, say), then disarms on the ground after COM_DISARM_PRFLT; it is armed again."""
+    checked, say), then disarms on the ground after COM_DISARM_PRFLT: AUTO.MISSION and the
+    arming are then asked again, as they are when it stays on the ground."""
     deadline = time.monotonic() + READY_TIMEOUT_S
     said: list[str] = []
     link.mav.command_long_send(link.target_system, link.target_component,
