@@ -19,7 +19,6 @@ from pathlib import Path
 
 from helpers import LinkRecord, SpunNode
 import numpy as np
-from pymavlink import mavutil
 import pytest
 
 from uav_comm_planner.vehicle.evaluation import evaluate_flight
@@ -30,7 +29,6 @@ from uav_comm_planner.vehicle.px4_sitl import (fly_px4_mission, PX4_HOME, quiet_
                                                start_mission, start_px4, TAKEOFF_HEIGHT_M,
                                                why_px4_not_runnable)
 
-MAV = mavutil.mavlink
 RUN_PX4 = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'px4' / 'run_px4.sh'
 #: This module's PX4 SITL instance (onboard port 14540 + 9, ground station 18570 + 9).
 INSTANCE = 9
@@ -39,8 +37,6 @@ SPEEDUP = 5
 PLAN = {'ground_nodes': [-150.0, 150.0, 150.0, 350.0], 'start_m': [0.0, 10.0],
         'goal_m': [0.0, 400.0], 'max_speed_mps': 5.0, 'horizon_s': 120.0, 'num_slots': 30,
         'altitude_m': 30.0}
-#: GLOBAL_POSITION_INT per second of autopilot time on the test's link.
-RECORD_RATE_HZ = 10.0
 #: Wall-clock limit of the streamed flight, generous (about 40 s at the speed-up).
 WALL_LIMIT_S = 300.0
 
@@ -75,15 +71,12 @@ class StreamedFlight(LinkRecord):
         """Arm in AUTO.MISSION once the node's mission is on PX4; record from then on."""
         self.wait(lambda: self.node.vehicle.uploads_verified >= 1, 'mission on the vehicle')
         start_mission(self.link)
-        # start_mission returns once PX4 has taken off, not on the arming's ack alone.
+        # start_mission returns once PX4 has taken off, not on the arming's ack alone; it has
+        # asked for GLOBAL_POSITION_INT at POSITION_RATE_HZ on this link, which records it.
         before = len(self.positions)
         self.wait(lambda: len(self.positions) > before, 'position after the takeoff')
         assert self.positions[before][2] >= 0.9 * TAKEOFF_HEIGHT_M * 1000.0, \
             self.positions[before]
-        self.link.mav.command_long_send(
-            self.link.target_system, self.link.target_component,
-            MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
-            1e6 / RECORD_RATE_HZ, 0, 0, 0, 0, 0)
         self.wait(lambda: self.node.progress.started, 'mission clock')
 
     def describe(self) -> str:

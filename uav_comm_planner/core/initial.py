@@ -140,6 +140,11 @@ def tour_legs(scenario: Scenario, order: list[int]) -> tuple[list[int], np.ndarr
     return order, points, _legs_needed(points, scenario)
 
 
+def spare_legs(scenario: Scenario, tour: tuple[list[int], np.ndarray, np.ndarray]) -> int:
+    """The legs of the M + 1 a :func:`tour_legs` answer leaves to hover."""
+    return scenario.num_slots + 1 - int(tour[2].sum())
+
+
 def fly_legs(scenario: Scenario, tour: tuple[list[int], np.ndarray, np.ndarray],
              split: Callable[[int, int], np.ndarray] = even_hovers) -> np.ndarray:
     """q (M, 2) metres along a :func:`tour_legs` answer, the spare legs split by ``split``;
@@ -147,7 +152,7 @@ def fly_legs(scenario: Scenario, tour: tuple[list[int], np.ndarray, np.ndarray],
     order, points, legs = tour
     if not order:
         return straight_line(scenario)
-    hovers = split(scenario.num_slots + 1 - int(legs.sum()), len(order))
+    hovers = split(spare_legs(scenario, tour), len(order))
     # Stretch k from points[k] to points[k + 1] gives legs[k] rows points[k] + (i / legs[k])
     # (points[k + 1] - points[k]), i = 1..legs[k], then hovers[k] rows at points[k + 1] (none
     # after the last): q0 left out, these are q[1], ..., q[M], qF.

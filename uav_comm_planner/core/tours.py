@@ -66,9 +66,9 @@ def tour_draws(scenario: Scenario, count: int,
         if key not in legs:
             legs[key] = initial.tour_legs(scenario, order)
         tour = legs[key]
-        spare = scenario.num_slots + 1 - int(tour[2].sum())
         # A tour that visits no node is the straight line, and draws no split.
-        hovers = random_split(rng)(spare, len(tour[0])) if tour[0] else np.zeros(0, int)
+        hovers = (random_split(rng)(initial.spare_legs(scenario, tour), len(tour[0]))
+                  if tour[0] else np.zeros(0, int))
         draws[f'tour {k}'] = (tour, np.asarray(hovers))
     return draws
 

@@ -186,17 +186,23 @@ def upload_with_retries(mission: Path, url: str) -> None:
             time.sleep(0.5)
 
 
-def start_mission(link) -> None:
-    """AUTO.MISSION on the ground, then arm as soon as PX4 allows, until it takes off: PX4
-    may accept the arming and still not start the mission (one just uploaded and not yet
-    checked, say), then disarms on the ground after COM_DISARM_PRFLT: AUTO.MISSION and the
-    arming are then asked again, as they are when it stays on the ground."""
-    deadline = time.monotonic() + READY_TIMEOUT_S
-    said: list[str] = []
+def ask_positions(link) -> None:
+    """Ask PX4 for GLOBAL_POSITION_INT at POSITION_RATE_HZ (autopilot time) on ``link``."""
     link.mav.command_long_send(link.target_system, link.target_component,
                                MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
                                MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 1e6 / POSITION_RATE_HZ,
                                0, 0, 0, 0, 0)
+
+
+def start_mission(link) -> None:
+    """AUTO.MISSION on the ground, then arm as soon as PX4 allows, until it takes off: PX4
+    may accept the arming and still not start the mission (one just uploaded and not yet
+    checked, say), then disarms on the ground after COM_DISARM_PRFLT: AUTO.MISSION and the
+    arming are then asked again, as they are when it stays on the ground. It asks for
+    GLOBAL_POSITION_INT on ``link`` (:func:`ask_positions`), which it reads for the climb."""
+    deadline = time.monotonic() + READY_TIMEOUT_S
+    said: list[str] = []
+    ask_positions(link)
     while time.monotonic() < deadline:
         if (_command(link, MAV.MAV_CMD_DO_SET_MODE, *AUTO_MISSION) == MAV.MAV_RESULT_ACCEPTED
                 and _command(link, MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1)
@@ -244,10 +250,7 @@ def record_mission(link, home: Home, *, last_item: int, timeout_s: float) -> Fli
     """Record GLOBAL_POSITION_INT and MISSION_ITEM_REACHED until RECORD_AFTER_S after PX4
     reaches item ``last_item`` (its own numbering, from 0; PX4 reports it on entering the
     acceptance radius); ``timeout_s`` is autopilot time."""
-    link.mav.command_long_send(link.target_system, link.target_component,
-                               MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
-                               MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 1e6 / POSITION_RATE_HZ,
-                               0, 0, 0, 0, 0)
+    ask_positions(link)
     times, latitudes_e7, longitudes_e7, altitudes_mm = [], [], [], []
     reached: dict[int, float] = {}
     clock_s = started_s = None
@@ -346,6 +349,6 @@ def fly_px4_mission(vehicle_plan: VehiclePlan, mission: Path, folder: Path, *, i
     return SitlFlight(report, record.reached[last_waypoint] - start_s, record)
 
 
-__all__ = ['PX4_HOME', 'PX4_SPEEDUP', 'Px4Sitl', 'TAKEOFF_HEIGHT_M', 'fly_px4_mission',
-           'px4_run_script', 'runnable_copy', 'start_mission', 'start_px4',
+__all__ = ['PX4_HOME', 'PX4_SPEEDUP', 'Px4Sitl', 'TAKEOFF_HEIGHT_M', 'ask_positions',
+           'fly_px4_mission', 'px4_run_script', 'runnable_copy', 'start_mission', 'start_px4',
            'why_px4_not_runnable']
