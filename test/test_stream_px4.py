@@ -25,8 +25,9 @@ from uav_comm_planner.vehicle.evaluation import evaluate_flight
 from uav_comm_planner.vehicle.mavlink.guided import PX4_MODES
 from uav_comm_planner.vehicle.mavlink.link import connect
 from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu
-from uav_comm_planner.vehicle.px4_sitl import (fly_px4_mission, PX4_HOME, quiet_streams,
-                                               start_mission, start_px4, TAKEOFF_HEIGHT_M,
+from uav_comm_planner.vehicle.px4_sitl import (FLIGHT_ATTEMPTS, fly_px4_mission, PX4_HOME,
+                                               quiet_streams, start_mission, start_px4,
+                                               TAKEOFF_HEIGHT_M, TakeoffError,
                                                why_px4_not_runnable)
 
 RUN_PX4 = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'px4' / 'run_px4.sh'
@@ -100,12 +101,32 @@ class StreamedFlight(LinkRecord):
         self.vehicle.stop()
 
 
+def started_flight(ros_context, folder: Path, **parameters) -> StreamedFlight:
+    """A :class:`StreamedFlight` started, on a fresh PX4 again when PX4 does not take off (a
+    :class:`TakeoffError`, at most FLIGHT_ATTEMPTS PX4s in all, each in a folder ``attemptK``),
+    as :func:`fly_px4_mission` does."""
+    attempt = 1
+    while True:
+        flight = StreamedFlight(ros_context, folder / f'attempt{attempt}', **parameters)
+        try:
+            flight.start()
+            return flight
+        except TakeoffError as exc:
+            flight.close()
+            if attempt == FLIGHT_ATTEMPTS:
+                raise
+            print(f'\n{exc}; flying again on a fresh PX4')
+        except BaseException:
+            flight.close()
+            raise
+        attempt += 1
+
+
 def test_px4_flies_the_streamed_plan_in_offboard_on_time_and_its_mission_after(
         ros_context, tmp_path):
-    flight = StreamedFlight(ros_context, tmp_path / 'stream')
+    flight = started_flight(ros_context, tmp_path / 'stream')
     try:
         node = flight.node
-        flight.start()
         segment = node.progress.segments[0]
         result = segment.result
         scenario = result.scenario
@@ -158,10 +179,9 @@ def test_px4_flies_the_streamed_plan_in_offboard_on_time_and_its_mission_after(
 
 def test_a_node_stopped_mid_stream_leaves_px4_held_in_loiter_and_says_so(ros_context,
                                                                          tmp_path):
-    flight = StreamedFlight(ros_context, tmp_path, stream_fallback='hold')
+    flight = started_flight(ros_context, tmp_path, stream_fallback='hold')
     try:
         node = flight.node
-        flight.start()
         began = node.progress.segments[0].start_s
         flight.wait(lambda: flight.now_s > began + 20.0
                     and flight.mode == PX4_MODES['OFFBOARD'], 'stream in OFFBOARD')

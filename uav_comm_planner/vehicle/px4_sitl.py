@@ -14,6 +14,7 @@ ground and arms: PX4 takes off and flies the mission. Every time here is autopil
 from __future__ import annotations
 
 from dataclasses import dataclass
+import logging
 import os
 from pathlib import Path
 import shutil
@@ -27,6 +28,7 @@ import numpy as np
 from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError
+from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.vehicle.evaluation import evaluate_flight
 from uav_comm_planner.vehicle.firmware import PX4_AUTO, PX4_MISSION
 from uav_comm_planner.vehicle.flyable import VehiclePlan
@@ -40,6 +42,7 @@ from uav_comm_planner.vehicle.mavlink.upload import upload_file
 from uav_comm_planner.vehicle.sitl import _command, FlightRecord, SitlFlight
 
 MAV = mavutil.mavlink
+logger = logging.getLogger(__name__)
 ENVIRONMENT_VARIABLE = 'UAV_COMM_PLANNER_PX4'
 #: PX4 SITL's home (its default, Zurich): the missions flown on it are made for this home.
 PX4_HOME = Home(47.397742, 8.545594, 489.0)
@@ -67,6 +70,8 @@ TAKEOFF_HEIGHT_M = 1.0
 #: ... which it is within this many autopilot seconds of an arming that starts the mission
 #: (it climbs at about 1.5 m/s at once); else AUTO.MISSION and the arming are asked again.
 TAKEOFF_WAIT_S = 20.0
+#: Fresh PX4s a flight is tried on when PX4 does not take off (:class:`TakeoffError`).
+FLIGHT_ATTEMPTS = 2
 #: MAV_CMD_DO_SET_MODE (base mode custom, main mode AUTO, sub mode MISSION).
 AUTO_MISSION = (1.0, float(PX4_AUTO), float(PX4_MISSION))
 
@@ -186,6 +191,13 @@ def upload_with_retries(mission: Path, url: str) -> None:
             time.sleep(0.5)
 
 
+class TakeoffError(VehicleLinkError):
+    """PX4 did not take off in AUTO.MISSION. Seen on a machine that stalled PX4 SITL for
+    seconds: its simulated sensors timed out ("No valid data from Baro 0"), it landed blind
+    and then refused every arming ("Resolve system health failures first"). Only a fresh PX4
+    flies again."""
+
+
 def ask_positions(link) -> None:
     """Ask PX4 for GLOBAL_POSITION_INT at POSITION_RATE_HZ (autopilot time) on ``link``."""
     link.mav.command_long_send(link.target_system, link.target_component,
@@ -210,7 +222,7 @@ def start_mission(link) -> None:
             return
         time.sleep(0.5)
     heard = f'; PX4 said: {" | ".join(said[-5:])}' if said else ''
-    raise VehicleLinkError(f'PX4 did not take off in AUTO.MISSION within '
+    raise TakeoffError(f'PX4 did not take off in AUTO.MISSION within '
                            f'{READY_TIMEOUT_S:g} s{heard}')
 
 
@@ -317,11 +329,37 @@ def fly_px4_mission(vehicle_plan: VehiclePlan, mission: Path, folder: Path, *, i
 
     The file is uploaded and read back with :func:`upload_file`; PX4 keeps no home row, so
     the file's row k is PX4's item k - 1. The plan's clock starts when the hold at q0 starts:
-    PX4 reports q0 reached when its hold ends (:func:`q0_reached_s`).
+    PX4 reports q0 reached when its hold ends (:func:`q0_reached_s`). A PX4 that does not
+    take off (:class:`TakeoffError`) is stopped and the flight flown again on a fresh one, at
+    most FLIGHT_ATTEMPTS times in all, each in a folder ``attemptK`` of ``folder``.
     """
     items = read_mission_file(mission)
+    for attempt in range(FLIGHT_ATTEMPTS):
+        try:
+            record = _record_flight(items, mission, folder / f'attempt{attempt + 1}', home,
+                                    vehicle_plan.ideal.scenario, instance=instance,
+                                    parameters=parameters, speedup=speedup, script=script)
+            break
+        except TakeoffError as exc:
+            if attempt == FLIGHT_ATTEMPTS - 1:
+                raise
+            logger.warning('%s; flying again on a fresh PX4', exc)
     last_waypoint = max(i for i, item in enumerate(items) if item.command == NAV_WAYPOINT)
-    scenario = vehicle_plan.ideal.scenario
+    record.reached = reached_by_row(items, {seq + 1: when for seq, when in
+                                            record.reached.items()})
+    start_s = q0_reached_s(items, record.reached) - items[Q0_SEQ].params[0]
+    report = evaluate_flight(vehicle_plan.flown, vehicle_plan.schedule.flight.track(),
+                             record.times_s, record.positions_m, start_s)
+    return SitlFlight(report, record.reached[last_waypoint] - start_s, record)
+
+
+def _record_flight(items, mission: Path, folder: Path, home: Home, scenario: Scenario, *,
+                   instance: int, parameters: dict[str, float] | None, speedup: float,
+                   script: str | os.PathLike | None) -> FlightRecord:
+    """One flight of ``mission`` on a fresh PX4 SITL in ``folder``, recorded (PX4's item
+    numbers in ``reached``)."""
+    last_waypoint = max(i for i, item in enumerate(items) if item.command == NAV_WAYPOINT)
+    folder.mkdir(parents=True, exist_ok=True)
     vehicle = start_px4(folder, instance, script=script, speedup=speedup,
                         parameters=parameters)
     try:
@@ -341,14 +379,9 @@ def fly_px4_mission(vehicle_plan: VehiclePlan, mission: Path, folder: Path, *, i
             link.close()
     finally:
         vehicle.stop()
-    record.reached = reached_by_row(items, {seq + 1: when for seq, when in
-                                            record.reached.items()})
-    start_s = q0_reached_s(items, record.reached) - items[Q0_SEQ].params[0]
-    report = evaluate_flight(vehicle_plan.flown, vehicle_plan.schedule.flight.track(),
-                             record.times_s, record.positions_m, start_s)
-    return SitlFlight(report, record.reached[last_waypoint] - start_s, record)
+    return record
 
 
-__all__ = ['PX4_HOME', 'PX4_SPEEDUP', 'Px4Sitl', 'TAKEOFF_HEIGHT_M', 'ask_positions',
-           'fly_px4_mission', 'px4_run_script', 'runnable_copy', 'start_mission', 'start_px4',
-           'why_px4_not_runnable']
+__all__ = ['FLIGHT_ATTEMPTS', 'PX4_HOME', 'PX4_SPEEDUP', 'Px4Sitl', 'TAKEOFF_HEIGHT_M',
+           'TakeoffError', 'ask_positions', 'fly_px4_mission', 'px4_run_script',
+           'runnable_copy', 'start_mission', 'start_px4', 'why_px4_not_runnable']
