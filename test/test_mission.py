@@ -25,7 +25,7 @@ from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, geod
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink import files
 from uav_comm_planner.vehicle.mavlink.files import export_mission, read_mission_file
-from uav_comm_planner.vehicle.mavlink.items import build_mission_items
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items, DEGREE_DECIMALS
 from uav_comm_planner.vehicle.timing import ramp_time
 
 WAYPOINT, TAKEOFF, LAND, RTL, CHANGE_SPEED = 16, 22, 21, 20, 178
@@ -152,6 +152,26 @@ def test_the_file_holds_the_schedule(case_one, home, tmp_path, firmware):
             assert to_enu(item, home) == pytest.approx(position, abs=POSITION_TOLERANCE_M)
     if firmware == 'ardupilot':
         assert all(float(item.param1).is_integer() for item in timed if item.command == WAYPOINT)
+
+
+def test_every_waypoint_has_the_coordinates_of_its_point_converted_alone(case_one, home):
+    """The waypoints are converted to latitude and longitude in one call: each gets what
+    pymap3d gives its point alone, to the digit the file keeps."""
+    schedule = schedule_flight(case_one, LIMITS['ardupilot'])
+    points = []
+    for index, stop in enumerate(schedule.stops):
+        points.append(stop.position_m)
+        if index < len(schedule.legs):
+            points += list(schedule.legs[index].vertices[1:-1])
+    waypoints = [item for item in build_mission_items(case_one, home)[2:-1]
+                 if item.command == WAYPOINT]
+    assert len(waypoints) == len(points)
+    for item, (east, north) in zip(waypoints, points):
+        latitude, longitude, _ = pymap3d.enu2geodetic(
+            float(east), float(north), 0.0, home.latitude_deg, home.longitude_deg,
+            home.altitude_m, ell=pymap3d.Ellipsoid.from_name('wgs84'), deg=True)
+        assert (item.x, item.y) == (round(float(latitude), DEGREE_DECIMALS),
+                                    round(float(longitude), DEGREE_DECIMALS))
 
 
 def test_hover_holds_where_the_plan_hovers(case_one, home, tmp_path):
