@@ -142,7 +142,7 @@ def test_random_scenarios_are_reproducible_and_reachable():
 
 def test_a_cold_plan_builds_the_cone_structure_again_and_a_warm_one_reuses_it():
     from uav_comm_planner.tools.bench import FAST, timed_plan
-    from uav_comm_planner.core.fast_trajectory import cone_layout
+    from uav_comm_planner.core.cone_layout import cone_layout
     from uav_comm_planner.core.scenario import SolverSettings
 
     scenario = random_scenario(3, 30, 1, side_m=800.0)

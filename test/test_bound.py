@@ -10,7 +10,8 @@ from uav_comm_planner.core import bound
 from uav_comm_planner.core.feasibility import project_onto_speed_limit, within_speed_limit
 from uav_comm_planner.core.initial import hover_and_fly
 from uav_comm_planner.core.model import average_rates, snr_per_watt
-from uav_comm_planner.core.optimizer import alternate, step_solvers
+from uav_comm_planner.core.optimizer import alternate
+from uav_comm_planner.core.steps import step_solvers
 from uav_comm_planner.core.power import power_dual_bound
 from uav_comm_planner.core.tours import random_tours
 from uav_comm_planner.tools.bench import LOW_SNR, quality_drop

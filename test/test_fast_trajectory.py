@@ -9,13 +9,17 @@ import pytest
 from scipy import sparse
 
 from uav_comm_planner import paper_scenario, plan, Scenario, SolverError, SolverSettings
+from uav_comm_planner.core.cone_layout import cone_layout
 from uav_comm_planner.core.fast_trajectory import (clarabel_settings, ClarabelTrajectoryStep,
-                                                   cone_layout, LOOSE_TOLERANCE, SolverCache,
-                                                   SOLVERS, trajectory_step_clarabel)
+                                                   LOOSE_TOLERANCE, SolverCache, SOLVERS,
+                                                   trajectory_step_clarabel)
 from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.model import leg_lengths, snr_per_watt
 from uav_comm_planner.core.power import waterfilling_power
-from uav_comm_planner.core.trajectory import KM, sca_lower_bound, trajectory_step_cvxpy
+from uav_comm_planner.core.feasibility import limit_discs
+from uav_comm_planner.core.trajectory import (kilometre_rows, KM, LegDisc, path_length_km,
+                                              PathBudget, sca_duality_gap, sca_lower_bound,
+                                              surrogate_coefficients, trajectory_step_cvxpy)
 
 
 def random_radio_scenario(seed: int) -> Scenario:
@@ -79,6 +83,63 @@ def test_fast_step_meets_every_speed_limit_and_certifies_its_bound(name):
     assert legs.max() <= scenario.max_step_m * (1 + 1e-6)
     independent = sca_lower_bound(step.q, q_k, p, scenario).mean(axis=1).min()
     assert step.bound == pytest.approx(independent, rel=1e-12, abs=1e-12)
+
+
+@pytest.mark.parametrize('name', sorted(CASES))
+@pytest.mark.parametrize('wiggle', [0.2, 1.0])
+def test_a_step_that_keeps_the_path_length_equals_the_cvxpy_step_and_keeps_it(name, wiggle):
+    """The path budget (a warm replan's): the path no longer than at q^k, the same optimum on
+    both paths (the cvxpy step certified by its duality gap with the budget's multiplier). The
+    expansion points are longer than the straight line, so that some path is strictly within
+    the budget."""
+    scenario = CASES[name]
+    q_k, p = expansion_point(scenario, wiggle)
+    budget = path_length_km(q_k, scenario)
+    reference = trajectory_step_cvxpy(q_k, p, scenario, keep_path_length=True)
+    fast = trajectory_step_clarabel(q_k, p, scenario, keep_path_length=True)
+    assert fast.bound == pytest.approx(reference.bound, rel=1e-6)
+    np.testing.assert_allclose(fast.q / KM, reference.q / KM, atol=1e-4)
+    assert path_length_km(fast.q, scenario) <= budget * (1 + 1e-7)
+    assert leg_lengths(fast.q, scenario).max() <= scenario.max_step_m * (1 + 1e-6)
+    assert fast.bound <= trajectory_step_clarabel(q_k, p, scenario).bound * (1 + 1e-9)
+
+
+@pytest.mark.parametrize('name', ['I', 'II', 'random-1'])
+def test_the_path_budget_binds_where_the_free_step_lengthens_the_path(name):
+    scenario = CASES[name]
+    q_k, p = expansion_point(scenario, 0.2)
+    budget = path_length_km(q_k, scenario)
+    free = trajectory_step_clarabel(q_k, p, scenario)
+    kept = ClarabelTrajectoryStep(scenario, keep_path_length=True)(q_k, p, scenario)
+    assert path_length_km(free.q, scenario) > budget * (1 + 1e-4)
+    assert path_length_km(kept.q, scenario) <= budget * (1 + 1e-7)
+    assert kept.bound < free.bound
+
+
+def test_the_certificate_counts_the_path_budget():
+    """sca_duality_gap with the budget: finite and small at the cvxpy step's answer, infinite
+    for a path over the budget."""
+    scenario = CASES['random-1']
+    q_k, p = expansion_point(scenario)
+    step = trajectory_step_cvxpy(q_k, p, scenario, keep_path_length=True)
+    weight, constant = kilometre_rows(surrogate_coefficients(q_k, p, scenario))
+    w = scenario.nodes / KM
+    start = np.reshape(scenario.start_m, (1, 2)) / KM
+    goal = np.reshape(scenario.goal_m, (1, 2)) / KM
+    z = step.q / KM
+    f = constant - (weight * ((z[None] - w[:, None]) ** 2).sum(axis=2)).mean(axis=1)
+    # Multipliers from the optimum's own active set are not at hand here; the gap must be
+    # finite with any, and infinite once the path exceeds the budget.
+    weights = (f <= f.min() + 1e-6).astype(float)
+    discs = [LegDisc(centre / KM, radius / KM, np.zeros(scenario.num_slots + 1))
+             for centre, radius in limit_discs(scenario)]
+    budget = path_length_km(q_k, scenario)
+    within = sca_duality_gap(z, weights, discs, weight, constant, start, goal, w,
+                             budget=PathBudget(budget, 1.0))
+    assert np.isfinite(within)
+    over = sca_duality_gap(z, weights, discs, weight, constant, start, goal, w,
+                           budget=PathBudget(0.5 * budget, 1.0))
+    assert over == np.inf
 
 
 def test_cone_rows_are_the_bound_minus_t_when_u_is_the_squared_norm():

@@ -14,6 +14,7 @@ from uav_comm_planner.core.drops import random_scenario
 from uav_comm_planner.core.feasibility import retimed, within_speed_limit
 from uav_comm_planner.core.model import average_rates, snr_per_watt
 from uav_comm_planner.core.power import conic_power
+from uav_comm_planner.core.trajectory import path_length_km
 from uav_comm_planner.core.receding import (FlownSlots, PREVIOUS_PLAN_START, receding_problem,
                                             rejoined, replan, WARM_STARTS)
 from uav_comm_planner.mission.pipeline import plan_mission
@@ -21,7 +22,11 @@ from uav_comm_planner.mission.progress import planned_position
 from uav_comm_planner.mission.request import InFlight, MissionRequest
 from uav_comm_planner.ros.flight import MissionFlight
 from uav_comm_planner.ros.params import NodeSettings, PlannerConfig
-from uav_comm_planner.vehicle.flyable import plan_for_vehicle, WIDER_SEARCH_GAIN
+from uav_comm_planner.errors import InfeasibleHorizonError
+from uav_comm_planner.mission.progress import MissionProgress
+from uav_comm_planner.tools.replans import replan_mission
+from uav_comm_planner.vehicle.flyable import (plan_for_vehicle, schedule_flight,
+                                              WIDER_SEARCH_GAIN)
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
 SETTINGS = SolverSettings(compute_baselines=False)
@@ -100,6 +105,7 @@ def test_warm_only_where_the_plan_in_force_is_a_start(first):
     start = problem.plan_options['extra_starts'][PREVIOUS_PLAN_START]
     warm, options = problem.for_scenario(SETTINGS)
     assert warm.screened_tours == 0 and warm.starts == WARM_STARTS
+    assert warm.keep_path_length and not SETTINGS.keep_path_length
     assert warm.relative_tolerance == SETTINGS.relative_tolerance
     assert options['extra_starts'][PREVIOUS_PLAN_START] is start
     np.testing.assert_array_equal(options['offsets'], problem.offsets)
@@ -107,7 +113,7 @@ def test_warm_only_where_the_plan_in_force_is_a_start(first):
     slower = problem.rest.replace(max_speed_mps=0.9 * MISSION.max_speed_mps)
     assert not within_speed_limit(start, slower)
     warm, options = problem.for_scenario(SETTINGS, slower)
-    assert warm.screened_tours == 0
+    assert warm.screened_tours == 0 and warm.keep_path_length
     np.testing.assert_array_equal(options['extra_starts'][PREVIOUS_PLAN_START],
                                   retimed(start, slower))
     # So slow that its path no longer fits the horizon: the tours are screened again.
@@ -356,3 +362,38 @@ def test_the_node_replans_from_the_optimised_plan_warm_for_the_same_nodes(first,
     rest = node.submitted[0]
     np.testing.assert_array_equal(rest.previous_q, first.trajectory[rest.slots_kept:])
     assert rest.warm is not nodes_moved
+
+
+def test_a_warm_replan_keeps_its_path_length_and_the_vehicle_flies_it_at_once():
+    """The replan benchmark's seed 3 after 100 slots: the plan in force was planned at 7 m/s
+    (ArduCopter's jerk and acceleration make the 10 m/s plans late); continued at 10 m/s free
+    to lengthen its path, it would reach qF 20 s late and the ladder would search on. With
+    the path kept no longer, the warm plan at full speed is the one flown."""
+    scenario = replan_mission(3)
+    first_plan = plan_mission(MissionRequest(scenario, items=False))
+    assert first_plan.vehicle_plan.ideal.scenario.max_speed_mps < scenario.max_speed_mps
+    progress = MissionProgress()
+    progress.begin(scenario, first_plan.result, planned=first_plan.optimised)
+    progress.start_clock(0.0)
+    time_s = 100.5 * scenario.slot_s
+    in_flight = progress.in_flight(scenario, time_s, tuple(planned_position(
+        first_plan.result, time_s)), None)
+    replanned = plan_mission(MissionRequest(scenario, in_flight=in_flight, items=False))
+    ideal = replanned.vehicle_plan.ideal
+    assert ideal.start == PREVIOUS_PLAN_START
+    assert ideal.scenario.max_speed_mps == scenario.max_speed_mps
+    # The same warm search with its steps free to lengthen the path: the vehicle is late.
+    problem = receding_problem(scenario, in_flight.position_m, in_flight.flown,
+                               previous_q=in_flight.previous_q, warm=True)
+    settings, options = problem.for_scenario(None)
+    free = plan(problem.rest, dataclasses.replace(settings, keep_path_length=False), **options)
+    for stop_at_hovers in (True, False):
+        with pytest.raises(InfeasibleHorizonError, match='cannot fly this plan on time'):
+            schedule_flight(free, VehicleLimits(), stop_at_hovers=stop_at_hovers)
+    warm = plan(problem.rest, settings, **options)
+    assert warm.start == PREVIOUS_PLAN_START
+    schedule_flight(warm, VehicleLimits())
+    start = problem.kept()
+    assert (path_length_km(warm.trajectory, warm.scenario)
+            <= path_length_km(start.trajectory, start.scenario) * (1 + 1e-9)
+            < path_length_km(free.trajectory, free.scenario))

@@ -14,40 +14,24 @@ import numpy as np
 
 from uav_comm_planner.core import detour
 from uav_comm_planner.core.bound import dual_upper_bound
-from uav_comm_planner.core.fast_trajectory import (ClarabelTrajectoryStep, LOOSE_TOLERANCE,
-                                                   trajectory_step_clarabel)
+from uav_comm_planner.core.fast_trajectory import LOOSE_TOLERANCE
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt,
                                          snr_scale, spectral_efficiencies,
                                          spectral_efficiency_to_rate)
-from uav_comm_planner.core.power import (checked_offsets, conic_power, PowerAllocation,
-                                         waterfilling_power)
+from uav_comm_planner.core.power import checked_offsets, waterfilling_power
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.splits import resplit
+from uav_comm_planner.core.steps import PowerSolver, step_solvers, TrajectorySolver
 from uav_comm_planner.core.tours import distinct_tours, tour_draws
-from uav_comm_planner.core.trajectory import trajectory_step_cvxpy, TrajectoryStep
+from uav_comm_planner.core.trajectory import trajectory_step_cvxpy
 from uav_comm_planner.core.zone_rows import zone_model
 from uav_comm_planner.errors import InvalidScenarioError, PlanCancelledError, SolverError
 
 logger = logging.getLogger(__name__)
 
-PowerSolver = Callable[[np.ndarray, float], PowerAllocation]
 #: Asked between steps; True gives the plan up with :class:`PlanCancelledError`.
 StopCheck = Callable[[], bool]
-TrajectorySolver = Callable[[np.ndarray, np.ndarray, Scenario], TrajectoryStep]
-
-POWER_SOLVERS: dict[str, PowerSolver] = {
-    'waterfilling': waterfilling_power,
-    'conic': conic_power,
-}
-TRAJECTORY_SOLVERS: dict[str, TrajectorySolver] = {
-    'cvxpy': trajectory_step_cvxpy,
-    'clarabel': trajectory_step_clarabel,
-}
-#: Methods whose steps share one solver per plan, built for the scenario and updated in place.
-TRAJECTORY_STEPPERS: dict[str, Callable[[Scenario], TrajectorySolver]] = {
-    'clarabel': ClarabelTrajectoryStep,
-}
 
 
 @dataclass(frozen=True)
@@ -365,7 +349,8 @@ def _joined(first: Run, *later: Run) -> Run:
 
 def _set_tolerance(trajectory_solver: TrajectorySolver, tolerance: float | None) -> None:
     """Loosen (or, with None, restore) the interior-point tolerance of a solver that offers it
-    (:class:`ClarabelTrajectoryStep`); the cvxpy reference always solves at its own."""
+    (:class:`~uav_comm_planner.core.fast_trajectory.ClarabelTrajectoryStep`); the cvxpy
+    reference always solves at its own."""
     setter = getattr(trajectory_solver, 'set_tolerance', None)
     if setter is not None:
         setter(tolerance)
@@ -455,26 +440,6 @@ def stop_checker(should_stop: StopCheck | None) -> Callable[[], None]:
     return check
 
 
-def step_solvers(scenario: Scenario, power_method: str,
-                 trajectory_method: str) -> tuple[PowerSolver, TrajectorySolver]:
-    """The power and trajectory steps for these method names (:data:`POWER_SOLVERS`,
-    :data:`TRAJECTORY_SOLVERS`), a stepper built for ``scenario`` where there is one."""
-    try:
-        power_solver = POWER_SOLVERS[power_method]
-        trajectory_solver = TRAJECTORY_SOLVERS[trajectory_method]
-    except KeyError as exc:
-        raise InvalidScenarioError(
-            f'unknown method {exc.args[0]!r}; power: {sorted(POWER_SOLVERS)}, '
-            f'trajectory: {sorted(TRAJECTORY_SOLVERS)}') from None
-    except TypeError:
-        raise InvalidScenarioError(
-            f'methods are names: power_method one of {sorted(POWER_SOLVERS)}, '
-            f'trajectory_method one of {sorted(TRAJECTORY_SOLVERS)}') from None
-    if trajectory_method in TRAJECTORY_STEPPERS:
-        trajectory_solver = TRAJECTORY_STEPPERS[trajectory_method](scenario)
-    return power_solver, trajectory_solver
-
-
 def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
          power_method: str = 'waterfilling', trajectory_method: str = 'clarabel',
          should_stop: StopCheck | None = None, offsets: np.ndarray | None = None,
@@ -532,7 +497,8 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
                extra_starts: Mapping[str, np.ndarray] | None) -> PlanResult:
     """:func:`plan`'s work once its arguments are checked."""
     began = time.perf_counter()
-    power_solver, trajectory_solver = step_solvers(scenario, power_method, trajectory_method)
+    power_solver, trajectory_solver = step_solvers(scenario, power_method, trajectory_method,
+                                                   keep_path_length=settings.keep_path_length)
     starts = {name: STARTS[name] for name in settings.starts}
     keeper = _zone_keeper(scenario)
     for name, trajectory in (extra_starts or {}).items():

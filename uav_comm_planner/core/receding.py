@@ -292,7 +292,11 @@ class RecedingProblem:
         the replan only moves its start to where the UAV is, so continuing it (one SCA step
         per power step, as the default continues its best tour) gives at least what flying on
         with it would, in a few trajectory steps instead of the screening's tours. That
-        is what lets a replan in flight come back within a fraction of a second. Where the
+        is what lets a replan in flight come back within a fraction of a second. Its steps
+        keep the path no longer than they find it (``keep_path_length``): the plan in force
+        was planned at the speed the vehicle flies it at on time, and a continuation free to
+        lengthen it spends the slack the vehicle's corners and stops need (on an N = 20,
+        M = 500 mission, 20 s late at qF where the plan in force was on time). Where the
         previous plan gives no start for ``scenario``, the tours are screened as usual.
         """
         scenario = self.rest if scenario is None else scenario
@@ -310,7 +314,7 @@ class RecedingProblem:
         if not self.warm:
             return settings, options
         return dataclasses.replace(settings or SolverSettings(), starts=WARM_STARTS,
-                                   screened_tours=0), options
+                                   screened_tours=0, keep_path_length=True), options
 
     def kept(self, scenario: Scenario | None = None,
              settings: SolverSettings | None = None) -> PlanResult | None:

@@ -344,6 +344,11 @@ class SolverSettings:
     then at the tight one for the last steps (see :func:`~uav_comm_planner.core.optimizer.
     plan`). The straight start is then the letter's own run (:meth:`letter`'s rules), so the
     plan is never below the letter's Algorithm 1.
+    ``keep_path_length`` adds one constraint to every SCA step: the path q0, q[1..M], qF no
+    longer than that of the step's expansion point q^k (which meets it, so Algorithm 1 still
+    never loses). A warm replan in flight sets it: the plan in force, which the vehicle was
+    flying on time, is improved without spending the time its corners and stops need
+    (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`).
     ``max_nodes`` and ``max_node_slots`` bound the work a plan may take: at most
     ``max_nodes`` ground nodes and at most ``max_node_slots`` = N x M (nodes times slots; the
     memory and the time of each step grow with it).
@@ -360,6 +365,7 @@ class SolverSettings:
     starts: tuple[str, ...] = START_NAMES
     screened_tours: int = 80
     fast_steps: bool = True
+    keep_path_length: bool = False
 
     @classmethod
     def letter(cls, **changes: object) -> 'SolverSettings':
@@ -397,6 +403,10 @@ class SolverSettings:
             raise InvalidScenarioError(
                 f'fast_steps must be True or False, got {self.fast_steps!r}')
         object.__setattr__(self, 'fast_steps', bool(self.fast_steps))
+        if not isinstance(self.keep_path_length, (bool, np.bool_)):
+            raise InvalidScenarioError(
+                f'keep_path_length must be True or False, got {self.keep_path_length!r}')
+        object.__setattr__(self, 'keep_path_length', bool(self.keep_path_length))
         self._check_starts()
 
     def _check_starts(self) -> None:

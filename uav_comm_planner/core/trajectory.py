@@ -108,6 +108,9 @@ CERTIFIED_GAP = 1e-7
 #: Tried when the solver's defaults stop short of optimal: more iterations, tighter
 #: tolerances, the answer still judged by its duality gap.
 CLARABEL_RETRY = dict(max_iter=400, tol_gap_abs=1e-9, tol_gap_rel=1e-9, tol_feas=1e-9)
+#: The last try: the path budget's multiplier is large where the budget binds hard, and the
+#: certificate then needs the budget met to about 1e-11 (seen: 1.2e-7 at 1e-9, 3e-9 here).
+CLARABEL_LAST_RETRY = dict(max_iter=400, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
 
 
 @dataclass(frozen=True)
@@ -118,6 +121,15 @@ class LegDisc:
     centre: np.ndarray
     radius: float
     prices: np.ndarray
+
+
+@dataclass(frozen=True)
+class PathBudget:
+    """A limit on the whole path (kilometres): the sum of its legs' lengths at most
+    ``length``, with the solver's multiplier ``price`` (see :func:`sca_duality_gap`)."""
+
+    length: float
+    price: float
 
 
 @dataclass(frozen=True)
@@ -134,15 +146,18 @@ class HalfPlanes:
 def sca_duality_gap(z: np.ndarray, weights: np.ndarray, discs: Sequence[LegDisc],
                     weight: np.ndarray, constant: np.ndarray, start: np.ndarray,
                     goal: np.ndarray, w: np.ndarray,
-                    half_planes: HalfPlanes | None = None) -> float:
+                    half_planes: HalfPlanes | None = None,
+                    budget: PathBudget | None = None) -> float:
     """An upper bound on how far ``z`` is from the SCA step's optimum, relative to max(1, value).
 
     The step (kilometres): maximise min_n f_n(z), f_n(z) = constant_n - (1/M) sum_m
     weight_{n,m} ||z[m] - w_n||^2, subject to every leg l of the path start, z[1..M], goal
-    keeping ||l - c|| <= r for each disc (c, r) of ``discs`` and, with ``half_planes``, every
-    row a . z[m] >= b. For multipliers lambda (N,) >= 0 summing to 1, nu >= 0 per disc and leg
-    and eta >= 0 per row, weak duality bounds the optimum by max_z L(z),
-    L = sum_n lambda_n f_n + sum_discs sum_l nu_l (r - ||l - c||) + sum eta (a . z[m] - b).
+    keeping ||l - c|| <= r for each disc (c, r) of ``discs``, with ``half_planes`` every
+    row a . z[m] >= b, and with ``budget`` sum_l ||l|| <= length. For multipliers lambda (N,)
+    >= 0 summing to 1, nu >= 0 per disc and leg, eta >= 0 per row and kappa >= 0 for the
+    budget, weak duality bounds the optimum by max_z L(z),
+    L = sum_n lambda_n f_n + sum_discs sum_l nu_l (r - ||l - c||) + sum eta (a . z[m] - b)
+    + kappa (length - sum_l ||l||).
     L is concave, and strongly
     so in each z[m] with modulus mu_m = (2/M) sum_n lambda_n weight_{n,m}, so
     max_z L <= L(z) + sum_m ||g_m||^2 / (2 mu_m) with g a supergradient of L at z. The gap is
@@ -172,6 +187,10 @@ def sca_duality_gap(z: np.ndarray, weights: np.ndarray, discs: Sequence[LegDisc]
                           where=length[:, None] > 0.0)
         lagrangian += float(nu @ (disc.radius - length))
         g += -nu[:-1, None] * units[:-1] + nu[1:, None] * units[1:]
+    if budget is not None:
+        length = np.linalg.norm(legs, axis=1)
+        if length.sum() > budget.length * (1 + LEG_SLACK):
+            return math.inf
     if half_planes is not None:
         slack = np.einsum('mkj,mj->mk', half_planes.normals, z) - half_planes.offsets
         if slack.size and slack.min() < -LEG_SLACK * max(1.0, float(np.abs(z).max())):
@@ -180,12 +199,40 @@ def sca_duality_gap(z: np.ndarray, weights: np.ndarray, discs: Sequence[LegDisc]
         lagrangian += float((eta * slack).sum())
         g += np.einsum('mk,mkj->mj', eta, half_planes.normals)
     modulus = (2.0 / m) * (lam @ weight)                                  # (M,)
-    squared = (g ** 2).sum(axis=1)
-    if np.any((modulus <= 0.0) & (squared > 0.0)):
-        return math.inf
-    ascent = float(np.divide(squared, 2.0 * modulus, out=np.zeros_like(squared),
-                             where=modulus > 0.0).sum())
-    return (lagrangian + ascent - value) / max(1.0, abs(value))
+
+    def ascent_of(gradient: np.ndarray) -> float:
+        squared = (gradient ** 2).sum(axis=1)
+        if np.any((modulus <= 0.0) & (squared > 0.0)):
+            return math.inf
+        return float(np.divide(squared, 2.0 * modulus, out=np.zeros_like(squared),
+                               where=modulus > 0.0).sum())
+
+    if budget is None or budget.price <= 0.0:
+        return (lagrangian + ascent_of(g) - value) / max(1.0, abs(value))
+    # The budget: kappa (length - sum_l ||l||) <= kappa (length - sum_l v_l . l) for any
+    # ||v_l|| <= 1, a linear term in z; slot m (between legs m and m + 1) gets
+    # kappa (v_{m+1} - v_m) in its supergradient. Choices of v, the best bound kept: the legs'
+    # own directions, and the v that zero every slot's supergradient (v_{m+1} = v_m - g_m /
+    # kappa, the stationarity the optimum meets, so robust to the round-off in the directions
+    # of nearly straight legs) from the first leg's direction, from the last one's, and their
+    # mean, each cut to the unit disc.
+    kappa = budget.price
+    units = np.divide(legs, length[:, None], out=np.zeros_like(legs),
+                      where=length[:, None] > 0.0)
+    forward = np.vstack([units[:1], units[:1] - np.cumsum(g, axis=0) / kappa])
+    backward = forward - forward[-1] + units[-1]
+    best = math.inf
+    for v in (units, forward, backward, (forward + backward) / 2.0):
+        v = v / np.maximum(np.linalg.norm(v, axis=1), 1.0)[:, None]
+        bound = (lagrangian + kappa * float(budget.length - (v * legs).sum())
+                 + ascent_of(g + kappa * (v[1:] - v[:-1])))
+        best = min(best, bound)
+    return (best - value) / max(1.0, abs(value))
+
+
+def path_length_km(q: np.ndarray, scenario: Scenario) -> float:
+    """The length of the path q0, q[1..M] (q (M, 2) metres), qF, kilometres."""
+    return float(np.linalg.norm(np.diff(flown_path(q, scenario), axis=0), axis=1).sum()) / KM
 
 
 def zone_rows_at(q_k: np.ndarray, scenario: Scenario) -> ZoneRows | None:
@@ -198,14 +245,15 @@ def zone_rows_at(q_k: np.ndarray, scenario: Scenario) -> ZoneRows | None:
 
 def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
                           offsets: np.ndarray | None = None, solver: str = 'CLARABEL',
-                          **solver_options) -> TrajectoryStep:
+                          keep_path_length: bool = False, **solver_options) -> TrajectoryStep:
     """One SCA step, built afresh as a cvxpy problem (the reference implementation).
 
     Variables are z = q / 1000 (kilometres) and t (bits per use): maximise t subject to
     o_n + mean_m lbr_{n,m}(z) >= t for every node (o = 0 without ``offsets`` (N,)) and every
     leg within the speed limits (:func:`~uav_comm_planner.core.feasibility.limit_discs`: at
     most V delta, and in wind within V_air delta of the drift), and with zones their
-    restriction at q^k (:func:`zone_rows_at`). The answer is accepted only
+    restriction at q^k (:func:`zone_rows_at`); with ``keep_path_length`` the path start,
+    z[1..M], goal no longer than that of q^k (:func:`path_length_km`). The answer is accepted only
     when its duality gap (:func:`sca_duality_gap`) is at most :data:`CERTIFIED_GAP`; with
     Clarabel, one that is not is solved again with :data:`CLARABEL_RETRY`.
     """
@@ -230,7 +278,10 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
     zone_constraints = [] if rows is None else [
         cp.sum(cp.multiply(rows.normals[:, k, :], z), axis=1) >= rows.offsets[:, k] / KM
         for k in range(rows.offsets.shape[1])]
-    problem = cp.Problem(cp.Maximize(t), constraints + zone_constraints)
+    budget = path_length_km(q_k, scenario) if keep_path_length else None
+    budget_constraints = [] if budget is None else [
+        cp.sum(cp.norm(legs, 2, axis=1)) <= budget]
+    problem = cp.Problem(cp.Maximize(t), constraints + zone_constraints + budget_constraints)
 
     def certify() -> Certificate:
         weights = np.array([float(c.dual_value) for c in
@@ -241,11 +292,13 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
             rows.normals, rows.offsets / KM,
             np.stack([np.asarray(c.dual_value, dtype=float).reshape(-1)
                       for c in zone_constraints], axis=1))
+        path_budget = None if budget is None else PathBudget(
+            budget, float(budget_constraints[0].dual_value))
         gap = sca_duality_gap(np.asarray(z.value), weights, discs, weight, constant, start,
-                              goal, w, half_planes)
+                              goal, w, half_planes, path_budget)
         return Certificate(gap, CERTIFIED_GAP)
 
-    bases = [{}, CLARABEL_RETRY] if solver == 'CLARABEL' else [{}]
+    bases = [{}, CLARABEL_RETRY, CLARABEL_LAST_RETRY] if solver == 'CLARABEL' else [{}]
     solve_checked(problem, 'trajectory step', solver,
                   [dict(base, **solver_options) for base in bases], certify)
     q = np.asarray(z.value) * KM

@@ -212,6 +212,9 @@ DESCRIPTIONS = {
     'screened_tours': 'random tours screened as extra starts (0 to 100; 0: none)',
     'fast_steps': 'one SCA step per power step at a loose solver tolerance, then a tight '
                   'last step (false: full SCA loops at the tight tolerance)',
+    'keep_path_length': 'every SCA step keeps the path no longer than it finds it (the '
+                        'warm replans in flight set it themselves; on a first plan it binds '
+                        "the letter's run too, which may then end lower)",
     'frame_id': 'frame of the ground nodes, the UAV pose and every output',
     'mission_dir': 'folder of mission files, fixed at start-up (read-only); empty: the '
                    "node's working directory",

@@ -40,8 +40,10 @@ import numpy as np
 from scipy.special import betaincinv
 
 from uav_comm_planner.core.drops import random_scenario
-from uav_comm_planner.core.fast_trajectory import cone_layout, SOLVERS
-from uav_comm_planner.core.optimizer import alternate, plan, PlanResult, step_solvers
+from uav_comm_planner.core.cone_layout import cone_layout
+from uav_comm_planner.core.fast_trajectory import SOLVERS
+from uav_comm_planner.core.optimizer import alternate, plan, PlanResult
+from uav_comm_planner.core.steps import step_solvers
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.core.tours import random_tours, scenario_seed
 from uav_comm_planner.tools.flights import flight_cases, fly_case, format_flights

@@ -1,0 +1,64 @@
+"""The steps of Algorithm 1 by name: the power step and the SCA trajectory step.
+
+``power_method`` and ``trajectory_method`` (:func:`~uav_comm_planner.core.optimizer.plan`)
+name them: the exact water-filling (default) or its conic reference, and the SCA step on a
+Clarabel solver updated in place (default) or the cvxpy reference rebuilt at every step.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Callable
+
+import numpy as np
+
+from uav_comm_planner.core.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
+from uav_comm_planner.core.power import conic_power, PowerAllocation, waterfilling_power
+from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.core.trajectory import trajectory_step_cvxpy, TrajectoryStep
+from uav_comm_planner.errors import InvalidScenarioError
+
+PowerSolver = Callable[[np.ndarray, float], PowerAllocation]
+TrajectorySolver = Callable[[np.ndarray, np.ndarray, Scenario], TrajectoryStep]
+
+POWER_SOLVERS: dict[str, PowerSolver] = {
+    'waterfilling': waterfilling_power,
+    'conic': conic_power,
+}
+TRAJECTORY_SOLVERS: dict[str, TrajectorySolver] = {
+    'cvxpy': trajectory_step_cvxpy,
+    'clarabel': trajectory_step_clarabel,
+}
+#: Methods whose steps share one solver per plan, built for the scenario and updated in place.
+TRAJECTORY_STEPPERS: dict[str, Callable[[Scenario], TrajectorySolver]] = {
+    'clarabel': ClarabelTrajectoryStep,
+}
+
+
+def step_solvers(scenario: Scenario, power_method: str, trajectory_method: str, *,
+                 keep_path_length: bool = False) -> tuple[PowerSolver, TrajectorySolver]:
+    """The power and trajectory steps for these method names (:data:`POWER_SOLVERS`,
+    :data:`TRAJECTORY_SOLVERS`), a stepper built for ``scenario`` where there is one; with
+    ``keep_path_length`` every trajectory step keeps the path no longer than its expansion
+    point's (:class:`~uav_comm_planner.core.scenario.SolverSettings`)."""
+    try:
+        power_solver = POWER_SOLVERS[power_method]
+        trajectory_solver = TRAJECTORY_SOLVERS[trajectory_method]
+    except KeyError as exc:
+        raise InvalidScenarioError(
+            f'unknown method {exc.args[0]!r}; power: {sorted(POWER_SOLVERS)}, '
+            f'trajectory: {sorted(TRAJECTORY_SOLVERS)}') from None
+    except TypeError:
+        raise InvalidScenarioError(
+            f'methods are names: power_method one of {sorted(POWER_SOLVERS)}, '
+            f'trajectory_method one of {sorted(TRAJECTORY_SOLVERS)}') from None
+    if trajectory_method in TRAJECTORY_STEPPERS:
+        trajectory_solver = TRAJECTORY_STEPPERS[trajectory_method](
+            scenario, keep_path_length=keep_path_length)
+    elif keep_path_length:
+        trajectory_solver = functools.partial(trajectory_solver, keep_path_length=True)
+    return power_solver, trajectory_solver
+
+
+__all__ = ['POWER_SOLVERS', 'PowerSolver', 'TRAJECTORY_SOLVERS', 'TRAJECTORY_STEPPERS',
+           'TrajectorySolver', 'step_solvers']
