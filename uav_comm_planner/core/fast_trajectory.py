@@ -26,9 +26,9 @@ at q^k) follow, in a non-negative cone of their own. With a path budget (a warm 
 sum_l s[l] <= L^k, the length of the path at q^k (the same cones, a quarter fewer rows than
 cones of their own for the lengths).
 
-Only the node rows and the zone rows change between SCA iterations (coefficients and
-right-hand sides), so the sparsity pattern is fixed by (N, M, K) and the solver is updated in
-place.
+Only the node rows, the zone rows and the path budget change between SCA iterations
+(coefficients and right-hand sides), so the sparsity pattern is fixed by the form (N, M, K,
+which rows are there) and the solver is updated in place.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.trajectory import (kilometre_rows, KM, path_length_km,
                                               surrogate_coefficients, TrajectoryStep,
-                                              with_offsets)
+                                              with_offsets, within_path_budget)
 from uav_comm_planner.core.zone_rows import zone_model
 from uav_comm_planner.errors import SolverError
 
@@ -108,10 +108,10 @@ LOOSE_TOLERANCE = 1e-4
 
 
 class SolverCache:
-    """Idle Clarabel solvers by form (N, M, block size, airspeed cones, zone rows, refinement),
-    reused across plans: the cone program's sparsity depends on the form only, and every
-    scenario-dependent entry (the node and zone rows and the whole of b) is updated before a
-    solve.
+    """Idle Clarabel solvers by form (N, M, block size, airspeed cones, zone rows, path budget,
+    refinement), reused across plans: the cone program's sparsity depends on the form only,
+    and every scenario-dependent entry (the node and zone rows and the whole of b) is updated
+    before a solve.
 
     A solver is taken out while it solves and given back after, so two threads never share
     one; at most ``per_form`` idle solvers are kept for each of the last ``forms`` forms.
@@ -336,6 +336,9 @@ class ClarabelTrajectoryStep:
         q = z * KM + self.centre_m
         if not math.isfinite(q.sum()):     # a NaN or an infinity anywhere makes the sum one
             raise SolverError('trajectory step: Clarabel returned a non-finite trajectory')
+        if budget is not None:
+            q = within_path_budget(q, q_k, scenario, budget)
+            z = (q - self.centre_m) / KM
         return TrajectoryStep(q=q, bound_of=functools.partial(rows.bound, z, self.w))
 
     def _positions(self, solution: clarabel.DefaultSolution) -> np.ndarray | None:

@@ -348,7 +348,8 @@ class SolverSettings:
     longer than that of the step's expansion point q^k (which meets it, so Algorithm 1 still
     never loses). A warm replan in flight sets it: the plan in force, which the vehicle was
     flying on time, is improved without spending the time its corners and stops need
-    (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`).
+    (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`). Set on a first plan,
+    it binds the letter's run too, which is then no longer the letter's Algorithm 1.
     ``max_nodes`` and ``max_node_slots`` bound the work a plan may take: at most
     ``max_nodes`` ground nodes and at most ``max_node_slots`` = N x M (nodes times slots; the
     memory and the time of each step grow with it).

@@ -235,6 +235,30 @@ def path_length_km(q: np.ndarray, scenario: Scenario) -> float:
     return float(np.linalg.norm(np.diff(flown_path(q, scenario), axis=0), axis=1).sum()) / KM
 
 
+def within_path_budget(q: np.ndarray, q_k: np.ndarray, scenario: Scenario,
+                  budget_km: float) -> np.ndarray:
+    """A step's answer q (M, 2) metres with its path no longer than ``budget_km``, the length
+    of q^k's: q itself when it keeps it, else the blend (1 - lam) q^k + lam q with the largest
+    lam that does (bisection; the length is convex along the blend and q^k keeps it). A solver
+    meets the budget only to its tolerance, and at the loose one each step would otherwise
+    add a few 1e-4 of the length to the next step's budget. The blend keeps the speed limits
+    (convex) and, the step's bound being concave, a bound at least q^k's."""
+    if path_length_km(q, scenario) <= budget_km:
+        return q
+    low, high = 0.0, 1.0
+    for _ in range(BUDGET_BISECTIONS):
+        middle = 0.5 * (low + high)
+        if path_length_km((1.0 - middle) * q_k + middle * q, scenario) <= budget_km:
+            low = middle
+        else:
+            high = middle
+    return (1.0 - low) * q_k + low * q
+
+
+#: Bisections of :func:`within_path_budget`: lam to 1e-12, a fraction of a millimetre on any path.
+BUDGET_BISECTIONS = 40
+
+
 def zone_rows_at(q_k: np.ndarray, scenario: Scenario) -> ZoneRows | None:
     """The zones' restriction at the path of q^k (M, 2) metres, None without zones."""
     model = zone_model(scenario.zones)
@@ -253,9 +277,11 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
     leg within the speed limits (:func:`~uav_comm_planner.core.feasibility.limit_discs`: at
     most V delta, and in wind within V_air delta of the drift), and with zones their
     restriction at q^k (:func:`zone_rows_at`); with ``keep_path_length`` the path start,
-    z[1..M], goal no longer than that of q^k (:func:`path_length_km`). The answer is accepted only
+    z[1..M], goal no longer than that of q^k (:func:`path_length_km`, held exactly by
+    :func:`within_path_budget`). The answer is accepted only
     when its duality gap (:func:`sca_duality_gap`) is at most :data:`CERTIFIED_GAP`; with
-    Clarabel, one that is not is solved again with :data:`CLARABEL_RETRY`.
+    Clarabel, one that is not is solved again with :data:`CLARABEL_RETRY`, then
+    :data:`CLARABEL_LAST_RETRY`.
     """
     weight, constant = kilometre_rows(surrogate_coefficients(q_k, p, scenario))
     constant = with_offsets(constant, offsets)
@@ -302,5 +328,7 @@ def trajectory_step_cvxpy(q_k: np.ndarray, p: np.ndarray, scenario: Scenario, *,
     solve_checked(problem, 'trajectory step', solver,
                   [dict(base, **solver_options) for base in bases], certify)
     q = np.asarray(z.value) * KM
+    if budget is not None:
+        q = within_path_budget(q, q_k, scenario, budget)
     return TrajectoryStep(q=q, bound_of=lambda: with_offsets(
         sca_lower_bound(q, q_k, p, scenario).mean(axis=1), offsets).min())
