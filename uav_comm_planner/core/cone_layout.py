@@ -61,9 +61,8 @@ class ConeLayout:
     (z_x, z_y)) order at the end of the build order), then with ``path_budget`` M + 1 rows
     V delta - s[l] and the budget row L - sum_l s[l] (non-negative cone; columns s (M + 1,)
     after e, which are the first entries of the speed cones instead of V delta). ``values``
-    holds A's
-    entries in build order, where the 3 N M block coefficients, in (n, m, (z_x, z_y, u))
-    order, start at ``first_coefficient``; ``to_csc`` reorders such a list into CSC order.
+    holds A's entries in build order, where the 3 N M block coefficients, in (n, m, (z_x, z_y,
+    u)) order, start at ``first_coefficient``; ``to_csc`` reorders such a list into CSC order.
     """
 
     num_nodes: int
@@ -159,7 +158,8 @@ class ConeLayout:
     @functools.cached_property
     def cones(self) -> tuple:
         """Node and block rows (non-negative), speed limits (M + 1 of dim 3, and as many for
-        the airspeed), epigraphs (M of dim 4)."""
+        the airspeed), epigraphs (M of dim 4), the zone rows and the path budget's rows
+        (non-negative, each where there are some)."""
         zones = ((clarabel.NonnegativeConeT(self.zone_rows * self.num_slots),)
                  if self.zone_rows else ())
         budget = ((clarabel.NonnegativeConeT(self.num_slots + 2),) if self.path_budget
@@ -260,16 +260,17 @@ def cone_layout(num_nodes: int, num_slots: int, block: int | None = None, *,
                for k in range(leg_sets)),
              _epigraph_entries(first_speed_row + 3 * (num_slots + 1) * leg_sets, num_slots))
     first_zone_row = first_speed_row + 3 * (num_slots + 1) * leg_sets + 4 * num_slots
+    first_length_column = 1 + 3 * num_slots + sums
     if path_budget:
         # Rows after the zone rows, entries before theirs: the zone entries stay last.
         parts += (_length_entries(first_speed_row, first_zone_row + zone_rows * num_slots,
-                                  num_slots, 1 + 3 * num_slots + sums),)
+                                  num_slots, first_length_column),)
     if zone_rows:
         parts += (_zone_entries(first_zone_row, num_slots, zone_rows),)
     rows, cols, values = (np.concatenate(arrays) for arrays in zip(*parts))
     # CSC order: by column, then by row; no entry repeats, so this is a permutation.
     to_csc = np.lexsort((rows, cols))
-    counts = np.bincount(cols, minlength=1 + 3 * num_slots + sums
+    counts = np.bincount(cols, minlength=first_length_column
                          + (num_slots + 1 if path_budget else 0))
     layout = ConeLayout(num_nodes=num_nodes, num_slots=num_slots, block_slots=block,
                         air_legs=air_legs, indices=rows[to_csc].astype(np.int32),

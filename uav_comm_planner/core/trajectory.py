@@ -28,7 +28,8 @@ import numpy as np
 
 from uav_comm_planner.core.conic import Certificate, solve_checked
 from uav_comm_planner.core.feasibility import LEG_SLACK, limit_discs
-from uav_comm_planner.core.model import flown_path, LN2, snr_scale, squared_distances
+from uav_comm_planner.core.model import (flown_path, leg_lengths, LN2, snr_scale,
+                                         squared_distances)
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.zone_rows import zone_model, ZoneRows
 
@@ -232,11 +233,15 @@ def sca_duality_gap(z: np.ndarray, weights: np.ndarray, discs: Sequence[LegDisc]
 
 def path_length_km(q: np.ndarray, scenario: Scenario) -> float:
     """The length of the path q0, q[1..M] (q (M, 2) metres), qF, kilometres."""
-    return float(np.linalg.norm(np.diff(flown_path(q, scenario), axis=0), axis=1).sum()) / KM
+    return float(leg_lengths(q, scenario).sum()) / KM
+
+
+#: Bisections of :func:`within_path_budget`: lam to 1e-12, a fraction of a millimetre on any path.
+BUDGET_BISECTIONS = 40
 
 
 def within_path_budget(q: np.ndarray, q_k: np.ndarray, scenario: Scenario,
-                  budget_km: float) -> np.ndarray:
+                       budget_km: float) -> np.ndarray:
     """A step's answer q (M, 2) metres with its path no longer than ``budget_km``, the length
     of q^k's: q itself when it keeps it, else the blend (1 - lam) q^k + lam q with the largest
     lam that does (bisection; the length is convex along the blend and q^k keeps it). A solver
@@ -253,10 +258,6 @@ def within_path_budget(q: np.ndarray, q_k: np.ndarray, scenario: Scenario,
         else:
             high = middle
     return (1.0 - low) * q_k + low * q
-
-
-#: Bisections of :func:`within_path_budget`: lam to 1e-12, a fraction of a millimetre on any path.
-BUDGET_BISECTIONS = 40
 
 
 def zone_rows_at(q_k: np.ndarray, scenario: Scenario) -> ZoneRows | None:
