@@ -73,6 +73,9 @@ def test_scenario_numbers_are_real_numbers_and_points_real_pairs(changes, messag
     ({'max_nodes': True}, 'max_nodes must be an integer'),
     ({'max_node_slots': 0}, 'max_node_slots must be an integer >= 1'),
     ({'compute_baselines': 'yes'}, 'compute_baselines must be True or False'),
+    ({'shortlist': 0}, 'shortlist must be an integer from 1 to 100'),
+    ({'shortlist': 2.0}, 'shortlist must be an integer from 1 to 100'),
+    ({'shortlist': True}, 'shortlist must be an integer from 1 to 100'),
 ])
 def test_solver_settings_are_strict(changes, message):
     with pytest.raises(InvalidScenarioError, match=message):

@@ -9,8 +9,9 @@ import pytest
 from uav_comm_planner import (InvalidScenarioError, paper_scenario, plan, Scenario, SolverSettings)
 from uav_comm_planner.core.initial import (even_hovers, hover_and_fly, nearest_neighbour_order,
                                            straight_line, tour_order, two_opt)
-from uav_comm_planner.core.model import average_rates, leg_lengths
+from uav_comm_planner.core.model import average_rates, leg_lengths, snr_per_watt
 from uav_comm_planner.core.optimizer import throughput_upper_bound
+from uav_comm_planner.core.power import conic_power
 from uav_comm_planner.core.tours import random_tours
 
 
@@ -250,3 +251,28 @@ def test_screened_tours_hover_in_random_shares_and_mostly_keep_the_order_drawn()
                 for name, (order, _) in visits.items()}
     assert all(shortest[f'tour {k}'] for k in range(4, 25, 4))
     assert sum(not shortest[f'tour {k}'] for k in range(1, 25) if k % 4) >= 12
+
+
+@pytest.mark.parametrize('shortlist', [1, 2, 4])
+def test_the_shortlist_is_the_starts_best_by_one_power_step(shortlist):
+    """Screened, every start but the letter's gets one power step; only the best
+    ``shortlist`` of them by it get an SCA step, and the plan continues one of those."""
+    scenario = random_scenario(8, nodes=6, slots=60)
+    tours = random_tours(scenario, 4)
+    settings = SolverSettings(starts=('hover',), screened_tours=0, compute_baselines=False,
+                              shortlist=shortlist)
+    result = plan(scenario, settings, extra_starts=tours)
+    starts = {'hover': hover_and_fly(scenario), **tours}
+    # The power step alone on each start, by an independent (conic) solver.
+    powered = {}
+    for name, q in starts.items():
+        p = conic_power(snr_per_watt(q, scenario), scenario.power_budget_w).p
+        powered[name] = float(average_rates(q, p, scenario).min())
+    ranked = sorted(powered, key=powered.get, reverse=True)
+    assert set(result.start_throughputs) == set(starts)
+    moved = {name for name in starts
+             if result.start_throughputs[name] > powered[name] * (1 + 1e-6)}
+    assert moved == set(ranked[:shortlist])
+    assert result.start in moved
+    for name in set(starts) - moved:
+        assert result.start_throughputs[name] == pytest.approx(powered[name], rel=1e-6)

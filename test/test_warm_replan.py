@@ -16,7 +16,8 @@ from uav_comm_planner.core.model import average_rates, snr_per_watt
 from uav_comm_planner.core.power import conic_power
 from uav_comm_planner.core.trajectory import path_length_km
 from uav_comm_planner.core.receding import (FlownSlots, PREVIOUS_PLAN_START, receding_problem,
-                                            rejoined, replan, WARM_STARTS)
+                                            rejoined, replan, WARM_SHORTLIST,
+                                            WARM_STARTS)
 from uav_comm_planner.mission.pipeline import plan_mission
 from uav_comm_planner.mission.progress import planned_position
 from uav_comm_planner.mission.request import InFlight, MissionRequest
@@ -106,6 +107,7 @@ def test_warm_only_where_the_plan_in_force_is_a_start(first):
     warm, options = problem.for_scenario(SETTINGS)
     assert warm.screened_tours == 0 and warm.starts == WARM_STARTS
     assert warm.keep_path_length and not SETTINGS.keep_path_length
+    assert warm.shortlist == WARM_SHORTLIST == 1 and SETTINGS.shortlist > 1
     assert warm.relative_tolerance == SETTINGS.relative_tolerance
     assert options['extra_starts'][PREVIOUS_PLAN_START] is start
     np.testing.assert_array_equal(options['offsets'], problem.offsets)

@@ -322,9 +322,6 @@ def _zone_keeper(scenario: Scenario) -> ZoneKeeper | None:
 
 #: How many screened starts are continued to convergence: the best after one outer iteration.
 CONTINUED = 1
-#: How many starts, the best by one power step on each, get one outer iteration before the
-#: best :data:`CONTINUED` of them are picked.
-SHORTLIST = 8
 #: SCA steps per power step at the tight tolerance once the loose steps have converged.
 FINAL_SCA_STEPS = 1
 
@@ -361,9 +358,10 @@ def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: So
                    draws: Mapping[str, tuple] | None = None) -> dict[str, Run]:
     """Runs from every start, screened: the straight start runs the letter's Algorithm 1
     exactly (:func:`letter_rules`), every other start is screened by one power step on it;
-    the best :data:`SHORTLIST` of those get one outer iteration, the best :data:`CONTINUED`
-    of these are continued under ``settings`` to convergence (a tour of ``draws`` also with
-    its split searched, :func:`.splits.resplit`), then the letter's run if still ahead of all.
+    the best ``settings.shortlist`` of those get one outer iteration, the best
+    :data:`CONTINUED` of these are continued under ``settings`` to convergence (a tour of
+    ``draws`` also with its split searched, :func:`.splits.resplit`), then the letter's run if
+    still ahead of all.
 
     Continuing with ``fast_steps`` alternates one SCA step at :data:`LOOSE_TOLERANCE` per
     power step until a power step gains at most the tolerance, then :data:`FINAL_SCA_STEPS`
@@ -398,7 +396,7 @@ def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: So
     def ranked(names) -> list[str]:
         return sorted(names, key=lambda name: (-runs[name].min_throughput, order.index(name)))
 
-    shortlist = ranked(name for name in runs if name not in letter)[:SHORTLIST]
+    shortlist = ranked(name for name in runs if name not in letter)[:settings.shortlist]
     _set_tolerance(trajectory_solver, loose)
     for name in shortlist:
         runs[name] = _joined(runs[name], run_from(runs[name].q, screen, sca_steps=sca_steps))

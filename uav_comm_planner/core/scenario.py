@@ -343,7 +343,9 @@ class SolverSettings:
     them; ``fast_steps`` runs one SCA step per power step at a loose interior-point tolerance,
     then at the tight one for the last steps (see :func:`~uav_comm_planner.core.optimizer.
     plan`). The straight start is then the letter's own run (:meth:`letter`'s rules), so the
-    plan is never below the letter's Algorithm 1.
+    plan is never below the letter's Algorithm 1. Screened, every other start gets one power
+    step; the best ``shortlist`` of them by it get one outer iteration, and the best of
+    these is continued.
     ``keep_path_length`` adds one constraint to every SCA step: the path q0, q[1..M], qF no
     longer than that of the step's expansion point q^k (which meets it, so Algorithm 1 still
     never loses). A warm replan in flight sets it: the plan in force, which the vehicle was
@@ -367,6 +369,7 @@ class SolverSettings:
     screened_tours: int = 80
     fast_steps: bool = True
     keep_path_length: bool = False
+    shortlist: int = 8
 
     @classmethod
     def letter(cls, **changes: object) -> 'SolverSettings':
@@ -408,6 +411,11 @@ class SolverSettings:
             raise InvalidScenarioError(
                 f'keep_path_length must be True or False, got {self.keep_path_length!r}')
         object.__setattr__(self, 'keep_path_length', bool(self.keep_path_length))
+        if isinstance(self.shortlist, (bool, np.bool_)) or not isinstance(
+                self.shortlist, (int, np.integer)) or not 1 <= self.shortlist <= 100:
+            raise InvalidScenarioError(
+                f'shortlist must be an integer from 1 to 100, got {self.shortlist!r}')
+        object.__setattr__(self, 'shortlist', int(self.shortlist))
         self._check_starts()
 
     def _check_starts(self) -> None:

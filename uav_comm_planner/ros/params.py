@@ -215,6 +215,8 @@ DESCRIPTIONS = {
     'keep_path_length': 'every SCA step keeps the path no longer than it finds it (the '
                         'warm replans in flight set it themselves; on a first plan it binds '
                         "the letter's run too, which may then end lower)",
+    'shortlist': 'how many starts, the best by one power step each, get one outer iteration '
+                 'before the best is continued (1 to 100; the warm replans in flight use 1)',
     'frame_id': 'frame of the ground nodes, the UAV pose and every output',
     'mission_dir': 'folder of mission files, fixed at start-up (read-only); empty: the '
                    "node's working directory",
