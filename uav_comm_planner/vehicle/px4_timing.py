@@ -183,6 +183,14 @@ def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
         after = stopping_speed(float(lengths[k + 1]), 0.0, accel, jerk)
         if lengths[k + 1] > ACCEPTANCE_RADIUS_M:
             ends[k] = min(corner_speed(interior, accel), after, speed)
+    # The segment braked for from segment k on: the first turn PX4 cannot fly at the cruise,
+    # or the last segment (the stop).
+    last = len(lengths) - 1
+    braked_for = [last] * len(lengths)
+    for j in range(last - 1, -1, -1):
+        braked_for[j] = j if ends[j] < speed else braked_for[j + 1]
+    # Python floats: the loop below runs thousands of steps a leg, each on a few of them.
+    arc, ends, scale = arc.tolist(), ends.tolist(), scale.tolist()
     b = 4.0 * accel * accel / jerk
     times, distances = [0.0], [0.0]
     t = s = v = a = 0.0               # the trajectory: along-track distance, speed, accel
@@ -190,14 +198,14 @@ def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
     k = 0                             # flying towards vertex k + 1
     hold_start = None
     dt = STEP_S
+    reach = ACCEPTANCE_RADIUS_M + BRAKING_LEAD_S2 * speed * speed
     while True:
-        reach = ACCEPTANCE_RADIUS_M + BRAKING_LEAD_S2 * speed * speed
-        while k < len(lengths) - 1 and arc[k + 1] - x <= reach:
+        while k < last and arc[k + 1] - x <= reach:
             k += 1
-        if hold_start is None and k == len(lengths) - 1 and total - x <= reach:
+        if hold_start is None and k == last and total - x <= reach:
             hold_start = t
         # Turns PX4 flies at the cruise cost nothing; brake for the next one it cannot.
-        slow = next(j for j in range(k, len(lengths)) if ends[j] < speed or j == len(lengths) - 1)
+        slow = braked_for[k]
         left = arc[slow + 1] - s
         if (hold_start is not None and abs(total - x) <= REST_DISTANCE_M and abs(u) < 0.05
                 and abs(v) < 0.05):
