@@ -52,8 +52,9 @@ def test_a_straight_leg_cruises_at_the_stretched_speed_and_ends_at_rest():
     t, s = profile.times_s, profile.distances_m
     assert np.all(np.diff(t) > 0) and np.all(np.diff(s) >= -1e-9)
     assert s[0] == 0.0 and s[-1] == pytest.approx(length, abs=0.11)
-    middle = (s > 300) & (s < 700)
-    cruise = np.polyfit(t[middle], s[middle], 1)[0]
+    # Cruising, the simulation jumps to where it brakes: a few hundred samples, not 10,000.
+    assert len(t) < 1000
+    cruise = 400.0 / (np.interp(700.0, s, t) - np.interp(300.0, s, t))
     assert cruise == pytest.approx(5.0 * (1 - TRACKING_LAG_S * 5.0 / MAX_POSITION_ERROR_M),
                                    rel=1e-3)
     # The hold starts counting in the acceptance radius, before the vehicle is at rest.

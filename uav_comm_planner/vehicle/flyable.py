@@ -41,7 +41,7 @@ from uav_comm_planner.core.optimizer import plan, plan_along, PlanResult
 from uav_comm_planner.core.scenario import MIN_STEP_M, Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InfeasibleHorizonError, WalledInError
-from uav_comm_planner.vehicle.evaluation import distance_to_polyline
+from uav_comm_planner.vehicle.evaluation import _lengths, distance_to_polyline
 from uav_comm_planner.vehicle.firmware import firmware_named, FIRMWARES
 from uav_comm_planner.vehicle.leg_models import leg_model
 from uav_comm_planner.vehicle.limits import VehicleLimits
@@ -113,11 +113,13 @@ class VehiclePlan:
 
 def hover_runs(points: np.ndarray, merge_radius_m: float) -> list[tuple[int, int]]:
     """Split points (K, 2) into maximal runs [i, j] whose points are all within the radius."""
+    # A point farther than the radius from the one before it starts a run at once.
+    steps = _lengths(np.diff(points, axis=0), axis=1).tolist()
     runs = []
     first = 0
     for index in range(1, len(points) + 1):
-        if index < len(points):
-            gaps = np.linalg.norm(points[first:index] - points[index], axis=1)
+        if index < len(points) and steps[index - 1] <= merge_radius_m:
+            gaps = _lengths(points[first:index] - points[index], axis=1)
             if gaps.max() <= merge_radius_m:
                 continue
         runs.append((first, index - 1))
@@ -158,8 +160,7 @@ def simplify(points: np.ndarray, tolerance_m: float, keeps: SegmentCheck = None)
         first, last = pending.pop()
         if last - first < 2:
             continue
-        inner = points[first + 1:last]
-        gaps = distance_to_polyline(inner, points[[first, last]])
+        gaps = _segment_distances(points, first, last)
         worst = int(np.argmax(gaps))
         if gaps[worst] > tolerance_m or (keeps is not None
                                          and not keeps(points[first], points[last])):
@@ -169,27 +170,43 @@ def simplify(points: np.ndarray, tolerance_m: float, keeps: SegmentCheck = None)
     return sorted(keep)
 
 
+def _segment_distances(points: np.ndarray, first: int, last: int) -> np.ndarray:
+    """Distances of points[first + 1:last] from the segment points[first] -> points[last]
+    (:func:`~uav_comm_planner.vehicle.evaluation.distance_to_polyline` of one segment)."""
+    return distance_to_polyline(points[first + 1:last], points[[first, last]])
+
+
 def _drop_short_steps(points: np.ndarray, kept: list[int], min_step_m: float,
                       keeps: SegmentCheck = None) -> list[int]:
     """Remove fly-through waypoints that leave a step shorter than ``min_step_m``, the one
     whose removal moves the line least first; with ``keeps``, only those whose removal leaves
     a segment that passes it."""
     kept = list(kept)
+    steps = _lengths(np.diff(points[kept], axis=0), axis=1).tolist()
+    costs: dict[tuple[int, int], float] = {}     # by the two waypoints the line joins
+
+    def cost(before: int, after: int) -> float:
+        if (before, after) not in costs:
+            costs[before, after] = float(_segment_distances(points, before, after).max())
+        return costs[before, after]
+
     while len(kept) > 2:
-        steps = np.linalg.norm(np.diff(points[kept], axis=0), axis=1)
-        if steps.min() >= min_step_m:
+        shortest = min(steps)
+        if shortest >= min_step_m:
             break
-        short = int(np.argmin(steps))
+        short = steps.index(shortest)
         candidates = [i for i in (short, short + 1) if 0 < i < len(kept) - 1]
         if keeps is not None:
             candidates = [i for i in candidates
                           if keeps(points[kept[i - 1]], points[kept[i + 1]])]
             if not candidates:
                 break
-        cost = [float(distance_to_polyline(points[kept[i - 1]:kept[i + 1] + 1],
-                                           points[[kept[i - 1], kept[i + 1]]]).max())
-                for i in candidates]
-        del kept[candidates[int(np.argmin(cost))]]
+        dropped = candidates[int(np.argmin([cost(kept[i - 1], kept[i + 1])
+                                            for i in candidates]))]
+        del kept[dropped]
+        del steps[dropped]
+        steps[dropped - 1] = float(_lengths(points[kept[dropped]] - points[kept[dropped - 1]],
+                                            axis=0))
     return kept
 
 

@@ -214,9 +214,9 @@ def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
         behind = TRACKING_LAG_S * v
         x = s - behind
         stretch = 1.0 - min(max(behind / MAX_POSITION_ERROR_M, 0.0), 1.0)
-        if (wanted >= speed and abs(v - speed) < 1e-6 and a == 0.0 and abs(u - v) < 1e-4
-                and abs(s - x) < 1e-3):
-            # Cruising, settled: jump to where the braking curve falls below the cruise.
+        if wanted >= speed and abs(v - speed) < 1e-6 and a == 0.0:
+            # Cruising, settled: jump to where the braking curve falls below the cruise (the
+            # trajectory and the vehicle move at constant speeds until then).
             brake_at = (speed * speed + speed * b - ends[slow] ** 2) / (2.0 * accel)
             jump = left - brake_at - 2.0 * speed * dt
             if jump > speed * dt:
