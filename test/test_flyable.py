@@ -19,8 +19,8 @@ from uav_comm_planner import InfeasibleHorizonError, InvalidScenarioError, paper
 from uav_comm_planner import Scenario
 from uav_comm_planner.core.model import leg_lengths
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline, evaluate_flight
-from uav_comm_planner.vehicle.flyable import (check_speed, MAX_TURN_DEG, plan_for_vehicle,
-                                              simplify, turn_angles_deg)
+from uav_comm_planner.vehicle.flyable import check_speed, MAX_TURN_DEG, plan_for_vehicle
+from uav_comm_planner.vehicle.waypoints import simplify, turn_angles_deg
 from uav_comm_planner.vehicle.leg_models import MIN_STOP_HOLD_S
 from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
 from uav_comm_planner.vehicle.timing import (leg_time, peak_speed, Profile, ramp_distance,

@@ -28,7 +28,7 @@ from uav_comm_planner.errors import (InfeasibleHorizonError, InvalidScenarioErro
 from uav_comm_planner.mission.pipeline import plan_mission
 from uav_comm_planner.mission.request import InFlight, MissionRequest
 from uav_comm_planner.tools.serialize import scenario_from_dict, scenario_to_dict
-from uav_comm_planner.vehicle.flyable import simplify, zone_check
+from uav_comm_planner.vehicle.waypoints import simplify, zone_check
 
 AREA = OperatingArea([(-100, -100), (2100, -100), (2100, 600), (-100, 600)])
 

@@ -31,22 +31,21 @@ import dataclasses
 from dataclasses import dataclass
 import math
 import time
-from typing import Callable, Optional
+from typing import Callable
 
 import numpy as np
 
-from uav_comm_planner.core.detour import segments_clear
 from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.optimizer import plan, plan_along, PlanResult
 from uav_comm_planner.core.scenario import MIN_STEP_M, Scenario, SolverSettings
-from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InfeasibleHorizonError, WalledInError
-from uav_comm_planner.vehicle.evaluation import _lengths, distance_to_polyline
 from uav_comm_planner.vehicle.firmware import firmware_named, FIRMWARES
 from uav_comm_planner.vehicle.leg_models import leg_model
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.timing import (Dwell, Flight, Leg, LEG_LATENCY_S, ramp_distance,
                                              ramp_time)
+from uav_comm_planner.vehicle.waypoints import (drop_short_steps, hover_runs, SegmentCheck,
+                                                simplify, turn_angles_deg, zone_check)
 
 #: Plan points closer than this are one stop (ArduCopter's default WPNAV_RADIUS is 2 m).
 MERGE_RADIUS_M = 2.0
@@ -111,33 +110,6 @@ class VehiclePlan:
         return dataclasses.replace(self, flown=flown)
 
 
-def hover_runs(points: np.ndarray, merge_radius_m: float) -> list[tuple[int, int]]:
-    """Split points (K, 2) into maximal runs [i, j] whose points are all within the radius."""
-    # A point farther than the radius from the one before it starts a run at once.
-    steps = _lengths(np.diff(points, axis=0), axis=1).tolist()
-    runs = []
-    first = 0
-    for index in range(1, len(points) + 1):
-        if index < len(points) and steps[index - 1] <= merge_radius_m:
-            gaps = _lengths(points[first:index] - points[index], axis=1)
-            if gaps.max() <= merge_radius_m:
-                continue
-        runs.append((first, index - 1))
-        first = index
-    return runs
-
-
-#: Whether a straight segment from a to b may replace the plan between them (the zones).
-SegmentCheck = Optional[Callable[[np.ndarray, np.ndarray], bool]]
-
-
-def zone_check(zones: Zones | None) -> SegmentCheck:
-    """With zones, the check that a segment keeps their margin (exact); None without."""
-    if zones is None or zones.empty:
-        return None
-    return lambda a, b: bool(segments_clear(zones, a, b)[0])
-
-
 def _stop_index(points: np.ndarray, first: int, last: int) -> int:
     """The point of the run [first, last] the vehicle stops at: q0, qF, or the run's most
     central point."""
@@ -148,73 +120,6 @@ def _stop_index(points: np.ndarray, first: int, last: int) -> int:
     run = points[first:last + 1]
     spread = np.linalg.norm(run[:, None, :] - run[None, :, :], axis=-1).max(axis=1)
     return first + int(np.argmin(spread))
-
-
-def simplify(points: np.ndarray, tolerance_m: float, keeps: SegmentCheck = None) -> list[int]:
-    """Douglas-Peucker: indices of the points kept so every point is within the tolerance
-    and, with ``keeps``, every segment between kept points passes it (a segment of two
-    neighbours is the plan's own leg, which keeps the zones)."""
-    keep = {0, len(points) - 1}
-    pending = [(0, len(points) - 1)]
-    while pending:
-        first, last = pending.pop()
-        if last - first < 2:
-            continue
-        gaps = _segment_distances(points, first, last)
-        worst = int(np.argmax(gaps))
-        if gaps[worst] > tolerance_m or (keeps is not None
-                                         and not keeps(points[first], points[last])):
-            split = first + 1 + worst
-            keep.add(split)
-            pending += [(first, split), (split, last)]
-    return sorted(keep)
-
-
-def _segment_distances(points: np.ndarray, first: int, last: int) -> np.ndarray:
-    """Distances of points[first + 1:last] from the segment points[first] -> points[last]
-    (:func:`~uav_comm_planner.vehicle.evaluation.distance_to_polyline` of one segment)."""
-    return distance_to_polyline(points[first + 1:last], points[[first, last]])
-
-
-def _drop_short_steps(points: np.ndarray, kept: list[int], min_step_m: float,
-                      keeps: SegmentCheck = None) -> list[int]:
-    """Remove fly-through waypoints that leave a step shorter than ``min_step_m``, the one
-    whose removal moves the line least first; with ``keeps``, only those whose removal leaves
-    a segment that passes it."""
-    kept = list(kept)
-    steps = _lengths(np.diff(points[kept], axis=0), axis=1).tolist()
-    costs: dict[tuple[int, int], float] = {}     # by the two waypoints the line joins
-
-    def cost(before: int, after: int) -> float:
-        if (before, after) not in costs:
-            costs[before, after] = float(_segment_distances(points, before, after).max())
-        return costs[before, after]
-
-    while len(kept) > 2:
-        shortest = min(steps)
-        if shortest >= min_step_m:
-            break
-        short = steps.index(shortest)
-        candidates = [i for i in (short, short + 1) if 0 < i < len(kept) - 1]
-        if keeps is not None:
-            candidates = [i for i in candidates
-                          if keeps(points[kept[i - 1]], points[kept[i + 1]])]
-            if not candidates:
-                break
-        dropped = candidates[int(np.argmin([cost(kept[i - 1], kept[i + 1])
-                                            for i in candidates]))]
-        del kept[dropped]
-        del steps[dropped]
-        steps[dropped - 1] = float(_lengths(points[kept[dropped]] - points[kept[dropped - 1]],
-                                            axis=0))
-    return kept
-
-
-def turn_angles_deg(vertices: np.ndarray) -> np.ndarray:
-    """The heading change at each inner vertex of a polyline (V, 2), degrees (V - 2,)."""
-    steps = np.diff(vertices, axis=0)
-    headings = np.arctan2(steps[:, 1], steps[:, 0])
-    return np.degrees(np.abs((np.diff(headings) + np.pi) % (2 * np.pi) - np.pi))
 
 
 def _stop_runs(points: np.ndarray, slot_s: float, merge_radius_m: float,
@@ -231,7 +136,7 @@ def _stop_runs(points: np.ndarray, slot_s: float, merge_radius_m: float,
         if following is None:
             break
         chain = np.arange(run[1], following[0] + 1)
-        kept = _drop_short_steps(points[chain],
+        kept = drop_short_steps(points[chain],
                                  simplify(points[chain], path_tolerance_m, keeps),
                                  min_step_m, keeps)
         sharp = turn_angles_deg(points[chain[kept]]) > MAX_TURN_DEG
@@ -276,7 +181,7 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
         leg_cruise = _leg_cruise(path, scenario, cruise)
         speed = max(model.speed_for_time(path, planned_s, leg_cruise, limits), MIN_SPEED_MPS)
         speed = min(round(speed, 2), leg_cruise)
-        kept = _drop_short_steps(path, simplify(path, path_tolerance_m, keeps),
+        kept = drop_short_steps(path, simplify(path, path_tolerance_m, keeps),
                                  2.0 * ramp_distance(speed, limits), keeps)
         if model.per_vertex:         # the turns kept are what the time depends on
             speed = max(model.speed_for_time(path[kept], planned_s, leg_cruise, limits),
