@@ -153,15 +153,35 @@ class SampledProfile:
 def px4_profile(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -> SampledProfile:
     """PX4's flight along ``vertices`` (V, 2) from rest to rest at cruise ``speed_mps``, fly-
     through waypoints at the inner vertices (module docstring)."""
+    return _simulate(*_key(vertices, speed_mps, limits))
+
+
+def _key(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -> tuple:
+    """A leg's simulation by what it depends on (cached)."""
     vertices = np.asarray(vertices, dtype=float)
-    key = (vertices.round(6).tobytes(), len(vertices), round(float(speed_mps), 6),
-           float(limits.max_accel_mpss), float(limits.max_jerk_mpsss))
-    return _simulate(*key)
+    return (vertices.round(6).tobytes(), len(vertices), round(float(speed_mps), 6),
+            float(limits.max_accel_mpss), float(limits.max_jerk_mpsss))
 
 
 @lru_cache(maxsize=4096)
 def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
               jerk: float) -> SampledProfile:
+    return _flown(vertex_bytes, count, speed, accel, jerk)
+
+
+@lru_cache(maxsize=4096)
+def _reach_time(vertex_bytes: bytes, count: int, speed: float, accel: float,
+                jerk: float) -> float:
+    """:attr:`SampledProfile.hold_start_s` of the leg, its simulation ended there (the
+    vehicle's last metres to rest, a slow exponential approach, are most of a leg's steps and
+    do not move it)."""
+    return _flown(vertex_bytes, count, speed, accel, jerk, until_reached=True)
+
+
+def _flown(vertex_bytes: bytes, count: int, speed: float, accel: float, jerk: float,
+           until_reached: bool = False) -> SampledProfile | float:
+    """The simulation of :func:`px4_profile`; with ``until_reached`` only up to the entry
+    into the last vertex's acceptance radius, and only that time."""
     vertices = np.frombuffer(vertex_bytes).reshape(count, 2)
     steps = np.diff(vertices, axis=0)
     lengths = np.linalg.norm(steps, axis=1)
@@ -171,7 +191,7 @@ def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
     lengths = np.linalg.norm(steps, axis=1)
     if len(lengths) == 0:
         zero = np.zeros(1)
-        return SampledProfile(zero, zero, 0.0, 0.0, 0.0)
+        return 0.0 if until_reached else SampledProfile(zero, zero, 0.0, 0.0, 0.0)
     arc = np.concatenate([[0.0], np.cumsum(lengths)])
     total = float(arc[-1])
     units = steps / lengths[:, None]
@@ -204,6 +224,8 @@ def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
             k += 1
         if hold_start is None and k == last and total - x <= reach:
             hold_start = t
+            if until_reached:
+                return hold_start
         # Turns PX4 flies at the cruise cost nothing; brake for the next one it cannot.
         slow = braked_for[k]
         left = arc[slow + 1] - s
@@ -248,7 +270,7 @@ def px4_leg_time(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) 
 def px4_reach_time(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -> float:
     """Seconds from rest at the first of ``vertices`` into the acceptance radius of the last,
     at cruise ``speed_mps``: when PX4 reports the leg's end reached."""
-    return px4_profile(vertices, speed_mps, limits).hold_start_s
+    return _reach_time(*_key(vertices, speed_mps, limits))
 
 
 def px4_speed_for_time(vertices: np.ndarray, duration_s: float, max_speed_mps: float,
