@@ -155,8 +155,9 @@ def test_a_cold_plan_builds_the_cone_structure_again_and_a_warm_one_reuses_it():
     assert cone_layout.cache_info().misses == 1
 
 
-def test_the_replans_section_times_the_node_s_replan_warm_and_in_full(output):
-    lines = section(output, 'Replans in flight')
+@pytest.mark.parametrize('title', ['Replans in flight: ', 'Replans in flight for PX4'])
+def test_the_replans_sections_time_the_node_s_replan_warm_and_in_full(output, title):
+    lines = section(output, title)
     assert lines[0].split() == ['seed', 'flown', 'off_m', 'full_s', 'warm_s', 'speed-up',
                                 'full_bps', 'warm_bps', 'change']
     rows = [line.split() for line in lines[1:] if line[:1] == ' ']
@@ -172,6 +173,8 @@ def test_the_replans_section_times_the_node_s_replan_warm_and_in_full(output):
             float(warm_bps) / float(full_bps) - 1, abs=2e-5)
     assert any(line.startswith('warm replan: median') and 'under 150 ms in' in line
                for line in lines)
+    if 'PX4' in title:
+        return
     summary = next(line for line in lines if 'random replans' in line)
     assert re.match(r'3 random replans: warm median \d+\.\d+ s, full search \d+\.\d+ s; warm '
                     r'more than 0\.1 % below the full search in \d', summary)

@@ -14,7 +14,7 @@
 * Speed of the default plan: the same settings on the reference path and on the fast path
   (loose steps and the solvers kept between plans only help the fast path).
 * Replans in flight: the node's replan of the rest of a mission, warm and with the full search
-  (:mod:`uav_comm_planner.tools.replans`).
+  (:mod:`uav_comm_planner.tools.replans`), for ArduCopter and for PX4.
 * Quality: on seeded random drops, the default plan against the letter's Algorithm 1 and the
   best known plan, with the dual upper bound (:mod:`uav_comm_planner.core.bound`) and its gap.
 
@@ -432,6 +432,11 @@ def run(quick: bool = False, out: TextIO | None = None, *, flights: bool = True,
             format_replans(measure_replans((1,) if quick else (1, 2, 3),
                                            points=REPLAN_POINTS[1:2] if quick else REPLAN_POINTS))
             + '\n' + format_replan_drops(measure_replan_drops(range(100, 103 if quick else 140))))
+    section('Replans in flight for PX4: the same missions at PX4\'s 5 m/s, slots of 4 s (PX4\'s '
+            'leg timing and mission items)',
+            format_replans(measure_replans((1,) if quick else (1, 2, 3),
+                                           points=REPLAN_POINTS[1:2] if quick else REPLAN_POINTS,
+                                           firmware='px4')))
     cases, max_slots = (3, 80) if quick else (QUALITY_DROPS, 199)
     drops = (f'random drops: N 3-20, M 51-{max_slots}, slots 0.5-2 s, V 20-100 m/s; best known: '
              'the best of the default, the letter and 20 other random tours run to '

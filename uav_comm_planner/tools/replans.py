@@ -1,8 +1,9 @@
 """Benchmark of replans in flight: the node's replan of the rest of a mission, warm against
 the full search, side by side.
 
-A mission of N = 20 nodes and M = 500 slots of 2 s is planned for ArduCopter's default limits
-(10 m/s, the node's vehicle-aware default) as the node plans it. Its plan is begun on a
+A mission of N = 20 nodes and M = 500 slots is planned for an autopilot's default limits
+(ArduCopter's 10 m/s and slots of 2 s, the node's vehicle-aware default; or PX4's 5 m/s and
+slots of 4 s, with PX4's leg timing and mission items) as the node plans it. Its plan is begun on a
 :class:`~uav_comm_planner.mission.progress.MissionProgress` as the node begins it, the clock
 started at q0, and at a few times of the flight the UAV is put off the plan; the request is the
 one the node builds (:meth:`~uav_comm_planner.mission.progress.MissionProgress.in_flight`) and
@@ -28,6 +29,7 @@ from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.mission.pipeline import MissionPlan, plan_mission
 from uav_comm_planner.mission.progress import MissionProgress, planned_position
 from uav_comm_planner.mission.request import InFlight, MissionRequest
+from uav_comm_planner.vehicle.limits import VehicleLimits
 
 #: The replans: (slots flown, metres east of the plan).
 REPLAN_POINTS = ((100, 0.0), (100, 40.0), (300, 40.0))
@@ -37,9 +39,18 @@ TARGET_S = 0.150
 BELOW_SHARE = 1e-3
 
 
-def replan_mission(seed: int) -> Scenario:
-    """N = 20 nodes in a 2 km square, M = 500 slots of 2 s at 10 m/s, corner to corner."""
-    return random_scenario(20, 500, seed, side_m=2000.0, horizon_s=1000.0, max_speed_mps=10.0)
+def replan_mission(seed: int, firmware: str = 'ardupilot') -> Scenario:
+    """N = 20 nodes in a 2 km square, M = 500 slots, corner to corner, at the cruise of
+    ``firmware``'s default limits: 10 m/s and slots of 2 s for ArduCopter, 5 m/s and slots of
+    4 s for PX4 (the same flight at half the speed)."""
+    cruise = VehicleLimits.for_firmware(firmware).cruise_speed_mps
+    return random_scenario(20, 500, seed, side_m=2000.0, horizon_s=10000.0 / cruise,
+                           max_speed_mps=cruise)
+
+
+def _request(scenario: Scenario, firmware: str, **fields) -> MissionRequest:
+    return MissionRequest(scenario, vehicle=VehicleLimits.for_firmware(firmware),
+                          firmware=firmware, **fields)
 
 
 @dataclass(frozen=True)
@@ -58,14 +69,14 @@ class ReplanRow:
         return self.warm_bps / self.full_bps - 1.0
 
 
-def _timed(scenario: Scenario, in_flight: InFlight) -> tuple[float, float]:
+def _timed(scenario: Scenario, in_flight: InFlight, firmware: str) -> tuple[float, float]:
     began = time.perf_counter()
-    planned = plan_mission(MissionRequest(scenario, in_flight=in_flight))
+    planned = plan_mission(_request(scenario, firmware, in_flight=in_flight))
     return time.perf_counter() - began, planned.min_throughput
 
 
 def _replan_row(seed: int, scenario: Scenario, first: MissionPlan, slots: int,
-                offset_m: np.ndarray, repeats: int) -> ReplanRow:
+                offset_m: np.ndarray, repeats: int, firmware: str = 'ardupilot') -> ReplanRow:
     """The plan ``first`` of ``scenario`` begun as the node begins it, its clock started at
     q0, and the vehicle ``offset_m`` (2,) off it after ``slots`` slots: the node's request
     replanned warm and with the full search, in alternation ``repeats`` times (median wall
@@ -81,7 +92,7 @@ def _replan_row(seed: int, scenario: Scenario, first: MissionPlan, slots: int,
     values = {}
     for _ in range(repeats):
         for kind, in_flight in requests.items():
-            seconds, values[kind] = _timed(scenario, in_flight)
+            seconds, values[kind] = _timed(scenario, in_flight, firmware)
             times[kind].append(seconds)
     return ReplanRow(seed, slots, float(np.linalg.norm(offset_m)),
                      statistics.median(times[False]), statistics.median(times[True]),
@@ -89,15 +100,16 @@ def _replan_row(seed: int, scenario: Scenario, first: MissionPlan, slots: int,
 
 
 def measure_replans(seeds: Sequence[int], repeats: int = 2,
-                    points: Sequence[tuple[int, float]] = REPLAN_POINTS) -> list[ReplanRow]:
-    """Each mission of ``seeds`` replanned at ``points``, warm and full in alternation
-    ``repeats`` times (median wall times)."""
+                    points: Sequence[tuple[int, float]] = REPLAN_POINTS,
+                    firmware: str = 'ardupilot') -> list[ReplanRow]:
+    """Each mission of ``seeds`` (:func:`replan_mission` for ``firmware``) replanned at
+    ``points``, warm and full in alternation ``repeats`` times (median wall times)."""
     rows = []
     for seed in seeds:
-        scenario = replan_mission(seed)
-        first = plan_mission(MissionRequest(scenario, items=False))
-        rows += [_replan_row(seed, scenario, first, slots, np.array([east_m, 0.0]), repeats)
-                 for slots, east_m in points]
+        scenario = replan_mission(seed, firmware)
+        first = plan_mission(_request(scenario, firmware, items=False))
+        rows += [_replan_row(seed, scenario, first, slots, np.array([east_m, 0.0]), repeats,
+                             firmware) for slots, east_m in points]
     return rows
 
 
