@@ -61,13 +61,16 @@ def project_onto_speed_limit(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     """
     q = np.asarray(q, dtype=float).reshape(-1, 2)
     steps = legs(q, scenario)
-    straight_leg = (np.asarray(scenario.goal_m, float) - np.asarray(scenario.start_m, float)) \
-        / (scenario.num_slots + 1)
     lam = 0.0
     for centre, radius in limit_discs(scenario):
-        longest = float(np.linalg.norm(steps - centre, axis=1).max())
+        offset = steps - centre
+        # The legs' lengths as numpy.linalg.norm computes them, without its checks (this runs
+        # on every start and every step).
+        longest = float(np.sqrt((offset * offset).sum(axis=1)).max())
         if longest <= radius:
             continue
+        straight_leg = (np.asarray(scenario.goal_m, float)
+                        - np.asarray(scenario.start_m, float)) / (scenario.num_slots + 1)
         straight = float(np.linalg.norm(straight_leg - centre))
         if not math.isfinite(longest) or longest - straight <= 0:
             return initial.straight_line(scenario)

@@ -58,10 +58,14 @@ def tour_draws(scenario: Scenario, count: int,
     start, goal = np.asarray(scenario.start_m, float), np.asarray(scenario.goal_m, float)
     draws: dict[str, tuple[tuple, np.ndarray]] = {}
     legs: dict[tuple[int, ...], tuple] = {}     # the legs of each order, worked out once
+    improved: dict[tuple[int, ...], list[int]] = {}     # 2-opt of each order drawn, once
     for k in range(1, count + 1):
         order = [int(i) for i in rng.permutation(scenario.num_nodes)]
         if k % 4 == 0:
-            order = initial.two_opt(start, goal, scenario.nodes, order)
+            drawn = tuple(order)
+            if drawn not in improved:
+                improved[drawn] = initial.two_opt(start, goal, scenario.nodes, order)
+            order = improved[drawn]
         key = tuple(order)
         if key not in legs:
             legs[key] = initial.tour_legs(scenario, order)
