@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import (InvalidScenarioError, paper_scenario, plan, Scenario, SolverSettings)
-from uav_comm_planner.core.initial import (even_hovers, hover_and_fly, nearest_neighbour_order,
-                                           straight_line, tour_order, two_opt)
+from uav_comm_planner.core.initial import (even_hovers, fly_legs, hover_and_fly,
+                                           nearest_neighbour_order, spare_legs, straight_line,
+                                           tour_legs, tour_order, TourFlier, two_opt)
 from uav_comm_planner.core.model import average_rates, leg_lengths, snr_per_watt
 from uav_comm_planner.core.optimizer import throughput_upper_bound
 from uav_comm_planner.core.power import conic_power
@@ -276,3 +277,36 @@ def test_the_shortlist_is_the_starts_best_by_one_power_step(shortlist):
     assert result.start in moved
     for name in set(starts) - moved:
         assert result.start_throughputs[name] == pytest.approx(powered[name], rel=1e-6)
+
+
+def plain_flight(tour, hovers: np.ndarray) -> np.ndarray:
+    """A tour flown slot by slot: each stretch's legs, then its hovers at the stretch's end."""
+    _, points, legs = tour
+    rows = []
+    for k in range(len(legs)):
+        here, there = points[k], points[k + 1]
+        rows += [here + ((i + 1) / legs[k]) * (there - here) for i in range(legs[k])]
+        rows += [there] * (int(hovers[k]) if k < len(hovers) else 0)
+    return np.array(rows)[:-1]
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_a_tour_flown_with_any_split_is_its_legs_then_its_hovers(seed):
+    # A node at q0: a stretch of no leg at all when the tour starts with it.
+    scenario = random_scenario(seed, nodes=3 + 3 * seed, slots=40 + 60 * seed)
+    scenario = scenario.replace(ground_nodes_m=[*scenario.ground_nodes_m, scenario.start_m])
+    rng = np.random.default_rng(seed)
+    at_start = scenario.num_nodes - 1
+    orders = [[at_start, *range(at_start)]] + [[int(i) for i in rng.permutation(at_start + 1)]
+                                                for _ in range(4)]
+    for order in orders:
+        tour = tour_legs(scenario, order)
+        flier = TourFlier(tour)
+        for _ in range(5):
+            hovers = rng.multinomial(spare_legs(scenario, tour),
+                                     np.ones(len(tour[0])) / len(tour[0]))
+            q = flier(hovers)
+            np.testing.assert_array_equal(q, plain_flight(tour, hovers))
+            np.testing.assert_array_equal(q, fly_legs(scenario, tour, lambda *_: hovers))
+            assert q.shape == (scenario.num_slots, 2)
+    assert tour_legs(scenario, orders[0])[2][0] == 0     # its first stretch has no leg

@@ -146,23 +146,43 @@ def spare_legs(scenario: Scenario, tour: tuple[list[int], np.ndarray, np.ndarray
 
 
 def fly_legs(scenario: Scenario, tour: tuple[list[int], np.ndarray, np.ndarray],
-             split: Callable[[int, int], np.ndarray] = even_hovers) -> np.ndarray:
+             split: Callable[[int, int], np.ndarray] = even_hovers,
+             flier: 'TourFlier | None' = None) -> np.ndarray:
     """q (M, 2) metres along a :func:`tour_legs` answer, the spare legs split by ``split``;
-    the straight line when the tour visits no node."""
-    order, points, legs = tour
-    if not order:
+    the straight line when the tour visits no node. ``flier``: the tour's :class:`TourFlier`,
+    if one was made already."""
+    if not tour[0]:
         return straight_line(scenario)
-    hovers = split(spare_legs(scenario, tour), len(order))
-    # Stretch k from points[k] to points[k + 1] gives legs[k] rows points[k] + (i / legs[k])
-    # (points[k + 1] - points[k]), i = 1..legs[k], then hovers[k] rows at points[k + 1] (none
-    # after the last): q0 left out, these are q[1], ..., q[M], qF.
-    rows = legs + np.append(np.asarray(hovers, dtype=int), 0)
-    stretch = np.repeat(np.arange(len(legs)), rows)
-    within = np.arange(int(rows.sum())) - (np.cumsum(rows) - rows)[stretch]
-    count = legs[stretch]
-    fraction = (within + 1) / np.maximum(count, 1)
-    here, there = points[stretch], points[stretch + 1]
-    q = here + fraction[:, None] * (there - here)
-    hovering = within >= count
-    q[hovering] = there[hovering]
-    return q[:-1]
+    return (flier or TourFlier(tour))(split(spare_legs(scenario, tour), len(tour[0])))
+
+
+class TourFlier:
+    """A :func:`tour_legs` answer flown with any hover split: what does not depend on the split
+    (the points of its legs) worked out once, for the many splits a tour is flown with."""
+
+    def __init__(self, tour: tuple[list[int], np.ndarray, np.ndarray]):
+        _, points, legs = tour
+        # Stretch k from points[k] to points[k + 1] gives legs[k] rows points[k] + (i / legs[k])
+        # (points[k + 1] - points[k]), i = 1..legs[k], then its hovers at points[k + 1] (none
+        # after the last): q0 left out, these are q[1], ..., q[M], qF.
+        stretch = np.repeat(np.arange(len(legs)), legs)
+        within = np.arange(int(legs.sum())) - (np.cumsum(legs) - legs)[stretch]
+        fraction = (within + 1) / legs[stretch]
+        here, there = points[stretch], points[stretch + 1]
+        # The rows to pick from: every leg's points, then the stops points[1:].
+        self.rows = np.vstack([here + fraction[:, None] * (there - here), points[1:]])
+        stops = len(legs)
+        # Row k of the pattern: stretch k's leg points, each once, then stop k + 1 as often
+        # as it is hovered over.
+        first = np.cumsum(legs) - legs
+        self.picked = np.concatenate([np.append(np.arange(first[k], first[k] + legs[k]),
+                                                len(stretch) + k) for k in range(stops)])
+        self.counts = np.ones(len(self.picked), dtype=int)
+        self.hover_at = np.cumsum(legs + 1) - 1
+        self.counts[self.hover_at[-1]] = 0           # no hover after the last stretch
+
+    def __call__(self, hovers: np.ndarray) -> np.ndarray:
+        """q (M, 2) metres with ``hovers`` (integers, one per visited node) hover slots."""
+        counts = self.counts.copy()
+        counts[self.hover_at[:-1]] = hovers
+        return self.rows[np.repeat(self.picked, counts)][:-1]

@@ -77,10 +77,18 @@ def tour_draws(scenario: Scenario, count: int,
     return draws
 
 
-def fly_draw(scenario: Scenario, draw: tuple[tuple, np.ndarray]) -> np.ndarray:
-    """q (M, 2) metres of a :func:`tour_draws` tour with its hover split."""
+def fly_draw(scenario: Scenario, draw: tuple[tuple, np.ndarray],
+             fliers: dict[int, initial.TourFlier] | None = None) -> np.ndarray:
+    """q (M, 2) metres of a :func:`tour_draws` tour with its hover split; ``fliers`` keeps
+    each tour's :class:`~uav_comm_planner.core.initial.TourFlier` by the tour's identity
+    (draws of one order share their tour) for the draws after."""
     tour, hovers = draw
-    return initial.fly_legs(scenario, tour, lambda spare, stops: hovers)
+    flier = None
+    if fliers is not None and tour[0]:
+        if id(tour) not in fliers:
+            fliers[id(tour)] = initial.TourFlier(tour)
+        flier = fliers[id(tour)]
+    return initial.fly_legs(scenario, tour, lambda spare, stops: hovers, flier)
 
 
 def random_tours(scenario: Scenario, count: int,
@@ -98,8 +106,9 @@ def distinct_tours(scenario: Scenario,
     """The :func:`tour_draws` flown, by name, a tour that repeats an earlier one left out."""
     tours: dict[str, np.ndarray] = {}
     drawn: set[bytes] = set()                   # the tours so far, as bytes: a repeat is one
+    fliers: dict[int, initial.TourFlier] = {}
     for name, draw in draws.items():
-        q = fly_draw(scenario, draw)
+        q = fly_draw(scenario, draw, fliers)
         if q.tobytes() not in drawn:
             drawn.add(q.tobytes())
             tours[name] = q
