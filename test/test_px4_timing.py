@@ -136,3 +136,15 @@ def test_the_quick_refusal_and_the_horizon_it_asks_for_use_the_firmwares_leg_tim
     needed = float(str(refused.value).rsplit('lengthen horizon_s to ', 1)[1].split(' s')[0])
     flown = plan_for_vehicle(scenario.replace(horizon_s=needed), limits, firmware='px4')
     assert flown.schedule.arrival_s <= needed * (slots + 1) / slots + flown.ideal.scenario.slot_s
+
+
+@pytest.mark.parametrize('speed', [0.5, 0.8, 1.2, 5.0, 10.0])
+def test_the_hold_starts_the_step_the_vehicle_enters_the_acceptance_radius(speed):
+    # Slow legs brake inside the radius, after the cruise the simulation jumps over: the
+    # entry is still found to a step, by the profile and by the reach time alike.
+    line = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 80.0]])
+    profile = px4_profile(line, speed, PX4)
+    radius = ACCEPTANCE_RADIUS_M + px4_timing.BRAKING_LEAD_S2 * speed * speed
+    left = 180.0 - profile.distance(np.array([profile.hold_start_s]))[0]
+    assert radius - speed * px4_timing.STEP_S - 1e-9 <= left <= radius
+    assert px4_reach_time(line, speed, PX4) == profile.hold_start_s

@@ -241,6 +241,10 @@ def _flown(vertex_bytes: bytes, count: int, speed: float, accel: float, jerk: fl
             # trajectory and the vehicle move at constant speeds until then).
             brake_at = (speed * speed + speed * b - ends[slow] ** 2) / (2.0 * accel)
             jump = left - brake_at - 2.0 * speed * dt
+            if hold_start is None and slow == last:
+                # Nor past the last vertex's acceptance radius (below about 1.2 m/s PX4
+                # brakes inside it): the steps find when the vehicle enters it.
+                jump = min(jump, total - reach - x - 2.0 * speed * dt)
             if jump > speed * dt:
                 t += jump / (speed * stretch)
                 s += jump
