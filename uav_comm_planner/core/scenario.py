@@ -65,6 +65,20 @@ def _count(name: str, value: object) -> int:
     return int(value)
 
 
+def _integer_from(name: str, value: object, low: int, high: int) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) \
+            or not low <= value <= high:
+        raise InvalidScenarioError(
+            f'{name} must be an integer from {low} to {high}, got {value!r}')
+    return int(value)
+
+
+def _flag(name: str, value: object) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidScenarioError(f'{name} must be True or False, got {value!r}')
+    return bool(value)
+
+
 def _finite_positive(name: str, compute: Callable[[], float], reason: str) -> float:
     """A derived quantity that must come out finite and positive (no overflow, no underflow)."""
     try:
@@ -394,28 +408,11 @@ class SolverSettings:
         for name in ('max_outer_iterations', 'max_inner_iterations', 'max_nodes',
                      'max_node_slots'):
             object.__setattr__(self, name, _count(name, getattr(self, name)))
-        if not isinstance(self.compute_baselines, (bool, np.bool_)):
-            raise InvalidScenarioError(
-                f'compute_baselines must be True or False, got {self.compute_baselines!r}')
-        object.__setattr__(self, 'compute_baselines', bool(self.compute_baselines))
-        if isinstance(self.screened_tours, (bool, np.bool_)) or not isinstance(
-                self.screened_tours, (int, np.integer)) or not 0 <= self.screened_tours <= 100:
-            raise InvalidScenarioError(
-                f'screened_tours must be an integer from 0 to 100, got {self.screened_tours!r}')
-        object.__setattr__(self, 'screened_tours', int(self.screened_tours))
-        if not isinstance(self.fast_steps, (bool, np.bool_)):
-            raise InvalidScenarioError(
-                f'fast_steps must be True or False, got {self.fast_steps!r}')
-        object.__setattr__(self, 'fast_steps', bool(self.fast_steps))
-        if not isinstance(self.keep_path_length, (bool, np.bool_)):
-            raise InvalidScenarioError(
-                f'keep_path_length must be True or False, got {self.keep_path_length!r}')
-        object.__setattr__(self, 'keep_path_length', bool(self.keep_path_length))
-        if isinstance(self.shortlist, (bool, np.bool_)) or not isinstance(
-                self.shortlist, (int, np.integer)) or not 1 <= self.shortlist <= 100:
-            raise InvalidScenarioError(
-                f'shortlist must be an integer from 1 to 100, got {self.shortlist!r}')
-        object.__setattr__(self, 'shortlist', int(self.shortlist))
+        checks = (('compute_baselines', _flag), ('screened_tours', _integer_from, 0, 100),
+                  ('fast_steps', _flag), ('keep_path_length', _flag),
+                  ('shortlist', _integer_from, 1, 100))
+        for name, check, *bounds in checks:
+            object.__setattr__(self, name, check(name, getattr(self, name), *bounds))
         self._check_starts()
 
     def _check_starts(self) -> None:
