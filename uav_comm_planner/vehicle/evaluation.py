@@ -68,11 +68,6 @@ def distance_to_polyline(points: np.ndarray, vertices: np.ndarray) -> np.ndarray
     """Distance (K,) of each point (K, 2) from the polyline through ``vertices`` (V, 2)."""
     if len(vertices) == 1:
         return vector_lengths(points - vertices[0], axis=1)
-    if len(vertices) == 2:               # one segment (the simplification's many calls)
-        a, ab = vertices[0], vertices[1] - vertices[0]
-        length2 = max(float((ab * ab).sum()), 1e-300)
-        t = np.minimum(np.maximum(((points - a) * ab).sum(axis=1) / length2, 0.0), 1.0)
-        return vector_lengths(points - (a + t[:, None] * ab), axis=1)
     a, b = vertices[:-1], vertices[1:]
     ab = b - a
     length2 = np.maximum((ab * ab).sum(axis=1), 1e-300)
