@@ -165,8 +165,9 @@ class TourFlier:
         # Stretch k from points[k] to points[k + 1] gives legs[k] rows points[k] + (i / legs[k])
         # (points[k + 1] - points[k]), i = 1..legs[k], then its hovers at points[k + 1] (none
         # after the last): q0 left out, these are q[1], ..., q[M], qF.
+        first = np.cumsum(legs) - legs               # each stretch's first leg point
         stretch = np.repeat(np.arange(len(legs)), legs)
-        within = np.arange(int(legs.sum())) - (np.cumsum(legs) - legs)[stretch]
+        within = np.arange(int(legs.sum())) - first[stretch]
         fraction = (within + 1) / legs[stretch]
         here, there = points[stretch], points[stretch + 1]
         # The rows to pick from: every leg's points, then the stops points[1:].
@@ -174,7 +175,6 @@ class TourFlier:
         stops = len(legs)
         # Row k of the pattern: stretch k's leg points, each once, then stop k + 1 as often
         # as it is hovered over.
-        first = np.cumsum(legs) - legs
         self.picked = np.concatenate([np.append(np.arange(first[k], first[k] + legs[k]),
                                                 len(stretch) + k) for k in range(stops)])
         self.counts = np.ones(len(self.picked), dtype=int)
