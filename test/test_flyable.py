@@ -19,12 +19,14 @@ from uav_comm_planner import InfeasibleHorizonError, InvalidScenarioError, paper
 from uav_comm_planner import Scenario
 from uav_comm_planner.core.model import leg_lengths
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline, evaluate_flight
-from uav_comm_planner.vehicle.flyable import check_speed, MAX_TURN_DEG, plan_for_vehicle
+from uav_comm_planner.core.optimizer import plan_along, PlanResult
+from uav_comm_planner.vehicle.flyable import (check_speed, MAX_TURN_DEG, plan_for_vehicle,
+                                              schedule_flight)
 from uav_comm_planner.vehicle.waypoints import simplify, turn_angles_deg
 from uav_comm_planner.vehicle.leg_models import MIN_STOP_HOLD_S
 from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
-from uav_comm_planner.vehicle.timing import (leg_time, peak_speed, Profile, ramp_distance,
-                                             speed_for_time)
+from uav_comm_planner.vehicle.timing import (LEG_LATENCY_S, leg_time, peak_speed, Profile,
+                                             ramp_distance, speed_for_time)
 
 DEFAULTS = VehicleLimits()
 A, J, TJ = DEFAULTS.max_accel_mpss, DEFAULTS.max_jerk_mpsss, DEFAULTS.jerk_time_s
@@ -195,6 +197,57 @@ def test_a_random_plan_is_flyable_and_beats_the_baselines():
     scenario = vehicle_plan.ideal.scenario
     assert vehicle_plan.schedule.arrival_s <= scenario.slot_s * (scenario.num_slots + 1.25)
     assert vehicle_plan.flown.min_throughput > max(vehicle_plan.ideal.baselines.values())
+
+
+def straight_pieces(*pieces) -> PlanResult:
+    """The plan that flies ``pieces``, (displacement (dx, dy) m, slots) each, from (0, 0) at
+    10 m/s in slots of 2 s, with the power optimal for it."""
+    path = [np.zeros(2)]
+    for displacement, slots in pieces:
+        path += [path[-1] + np.asarray(displacement, float) * k / slots
+                 for k in range(1, slots + 1)]
+    q = np.array(path[1:-1])
+    scenario = paper_scenario('I', max_speed_mps=10.0, horizon_s=2.0 * len(q),
+                              num_slots=len(q), goal_m=tuple(path[-1]))
+    return plan_along(scenario, q, name='given')
+
+
+def scurve_s(length_m: float, speed_mps: float) -> float:
+    """ArduPilot's SCurve closed form for a leg that reaches its speed: L / V + V / A + A / J
+    + tj."""
+    return length_m / speed_mps + speed_mps / A + A / J + TJ
+
+
+def test_a_leg_behind_the_plan_is_flown_faster_to_end_where_the_plan_ends_it():
+    # 1000 m at exactly 10 m/s, 8 s of hover, 1000 m in 120 s: the first leg is late by what
+    # starting and stopping cost, more than the hover's 7 s spare; the second leg, fitted to
+    # its 120 s, would reach qF about 2 s after the horizon. Flown faster from where it
+    # starts, it reaches qF when the plan does.
+    result = straight_pieces(((1000.0, 0.0), 50), ((0.0, 0.0), 4), ((1000.0, 0.0), 60))
+    schedule = schedule_flight(result, DEFAULTS)
+    first, second = schedule.legs
+    assert first.speed_mps == DEFAULTS.cruise_speed_mps
+    behind_s = first.start_s + scurve_s(1000.0, 10.0) + LEG_LATENCY_S / 2 - 100.0
+    assert behind_s > 7.0 + 1.0                              # the hover and a hold's rounding
+    assert second.speed_mps > speed_for_time(1000.0, 120.0 - LEG_LATENCY_S, 10.0, DEFAULTS)
+    reached_s = second.start_s + scurve_s(1000.0, second.speed_mps) + LEG_LATENCY_S / 2
+    assert reached_s == pytest.approx(228.0, abs=0.1)
+    assert schedule.arrival_s == pytest.approx(reached_s)
+
+
+def test_a_leg_the_later_legs_need_time_from_leaves_on_time_and_flies_faster():
+    # 20 s of hover at q0, 1000 m in 150 s, then a right-angle turn (a stop) and 1000 m at
+    # exactly 10 m/s, which starting and stopping make late: the first leg leaves q0 when the
+    # plan does and makes up the time by its speed, instead of leaving early.
+    result = straight_pieces(((0.0, 0.0), 10), ((1000.0, 0.0), 75), ((0.0, 1000.0), 50))
+    schedule = schedule_flight(result, DEFAULTS)
+    first, second = schedule.legs
+    assert first.start_s == pytest.approx(20.0 - LEG_LATENCY_S / 2, abs=1.0)
+    assert first.speed_mps > speed_for_time(1000.0, 150.0, 10.0, DEFAULTS)
+    assert second.speed_mps == DEFAULTS.cruise_speed_mps
+    assert schedule.arrival_s <= 270.0 + 1e-6
+    assert second.start_s == pytest.approx(
+        270.0 - scurve_s(1000.0, 10.0) - LEG_LATENCY_S, abs=1.0 + 1e-6)
 
 
 def test_simplify_keeps_every_point_within_the_tolerance():

@@ -228,7 +228,7 @@ def test_the_vehicle_ladder_tries_the_wider_search_unless_a_close_slower_plan_fl
             return dataclasses.replace(result, min_throughput=slower_share ** steps)
         return planner
 
-    slow = VehicleLimits(max_accel_mpss=1.0)
+    slow = VehicleLimits(max_accel_mpss=0.5)
     plain = plan_for_vehicle(MISSION, slow, planner=tagged('plan'))
     ladder = [speed for _, speed in calls]
     assert len(ladder) == 3 and ladder == sorted(ladder, reverse=True)    # fast to slow
@@ -273,7 +273,7 @@ def test_the_vehicle_ladder_takes_the_plan_in_force_kept_where_it_flies_close():
     in force flown on is tried first at that speed and taken when it delivers, as flown, within
     WIDER_SEARCH_GAIN of what the warm plan stated; otherwise the ladder goes on and the kept
     plan is one of those the best flown is chosen from."""
-    slow = VehicleLimits(max_accel_mpss=1.0)
+    slow = VehicleLimits(max_accel_mpss=0.5)
     calls = []
     speeds = []
 
@@ -367,11 +367,11 @@ def test_the_node_replans_from_the_optimised_plan_warm_for_the_same_nodes(first,
 
 
 def test_a_warm_replan_keeps_its_path_length_and_the_vehicle_flies_it_at_once():
-    """The replan benchmark's seed 3 after 100 slots: the plan in force was planned at 7 m/s
+    """The replan mission of seed 5 after 100 slots: the plan in force was planned at 9 m/s
     (ArduCopter's jerk and acceleration make the 10 m/s plans late); continued at 10 m/s free
-    to lengthen its path, it would reach qF 20 s late and the ladder would search on. With
-    the path kept no longer, the warm plan at full speed is the one flown."""
-    scenario = replan_mission(3)
+    to lengthen its path, it would reach qF 9 s late and the ladder would search on. With the
+    path kept no longer, the warm plan at full speed is the one flown."""
+    scenario = replan_mission(5)
     first_plan = plan_mission(MissionRequest(scenario, items=False))
     assert first_plan.vehicle_plan.ideal.scenario.max_speed_mps < scenario.max_speed_mps
     progress = MissionProgress()

@@ -299,7 +299,7 @@ class RecedingProblem:
         keep the path no longer than they find it (``keep_path_length``): the plan in force
         was planned at the speed the vehicle flies it at on time, and a continuation free to
         lengthen it spends the slack the vehicle's corners and stops need (on an N = 20,
-        M = 500 mission, 20 s late at qF where the plan in force was on time). Only the better
+        M = 500 mission, 9 s late at qF where the plan in force was on time). Only the better
         of the two starts by its power step gets an SCA step (:data:`WARM_SHORTLIST`): giving
         both one, as a first plan does its shortlist, changed none of 49 replans measured
         (N = 4-20, M = 100-500) and cost one SOCP of the four or five of a replan. Where the

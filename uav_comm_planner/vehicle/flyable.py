@@ -17,9 +17,13 @@ the autopilot keeps:
 3. **Timing.** A leg is flown at the speed that fits its S-curve (rest to rest, acceleration A,
    jerk J) into the plan's time for it; when even the cruise speed does not fit, the leg is
    centred on the plan's time and the holds on either side are shortened by what starting and
-   stopping cost. Holds are commanded in the firmware's resolution (ArduPilot: whole seconds)
-   on the predicted clock, so rounding never accumulates. A flight that cannot reach qF by the
-   end of the horizon is refused with the numbers.
+   stopping cost. A leg that starts behind the plan (its hold already at the shortest) is flown
+   faster, up to its cruise, to end where the plan ends it, and so is one that would leave the
+   later legs, at their cruise, too little time to reach qF: time lost at a corner is made up
+   on the legs after it, not by leaving earlier. Holds are commanded in the firmware's
+   resolution (ArduPilot: whole seconds) on the predicted clock, so rounding never
+   accumulates. A flight that cannot reach qF by the end of the horizon is refused with the
+   numbers.
 4. **The plan flown.** The predicted position at every slot time is the vehicle-aware plan's
    trajectory, and its power schedule is the optimal one for those positions: the throughput
    it states is what the nodes get when the vehicle flies the mission.
@@ -40,7 +44,7 @@ from uav_comm_planner.core.optimizer import plan, plan_along, PlanResult
 from uav_comm_planner.core.scenario import MIN_STEP_M, Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, WalledInError
 from uav_comm_planner.vehicle.firmware import firmware_named, FIRMWARES
-from uav_comm_planner.vehicle.leg_models import leg_model
+from uav_comm_planner.vehicle.leg_models import leg_model, LegModel, LegProfile
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.timing import (Dwell, Flight, Leg, LEG_LATENCY_S, ramp_distance,
                                              ramp_time)
@@ -170,46 +174,58 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     model = leg_model(firmware)
     stop_indices = [_stop_index(points, first, last) for first, last in runs]
     positions = [points[index].copy() for index in stop_indices]
-    shapes = []                      # per leg: vertices, speed, profile
+    paths, simplified, cruises, shapes = [], [], [], []  # per leg; shape: vertices, speed, profile
     for (_, last), (following, _), here, there in zip(runs, runs[1:], stop_indices,
                                                       stop_indices[1:]):
         # With zones the leg follows the plan from stop to stop (every step of it one of the
         # plan's legs), not from the stop straight to the run's last point.
         path = (points[here:there + 1] if keeps is not None
                 else np.vstack([points[here], points[last + 1:following], points[there]]))
-        planned_s = times[following] - times[last]
-        leg_cruise = _leg_cruise(path, scenario, cruise)
-        speed = max(model.speed_for_time(path, planned_s, leg_cruise, limits), MIN_SPEED_MPS)
-        speed = min(round(speed, 2), leg_cruise)
-        kept = drop_short_steps(path, simplify(path, path_tolerance_m, keeps),
-                                 2.0 * ramp_distance(speed, limits), keeps)
-        if model.per_vertex:         # the turns kept are what the time depends on
-            speed = max(model.speed_for_time(path[kept], planned_s, leg_cruise, limits),
-                        MIN_SPEED_MPS)
-            speed = min(math.ceil(speed * 100.0) / 100.0, leg_cruise)
-        shapes.append((path[kept], speed, model.profile(path[kept], speed, limits)))
+        paths.append(path)
+        simplified.append(simplify(path, path_tolerance_m, keeps))
+        cruises.append(_leg_cruise(path, scenario, cruise))
+        shapes.append(_leg_shape(model, path, times[following] - times[last], cruises[-1],
+                                 limits, simplified[-1], keeps))
     # Centre each leg's motion on the plan's time for it, but start it no later than lets
-    # every later leg, with the shortest holds, reach qF by the end of the horizon.
-    minimum_holds = [model.min_hold_s(None if index == 0 else shapes[index - 1][2], cruise,
-                                      limits) for index in range(len(shapes))]
+    # every later leg, at its cruise and with the shortest holds, reach qF by the end of the
+    # horizon; a leg behind the plan, or one that would leave the later legs too little time,
+    # is flown faster (up to its cruise) to end where the plan, or the time left, ends it.
+    fastest = [shape if shape[1] >= leg_cruise
+               else _leg_shape(model, path, 0.0, leg_cruise, limits, kept, keeps)
+               for shape, path, leg_cruise, kept in zip(shapes, paths, cruises, simplified)]
+    latest_holds = [model.min_hold_s(None if index == 0 else fastest[index - 1][2], cruise,
+                                     limits) for index in range(len(shapes))]
     latest = times[-1]
     latest_starts = []
-    for (_, _, profile), shortest in zip(reversed(shapes), reversed(minimum_holds)):
+    for (_, _, profile), shortest in zip(reversed(fastest), reversed(latest_holds)):
         latest -= model.start_delay_s + model.reached_s(profile)
         latest_starts.append(latest)
         latest -= shortest
     latest_starts.reverse()
+    deadlines = [start - shortest for start, shortest in
+                 zip(latest_starts[1:], latest_holds[1:])] + [times[-1]]
 
     stops, legs, parts = [], [], []
     clock = 0.0                      # the hold at the current stop starts counting
     for index, (vertices, speed, profile) in enumerate(shapes):
         first, last = runs[index][1], runs[index + 1][0]
+        minimum = model.min_hold_s(legs[-1].profile if legs else None, cruise, limits)
         centred = (0.5 * (times[first] + times[last] - model.timed_s(profile))
                    - model.start_delay_s)
         wanted = min(centred, latest_starts[index]) - clock
-        hold = max(_quantise(wanted, resolution), minimum_holds[index])
-        if hold > wanted + 1e-9 and hold - resolution >= minimum_holds[index]:
+        hold = max(_quantise(wanted, resolution), minimum)
+        if hold > wanted + 1e-9 and hold - resolution >= minimum:
             hold -= resolution       # round towards the earlier start when late
+        timed = model.timed_s(profile)
+        target = min(timed if clock + hold - centred <= 0.5 * resolution + 1e-9
+                     else timed - (clock + hold - centred),
+                     deadlines[index] - clock - hold - model.start_delay_s
+                     - model.after_timed_s)
+        if target < timed - 1e-6 and speed < cruises[index]:
+            faster = _leg_shape(model, paths[index], target, cruises[index], limits,
+                                simplified[index], keeps)
+            if faster[1] > speed:
+                vertices, speed, profile = faster
         stops.append(Stop(positions[index], hold))
         parts.append(Dwell(positions[index], max(clock, legs[-1].end_s if legs else clock),
                            clock + hold))
@@ -234,6 +250,23 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
             f'{len(stops) - 2} stops): lengthen horizon_s by '
             f'{math.ceil(schedule.arrival_s - end)} s or more')
     return schedule
+
+
+def _leg_shape(model: LegModel, path: np.ndarray, planned_s: float, leg_cruise: float,
+               limits: VehicleLimits, simplified: np.ndarray, keeps: SegmentCheck
+               ) -> tuple[np.ndarray, float, LegProfile]:
+    """A leg along ``path`` (K, 2) flown in ``planned_s`` or as close to it as ``leg_cruise``
+    allows: its fly-through waypoints (``simplified``, the indices of ``path`` that keep it
+    within the path tolerance, less the steps too short for its speed), its speed (in
+    0.01 m/s, at least :data:`MIN_SPEED_MPS`) and its motion."""
+    speed = max(model.speed_for_time(path, planned_s, leg_cruise, limits), MIN_SPEED_MPS)
+    speed = min(round(speed, 2), leg_cruise)
+    kept = drop_short_steps(path, simplified, 2.0 * ramp_distance(speed, limits), keeps)
+    if model.per_vertex:             # the turns kept are what the time depends on
+        speed = max(model.speed_for_time(path[kept], planned_s, leg_cruise, limits),
+                    MIN_SPEED_MPS)
+        speed = min(math.ceil(speed * 100.0) / 100.0, leg_cruise)
+    return path[kept], speed, model.profile(path[kept], speed, limits)
 
 
 def _leg_cruise(path: np.ndarray, scenario: Scenario, cruise: float) -> float:
