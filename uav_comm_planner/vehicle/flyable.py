@@ -20,7 +20,8 @@ the autopilot keeps:
    stopping cost. A leg that starts behind the plan (its hold already at the shortest) is flown
    faster, up to its cruise, to end where the plan ends it, and so is one that would leave the
    later legs, at their cruise, too little time to reach qF: time lost at a corner is made up
-   on the legs after it, not by leaving earlier. Holds are commanded in the firmware's
+   on the legs after it, and a leg leaves its stop before the plan's time only where even the
+   cruise on every later leg would reach qF late. Holds are commanded in the firmware's
    resolution (ArduPilot: whole seconds) on the predicted clock, so rounding never
    accumulates. A flight that cannot reach qF by the end of the horizon is refused with the
    numbers.
@@ -224,7 +225,7 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
         if target < timed - 1e-6 and speed < cruises[index]:
             faster = _leg_shape(model, paths[index], target, cruises[index], limits,
                                 simplified[index], keeps)
-            if faster[1] > speed:
+            if model.timed_s(faster[2]) < timed:    # PX4: fewer turns may fly slower
                 vertices, speed, profile = faster
         stops.append(Stop(positions[index], hold))
         parts.append(Dwell(positions[index], max(clock, legs[-1].end_s if legs else clock),
