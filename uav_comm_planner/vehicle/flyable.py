@@ -211,15 +211,14 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     for index, (vertices, speed, profile) in enumerate(shapes):
         first, last = runs[index][1], runs[index + 1][0]
         minimum = model.min_hold_s(legs[-1].profile if legs else None, cruise, limits)
-        centred = (0.5 * (times[first] + times[last] - model.timed_s(profile))
-                   - model.start_delay_s)
+        timed = model.timed_s(profile)
+        centred = 0.5 * (times[first] + times[last] - timed) - model.start_delay_s
         wanted = min(centred, latest_starts[index]) - clock
         hold = max(_quantise(wanted, resolution), minimum)
         if hold > wanted + 1e-9 and hold - resolution >= minimum:
             hold -= resolution       # round towards the earlier start when late
-        timed = model.timed_s(profile)
-        target = min(timed if clock + hold - centred <= 0.5 * resolution + 1e-9
-                     else timed - (clock + hold - centred),
+        behind_s = clock + hold - centred
+        target = min(timed - behind_s if behind_s > 0.5 * resolution + 1e-9 else timed,
                      deadlines[index] - clock - hold - model.start_delay_s
                      - model.after_timed_s)
         if target < timed - 1e-6 and speed < cruises[index]:
