@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from uav_comm_planner.core import initial
-from uav_comm_planner.core.model import legs
+from uav_comm_planner.core.model import legs, vector_lengths
 from uav_comm_planner.core.scenario import Scenario
 
 #: The share by which a leg may exceed V delta and still count as within the limit: the
@@ -63,10 +63,8 @@ def project_onto_speed_limit(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     steps = legs(q, scenario)
     lam = 0.0
     for centre, radius in limit_discs(scenario):
-        offset = steps - centre
-        # The legs' lengths as numpy.linalg.norm computes them, without its checks (this runs
-        # on every start and every step).
-        longest = float(np.sqrt((offset * offset).sum(axis=1)).max())
+        # Without numpy.linalg.norm's checks: this runs on every start and every step.
+        longest = float(vector_lengths(steps - centre, axis=1).max())
         if longest <= radius:
             continue
         straight_leg = (np.asarray(scenario.goal_m, float)

@@ -86,6 +86,12 @@ def legs(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     return np.diff(flown_path(q, scenario), axis=0)
 
 
+def vector_lengths(vectors: np.ndarray, axis: int) -> np.ndarray:
+    """Euclidean lengths along ``axis`` (as :func:`numpy.linalg.norm`, without its checks:
+    for the loops that measure many small arrays)."""
+    return np.sqrt((vectors * vectors).sum(axis=axis))
+
+
 def leg_lengths(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     """||q[1] - q0||, ||q[m] - q[m-1]||, ||qF - q[M]||: (M + 1,) metres."""
     return np.linalg.norm(legs(q, scenario), axis=1)

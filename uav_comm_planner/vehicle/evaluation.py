@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uav_comm_planner.core.model import average_rates, flown_path
+from uav_comm_planner.core.model import average_rates, flown_path, vector_lengths
 from uav_comm_planner.core.optimizer import PlanResult
 
 #: A planned point counts as reached within this distance (ArduCopter's WPNAV_RADIUS).
@@ -75,11 +75,6 @@ def distance_to_polyline(points: np.ndarray, vertices: np.ndarray) -> np.ndarray
                               / length2, 0.0), 1.0)
     nearest = a[None] + t[..., None] * ab[None]
     return vector_lengths(points[:, None, :] - nearest, axis=2).min(axis=1)
-
-
-def vector_lengths(vectors: np.ndarray, axis: int) -> np.ndarray:
-    """Euclidean lengths along ``axis`` (as :func:`numpy.linalg.norm`, without its checks)."""
-    return np.sqrt((vectors * vectors).sum(axis=axis))
 
 
 def positions_at(times_s: np.ndarray, track_times_s: np.ndarray,

@@ -15,8 +15,8 @@ from typing import Callable, Optional
 import numpy as np
 
 from uav_comm_planner.core.detour import segments_clear
+from uav_comm_planner.core.model import vector_lengths
 from uav_comm_planner.core.zones import Zones
-from uav_comm_planner.vehicle.evaluation import vector_lengths
 
 
 def hover_runs(points: np.ndarray, merge_radius_m: float) -> list[tuple[int, int]]:
