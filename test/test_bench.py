@@ -142,17 +142,22 @@ def test_random_scenarios_are_reproducible_and_reachable():
 
 def test_a_cold_plan_builds_the_cone_structure_again_and_a_warm_one_reuses_it():
     from uav_comm_planner.tools.bench import FAST, timed_plan
-    from uav_comm_planner.core.cone_layout import cone_layout
     from uav_comm_planner.core.scenario import SolverSettings
+    from uav_comm_planner.core.sca.block import Frame
+    from uav_comm_planner.core.sca.program import cone_program, step_blocks
 
     scenario = random_scenario(3, 30, 1, side_m=800.0)
     settings = SolverSettings.letter(compute_baselines=False)
+
+    def program():
+        return cone_program(step_blocks(Frame.of(scenario)))
+
     timed_plan(scenario, settings, FAST)
-    misses = cone_layout.cache_info().misses
+    warm = program()
     timed_plan(scenario, settings, FAST)
-    assert cone_layout.cache_info().misses == misses
+    assert program() is warm
     timed_plan(scenario, settings, FAST, cold=True)
-    assert cone_layout.cache_info().misses == 1
+    assert program() is not warm
 
 
 @pytest.mark.parametrize('title', ['Replans in flight: ', 'Replans in flight for PX4'])

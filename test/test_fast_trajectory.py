@@ -9,17 +9,18 @@ import pytest
 from scipy import sparse
 
 from uav_comm_planner import paper_scenario, plan, Scenario, SolverError, SolverSettings
-from uav_comm_planner.core.cone_layout import cone_layout
-from uav_comm_planner.core.fast_trajectory import (clarabel_settings, ClarabelTrajectoryStep,
-                                                   LOOSE_TOLERANCE, SolverCache, SOLVERS,
-                                                   trajectory_step_clarabel)
+from uav_comm_planner.core.sca.block import Expansion, Frame
+from uav_comm_planner.core.sca.fast import (clarabel_settings, ClarabelTrajectoryStep,
+                                            LOOSE_TOLERANCE, SolverCache, SOLVERS,
+                                            trajectory_step_clarabel)
+from uav_comm_planner.core.sca.program import cone_program, step_blocks
+from uav_comm_planner.core.sca.reference import certify
 from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.model import leg_lengths, snr_per_watt
 from uav_comm_planner.core.power import waterfilling_power
-from uav_comm_planner.core.feasibility import limit_discs
-from uav_comm_planner.core.trajectory import (kilometre_rows, KM, LegDisc, path_length_km,
-                                              PathBudget, sca_duality_gap, sca_lower_bound,
-                                              surrogate_coefficients, trajectory_step_cvxpy)
+from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
+from uav_comm_planner.core.sca.surrogate import (kilometre_rows, KM, path_length_km,
+                                                 sca_lower_bound, surrogate_coefficients)
 
 
 def random_radio_scenario(seed: int) -> Scenario:
@@ -117,35 +118,40 @@ def test_the_path_budget_binds_where_the_free_step_lengthens_the_path(name):
 
 
 def test_the_certificate_with_the_path_budget_bounds_the_optimum():
-    """sca_duality_gap with the budget is an upper bound on the step's optimum for any
+    """The blocks' certificate with the budget is an upper bound on the step's optimum for any
     multipliers, at any feasible point (weak duality): drawn at random (points between q^k and
     the optimum, both feasible), it never falls below the certified cvxpy optimum; a path over
     the budget is refused."""
     scenario = CASES['random-1']
     q_k, p = expansion_point(scenario, 0.2)
-    budget = path_length_km(q_k, scenario)
     step = trajectory_step_cvxpy(q_k, p, scenario, keep_path_length=True)
     optimum = step.bound
     weight, constant = kilometre_rows(surrogate_coefficients(q_k, p, scenario))
-    w = scenario.nodes / KM
-    start = np.reshape(scenario.start_m, (1, 2)) / KM
-    goal = np.reshape(scenario.goal_m, (1, 2)) / KM
+    frame = Frame.of(scenario)
+    blocks = step_blocks(frame, keep_path_length=True)
+    assert [type(b).__name__ for b in blocks] == ['NodeRates', 'LegLimits', 'PathBudget']
+    data = [block.at(Expansion(q_k, p)) for block in blocks]
+    w = frame.nodes
     rng = np.random.default_rng(3)
+    discs = len(blocks[1].discs)
     for _ in range(30):
         share = rng.uniform()
-        z = ((1.0 - share) * q_k + share * step.q) / KM
-        f = constant - (weight * ((z[None] - w[:, None]) ** 2).sum(axis=2)).mean(axis=1)
-        discs = [LegDisc(centre / KM, radius / KM,
-                         rng.exponential(0.05, scenario.num_slots + 1))
-                 for centre, radius in limit_discs(scenario)]
-        gap = sca_duality_gap(z, rng.exponential(1.0, scenario.num_nodes), discs, weight,
-                              constant, start, goal, w,
-                              budget=PathBudget(budget, rng.exponential(5.0)))
-        assert np.isfinite(gap)
-        assert gap * max(1.0, abs(f.min())) + f.min() >= optimum - 1e-9
-    over = sca_duality_gap(q_k / KM, np.ones(scenario.num_nodes), [], weight, constant, start,
-                           goal, w, budget=PathBudget(0.5 * budget, 1.0))
-    assert over == np.inf
+        z = frame.km((1.0 - share) * q_k + share * step.q)
+        # The value of the step's objective at z, from the letter's bound directly.
+        f = sca_lower_bound(frame.metres(z), q_k, p, scenario).mean(axis=1).min()
+        duals = [rng.exponential(1.0, scenario.num_nodes),
+                 [rng.exponential(0.05, scenario.num_slots + 1) for _ in range(discs)],
+                 [rng.exponential(5.0)]]
+        bound = certify(blocks, z, data, duals)
+        assert bound is not None and np.isfinite(bound.gap)
+        assert bound.value == pytest.approx(f, rel=1e-12, abs=1e-12)
+        assert bound.total >= optimum - 1e-9
+    halved = data[:2] + [(q_k, 0.5 * data[2][1])]
+    assert certify(blocks, frame.km(q_k), halved,
+                   [np.ones(scenario.num_nodes), [np.zeros(scenario.num_slots + 1)] * discs,
+                    [1.0]]) is None
+    assert weight.shape == (scenario.num_nodes, scenario.num_slots) and constant.shape == (
+        scenario.num_nodes,)
 
 
 def test_the_path_budget_holds_exactly_at_the_loose_tolerance():
@@ -168,17 +174,17 @@ def test_cone_rows_are_the_bound_minus_t_when_u_is_the_squared_norm():
     scenario = CASES['I-150-slots']
     q_k, p = expansion_point(scenario, 1.0, seed=3)
     stepper = ClarabelTrajectoryStep(scenario)
-    assert stepper.layout.num_sums > 0
-    values, b = stepper.cone_data(stepper.node_rows(q_k, p))
-    a = stepper.layout.matrix(values)
+    rates = stepper.blocks[0]
+    assert rates.num_sums > 0
+    values, b = stepper.cone_data([block.at(Expansion(q_k, p)) for block in stepper.blocks])
+    a = stepper.program.matrix(values)
     rng = np.random.default_rng(5)
     q = q_k + rng.normal(scale=200.0, size=q_k.shape)
     z = (q - stepper.centre_m) / KM
     t = 1.7
-    layout = stepper.layout
-    x = np.concatenate([[t], z.ravel(), (z ** 2).sum(axis=1), np.zeros(layout.num_sums)])
+    x = np.concatenate([[t], z.ravel(), (z ** 2).sum(axis=1), np.zeros(rates.num_sums)])
     # Each partial sum e_{n,k} set to its block's value leaves its block row with no slack.
-    block_rows = slice(layout.num_nodes, layout.num_nodes + layout.num_sums)
+    block_rows = slice(rates.num_nodes, rates.num_nodes + rates.num_sums)
     x[1 + 3 * scenario.num_slots:] = -(b - a @ x)[block_rows]
     np.testing.assert_allclose((b - a @ x)[block_rows], 0.0, atol=1e-12)
     slack = (b - a @ x)[:scenario.num_nodes]
@@ -186,10 +192,15 @@ def test_cone_rows_are_the_bound_minus_t_when_u_is_the_squared_norm():
     np.testing.assert_allclose(slack, expected, rtol=1e-9, atol=1e-9)
 
 
-def test_layout_has_one_entry_per_coefficient_and_is_cached():
-    layout = cone_layout(3, 150)
-    assert layout is cone_layout(3, 150)
-    assert (layout.block_slots, layout.num_blocks, layout.num_sums) == (64, 3, 9)
+def test_the_program_has_one_entry_per_coefficient_and_is_cached():
+    blocks = step_blocks(Frame.of(CASES['I-150-slots']))
+    layout = cone_program(blocks)
+    assert layout is cone_program(step_blocks(Frame.of(paper_scenario(
+        'II', num_slots=150, horizon_s=150.0, power_budget_w=2.0))))
+    rates = blocks[0]
+    assert (rates.block_slots, rates.num_blocks, rates.num_sums) == (64, 3, 9)
+    assert layout.first_rows == (0, 3 + 9 + 4 * 150)
+    assert layout.first_columns == (1 + 2 * 150, 1 + 3 * 150 + 9)
     a = layout.matrix(np.arange(1.0, len(layout.values) + 1.0))
     assert a.shape == (3 + 9 + 3 * 151 + 4 * 150, 1 + 3 * 150 + 9)
     # node rows: t and 3 sums each; block rows: 3 per slot and node plus -e; cones: 4 + 4.
@@ -210,8 +221,8 @@ def test_clarabel_reads_the_list_matrices_as_the_scipy_ones(name):
     scenario = CASES[name]
     q_k, p = expansion_point(scenario, 1.0, seed=2)
     stepper = ClarabelTrajectoryStep(scenario)
-    values, b = stepper.cone_data(stepper.node_rows(q_k, p))
-    layout = stepper.layout
+    values, b = stepper.cone_data([block.at(Expansion(q_k, p)) for block in stepper.blocks])
+    layout = stepper.program
     p_lists, a_lists = layout.clarabel_matrices(values)
     a = layout.matrix(values)
     np.testing.assert_array_equal(a_lists.data, a.data)
@@ -230,8 +241,9 @@ def test_clarabel_reads_the_list_matrices_as_the_scipy_ones(name):
 
 
 def test_a_single_block_puts_the_coefficients_in_the_node_rows():
-    layout = cone_layout(3, 50)
-    assert (layout.num_blocks, layout.num_sums) == (1, 0)
+    blocks = step_blocks(Frame.of(CASES['I']))
+    layout = cone_program(blocks)
+    assert (blocks[0].num_blocks, blocks[0].num_sums) == (1, 0)
     a = layout.matrix(np.arange(1.0, len(layout.values) + 1.0)).toarray()
     assert a.shape == (3 + 3 * 51 + 4 * 50, 1 + 3 * 50)
     assert np.all(a[:3] != 0.0)
@@ -301,7 +313,7 @@ def test_a_step_that_fails_with_partial_sums_is_solved_without_them(monkeypatch)
     stepper = ClarabelTrajectoryStep(scenario)
     step = stepper(q_k, p, scenario)
     assert columns[:2] == [1 + 3 * 150 + 9] * 2 and columns[2] == 1 + 3 * 150
-    assert stepper.layout.num_sums == 0
+    assert stepper.blocks[0].num_sums == 0
     assert step.bound == pytest.approx(reference.bound, rel=1e-6)
 
 

@@ -9,7 +9,7 @@ from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.model import average_rates, leg_lengths, snr_per_watt
 from uav_comm_planner.core.optimizer import alternate, baseline_rates
 from uav_comm_planner.core.power import waterfilling_power
-from uav_comm_planner.core.trajectory import trajectory_step_cvxpy
+from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 
 
 def assert_feasible(result):

@@ -15,14 +15,15 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import InfeasibleHorizonError, InvalidScenarioError, paper_scenario, plan
-from uav_comm_planner.core.fast_trajectory import trajectory_step_clarabel
+from uav_comm_planner.core.sca.fast import trajectory_step_clarabel
 from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.model import snr_per_watt, squared_distances
 from uav_comm_planner.core.power import conic_power, power_dual_bound, waterfilling_power
 from uav_comm_planner.core.receding import (delivered_bits, FlownSlots, mission_rates_flown,
                                             power_for_nodes, replan, rest_of_mission)
 from uav_comm_planner.core.scenario import SolverSettings
-from uav_comm_planner.core.trajectory import sca_lower_bound, trajectory_step_cvxpy
+from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
+from uav_comm_planner.core.sca.surrogate import sca_lower_bound
 
 FAST = SolverSettings(compute_baselines=False)
 

@@ -9,7 +9,8 @@ from uav_comm_planner import paper_scenario
 from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.model import leg_lengths, snr_per_watt
 from uav_comm_planner.core.power import waterfilling_power
-from uav_comm_planner.core.trajectory import sca_lower_bound, trajectory_step_cvxpy
+from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
+from uav_comm_planner.core.sca.surrogate import sca_lower_bound
 from uav_comm_planner.errors import SolverError
 
 
@@ -90,13 +91,15 @@ def test_solver_status_is_checked(monkeypatch, expansion):
 def test_the_reference_step_is_certified_by_its_duality_gap(monkeypatch):
     """Each cvxpy step is accepted on a duality gap far below its tolerance; the same bound at a
     point moved off the optimum, or past a speed limit, refuses it."""
-    from uav_comm_planner.core import trajectory
+    from uav_comm_planner.core.sca import reference
+    from uav_comm_planner.core.sca.block import Expansion, Frame
+    from uav_comm_planner.core.sca.program import step_blocks
 
     scenario = paper_scenario('I')
     q_k = straight_line(scenario)
     p = waterfilling_power(snr_per_watt(q_k, scenario), scenario.power_budget_w).p
     seen = {}
-    solve = trajectory.solve_checked
+    solve = reference.solve_checked
 
     def spy(problem, step, solver, attempts, check):
         certificate = solve(problem, step, solver, attempts, check)
@@ -105,29 +108,26 @@ def test_the_reference_step_is_certified_by_its_duality_gap(monkeypatch):
                     duals=[c.dual_value for c in problem.constraints])
         return certificate
 
-    monkeypatch.setattr(trajectory, 'solve_checked', spy)
+    monkeypatch.setattr(reference, 'solve_checked', spy)
     step = trajectory_step_cvxpy(q_k, p, scenario)
     assert seen['certificate'].gap < 1e-8
 
-    weight, constant = trajectory.kilometre_rows(
-        trajectory.surrogate_coefficients(q_k, p, scenario))
-    km = trajectory.KM
-    disc = trajectory.LegDisc(np.zeros(2), scenario.max_step_m / km,
-                              np.asarray(seen['duals'][0], dtype=float))
-    args = (np.array([float(d) for d in seen['duals'][1:]]), [disc], weight, constant,
-            np.reshape(scenario.start_m, (1, 2)) / km, np.reshape(scenario.goal_m, (1, 2)) / km,
-            scenario.nodes / km)
+    frame = Frame.of(scenario)
+    blocks = step_blocks(frame)
+    data = [block.at(Expansion(q_k, p)) for block in blocks]
+    n = scenario.num_nodes
+    duals = [seen['duals'][:n], seen['duals'][n:]]
     z = seen['z']
-    np.testing.assert_allclose(z * km, step.q)
-    assert trajectory.sca_duality_gap(z, *args) < 1e-8
+    np.testing.assert_allclose(frame.metres(z), step.q)
+    assert reference.certify(blocks, z, data, duals).gap < 1e-8
     # The straight line is feasible and worse than the optimum: its gap is at least the
     # difference of the two values (weak duality makes the bound hold at any feasible point).
-    line = q_k / km
-    values = [float((constant - (weight * ((x[None] - args[-1][:, None]) ** 2).sum(axis=2))
-                     .sum(axis=1) / scenario.num_slots).min()) for x in (z, line)]
+    line = frame.km(q_k)
+    values = [float(sca_lower_bound(frame.metres(x), q_k, p, scenario).mean(axis=1).min())
+              for x in (z, line)]
     assert values[0] > values[1]
-    assert trajectory.sca_duality_gap(line, *args) * max(1, abs(values[1])) \
+    assert reference.certify(blocks, line, data, duals).gap * max(1, abs(values[1])) \
         >= values[0] - values[1] - 1e-12
     too_fast = z.copy()
-    too_fast[0] += 2 * scenario.max_step_m / km
-    assert trajectory.sca_duality_gap(too_fast, *args) == math.inf
+    too_fast[0] += 2 * scenario.max_step_m / 1000.0
+    assert reference.certify(blocks, too_fast, data, duals) is None

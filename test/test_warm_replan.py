@@ -14,7 +14,7 @@ from uav_comm_planner.core.drops import random_scenario
 from uav_comm_planner.core.feasibility import retimed, within_speed_limit
 from uav_comm_planner.core.model import average_rates, snr_per_watt
 from uav_comm_planner.core.power import conic_power
-from uav_comm_planner.core.trajectory import path_length_km
+from uav_comm_planner.core.sca.surrogate import path_length_km
 from uav_comm_planner.core.receding import (FlownSlots, PREVIOUS_PLAN_START, receding_problem,
                                             rejoined, replan, WARM_SHORTLIST,
                                             WARM_STARTS)

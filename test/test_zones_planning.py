@@ -13,14 +13,14 @@ from uav_comm_planner.core.detour import (_corner_graph, around_zones, GRAPH_CHU
                                           GRAPH_CLEARANCE_M, graph_corners, hover_start,
                                           outside_point, path_length, segments_clear,
                                           shortest_path)
-from uav_comm_planner.core.fast_trajectory import trajectory_step_clarabel
+from uav_comm_planner.core.sca.fast import trajectory_step_clarabel
 from uav_comm_planner.core.feasibility import within_speed_limit
 from uav_comm_planner.core.model import average_rates, flown_path, snr_per_watt
 from uav_comm_planner.core.optimizer import optimal_power, plan
 from uav_comm_planner.core.power import waterfilling_power
 from uav_comm_planner.core.receding import CLEAR_START_MAX_M, FlownSlots, replan
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
-from uav_comm_planner.core.trajectory import trajectory_step_cvxpy
+from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 from uav_comm_planner.core.zone_rows import _outward_edges, ZONE_CUSHION_M, zone_model
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, OperatingArea, Zones
 from uav_comm_planner.errors import (InfeasibleHorizonError, InvalidScenarioError,

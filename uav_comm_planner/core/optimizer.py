@@ -14,7 +14,7 @@ import numpy as np
 
 from uav_comm_planner.core import detour
 from uav_comm_planner.core.bound import dual_upper_bound
-from uav_comm_planner.core.fast_trajectory import LOOSE_TOLERANCE
+from uav_comm_planner.core.sca.fast import LOOSE_TOLERANCE
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt,
                                          snr_scale, spectral_efficiencies,
@@ -24,7 +24,7 @@ from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.splits import resplit
 from uav_comm_planner.core.steps import PowerSolver, step_solvers, TrajectorySolver
 from uav_comm_planner.core.tours import distinct_tours, tour_draws
-from uav_comm_planner.core.trajectory import trajectory_step_cvxpy
+from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 from uav_comm_planner.core.zone_rows import zone_model
 from uav_comm_planner.errors import InvalidScenarioError, PlanCancelledError, SolverError
 

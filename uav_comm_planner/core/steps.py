@@ -12,10 +12,11 @@ from typing import Callable
 
 import numpy as np
 
-from uav_comm_planner.core.fast_trajectory import ClarabelTrajectoryStep, trajectory_step_clarabel
+from uav_comm_planner.core.sca.fast import ClarabelTrajectoryStep, trajectory_step_clarabel
 from uav_comm_planner.core.power import conic_power, PowerAllocation, waterfilling_power
 from uav_comm_planner.core.scenario import Scenario
-from uav_comm_planner.core.trajectory import trajectory_step_cvxpy, TrajectoryStep
+from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
+from uav_comm_planner.core.sca.surrogate import TrajectoryStep
 from uav_comm_planner.errors import InvalidScenarioError
 
 PowerSolver = Callable[[np.ndarray, float], PowerAllocation]

@@ -40,8 +40,8 @@ import numpy as np
 from scipy.special import betaincinv
 
 from uav_comm_planner.core.drops import random_scenario
-from uav_comm_planner.core.cone_layout import cone_layout
-from uav_comm_planner.core.fast_trajectory import SOLVERS
+from uav_comm_planner.core.sca.program import clear_programs
+from uav_comm_planner.core.sca.fast import SOLVERS
 from uav_comm_planner.core.optimizer import alternate, plan, PlanResult
 from uav_comm_planner.core.steps import step_solvers
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
@@ -89,7 +89,7 @@ def timed_plan(scenario: Scenario, settings: SolverSettings, methods: dict[str, 
     function of N and M only) between plans, as a running planner does; ``cold`` drops it
     first, so the plan also builds it, as the first plan of each size does."""
     if cold:
-        cone_layout.cache_clear()
+        clear_programs()
         SOLVERS.clear()
     began = time.perf_counter()
     result = plan(scenario, settings, **methods)
