@@ -8,23 +8,24 @@ import functools
 import logging
 import math
 import time
-from typing import Callable, Mapping
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
 from uav_comm_planner.core import detour
 from uav_comm_planner.core.bound import dual_upper_bound
-from uav_comm_planner.core.sca.fast import LOOSE_TOLERANCE
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt,
                                          snr_scale, spectral_efficiencies,
                                          spectral_efficiency_to_rate)
 from uav_comm_planner.core.power import checked_offsets, waterfilling_power
+from uav_comm_planner.core.sca.block import BlockFactory, Frame
+from uav_comm_planner.core.sca.fast import LOOSE_TOLERANCE
+from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.splits import resplit
 from uav_comm_planner.core.steps import PowerSolver, step_solvers, TrajectorySolver
 from uav_comm_planner.core.tours import distinct_tours, tour_draws
-from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 from uav_comm_planner.core.zone_rows import zone_model
 from uav_comm_planner.errors import InvalidScenarioError, PlanCancelledError, SolverError
 
@@ -346,7 +347,7 @@ def _joined(first: Run, *later: Run) -> Run:
 
 def _set_tolerance(trajectory_solver: TrajectorySolver, tolerance: float | None) -> None:
     """Loosen (or, with None, restore) the interior-point tolerance of a solver that offers it
-    (:class:`~uav_comm_planner.core.fast_trajectory.ClarabelTrajectoryStep`); the cvxpy
+    (:class:`~uav_comm_planner.core.sca.fast.ClarabelTrajectoryStep`); the cvxpy
     reference always solves at its own."""
     setter = getattr(trajectory_solver, 'set_tolerance', None)
     if setter is not None:
@@ -441,7 +442,8 @@ def stop_checker(should_stop: StopCheck | None) -> Callable[[], None]:
 def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
          power_method: str = 'waterfilling', trajectory_method: str = 'clarabel',
          should_stop: StopCheck | None = None, offsets: np.ndarray | None = None,
-         extra_starts: Mapping[str, np.ndarray] | None = None) -> PlanResult:
+         extra_starts: Mapping[str, np.ndarray] | None = None,
+         blocks: Sequence[BlockFactory] = ()) -> PlanResult:
     """Jointly optimise the trajectory and the transmit power for ``scenario``.
 
     Runs the letter's Algorithm 1 from every start in ``settings.starts`` (by default the
@@ -486,17 +488,19 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     offsets = checked_offsets(offsets, scenario.num_nodes)
     with detour.stoppable(check_stop):      # the paths around the zones ask it too
         return _best_plan(scenario, settings, power_method, trajectory_method, should_stop,
-                          check_stop, offsets, extra_starts)
+                          check_stop, offsets, extra_starts, tuple(blocks))
 
 
 def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
                trajectory_method: str, should_stop: StopCheck | None,
                check_stop: Callable[[], None], offsets: np.ndarray | None,
-               extra_starts: Mapping[str, np.ndarray] | None) -> PlanResult:
+               extra_starts: Mapping[str, np.ndarray] | None,
+               blocks: tuple[BlockFactory, ...] = ()) -> PlanResult:
     """:func:`plan`'s work once its arguments are checked."""
     began = time.perf_counter()
     power_solver, trajectory_solver = step_solvers(scenario, power_method, trajectory_method,
-                                                   keep_path_length=settings.keep_path_length)
+                                                   keep_path_length=settings.keep_path_length,
+                                                   blocks=blocks)
     starts = {name: STARTS[name] for name in settings.starts}
     keeper = _zone_keeper(scenario)
     for name, trajectory in (extra_starts or {}).items():
@@ -504,6 +508,7 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
             logger.info('start %r left out: it does not keep out of the zones', name)
             continue
         starts[name] = Start.given(name, trajectory)
+    admitted = _admitted_by(scenario, blocks)
     run_from = functools.partial(alternate, scenario, power_solver=power_solver,
                                  trajectory_solver=trajectory_solver, should_stop=should_stop,
                                  offsets=offsets)
@@ -511,10 +516,21 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
         draws = tour_draws(scenario, settings.screened_tours)
         tours = {name: q for name, q in distinct_tours(scenario, draws).items() if name not in
                  starts and (keeper is None or keeper.keeps(q))}    # none crossing a zone
+        tours = {name: q for name, q in tours.items() if admitted(q)}
+        starts = {name: start for name, start in starts.items()
+                  if admitted(start.make(scenario))}
+        if not starts and not tours:
+            raise InvalidScenarioError('no start keeps the extra blocks: give a start that does '
+                                       '(extra_starts) or loosen them')
         starts.update({name: Start.given(name, q) for name, q in tours.items()})
         runs = _screened_runs(scenario, starts, settings, run_from, trajectory_solver,
                               {name: draws[name] for name in tours})
     else:
+        starts = {name: start for name, start in starts.items()
+                  if admitted(start.make(scenario))}
+        if not starts:
+            raise InvalidScenarioError('no start keeps the extra blocks: give a start that does '
+                                       '(extra_starts) or loosen them')
         runs = {name: run_from(start.make(scenario), settings) for name, start in starts.items()}
     order = list(runs)
     values = {name: run.min_throughput for name, run in runs.items()}
@@ -533,6 +549,20 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
         solve_time_s=time.perf_counter() - began, start=best,
         upper_bound=(throughput_upper_bound(scenario) if offsets is None else math.inf),
         start_throughputs=values, offsets=offsets)
+
+
+def _admitted_by(scenario: Scenario,
+                 blocks: tuple[BlockFactory, ...]) -> Callable[[np.ndarray], bool]:
+    """Whether a start q (M, 2) metres is admitted by every extra block (always, without)."""
+    if not blocks:
+        return lambda q: True
+    frame = Frame.of(scenario)
+    built = [make(frame) for make in blocks]
+
+    def admitted(q: np.ndarray) -> bool:
+        q = project_onto_speed_limit(np.asarray(q, dtype=float), scenario)
+        return all(block.admits(q) for block in built)
+    return admitted
 
 
 def plan_along(scenario: Scenario, q: np.ndarray, settings: SolverSettings | None = None, *,

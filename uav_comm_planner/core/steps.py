@@ -8,10 +8,11 @@ Clarabel solver updated in place (default) or the cvxpy reference rebuilt at eve
 from __future__ import annotations
 
 import functools
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
+from uav_comm_planner.core.sca.block import BlockFactory
 from uav_comm_planner.core.sca.fast import ClarabelTrajectoryStep, trajectory_step_clarabel
 from uav_comm_planner.core.power import conic_power, PowerAllocation, waterfilling_power
 from uav_comm_planner.core.scenario import Scenario
@@ -31,17 +32,20 @@ TRAJECTORY_SOLVERS: dict[str, TrajectorySolver] = {
     'clarabel': trajectory_step_clarabel,
 }
 #: Methods whose steps share one solver per plan, built for the scenario and updated in place.
-TRAJECTORY_STEPPERS: dict[str, Callable[[Scenario], TrajectorySolver]] = {
+TRAJECTORY_STEPPERS: dict[str, Callable[..., TrajectorySolver]] = {
     'clarabel': ClarabelTrajectoryStep,
 }
 
 
 def step_solvers(scenario: Scenario, power_method: str, trajectory_method: str, *,
-                 keep_path_length: bool = False) -> tuple[PowerSolver, TrajectorySolver]:
+                 keep_path_length: bool = False,
+                 blocks: Sequence[BlockFactory] = ()) -> tuple[PowerSolver, TrajectorySolver]:
     """The power and trajectory steps for these method names (:data:`POWER_SOLVERS`,
     :data:`TRAJECTORY_SOLVERS`), a stepper built for ``scenario`` where there is one; with
     ``keep_path_length`` every trajectory step keeps the path no longer than its expansion
-    point's (:class:`~uav_comm_planner.core.scenario.SolverSettings`)."""
+    point's (:class:`~uav_comm_planner.core.scenario.SolverSettings`); ``blocks`` adds
+    constraints to every trajectory step (:class:`~uav_comm_planner.core.sca.block.Block`
+    factories)."""
     try:
         power_solver = POWER_SOLVERS[power_method]
         trajectory_solver = TRAJECTORY_SOLVERS[trajectory_method]
@@ -55,9 +59,11 @@ def step_solvers(scenario: Scenario, power_method: str, trajectory_method: str, 
             f'trajectory_method one of {sorted(TRAJECTORY_SOLVERS)}') from None
     if trajectory_method in TRAJECTORY_STEPPERS:
         trajectory_solver = TRAJECTORY_STEPPERS[trajectory_method](
-            scenario, keep_path_length=keep_path_length)
-    elif keep_path_length:
-        trajectory_solver = functools.partial(trajectory_solver, keep_path_length=True)
+            scenario, keep_path_length=keep_path_length, blocks=tuple(blocks))
+    elif keep_path_length or blocks:
+        trajectory_solver = functools.partial(trajectory_solver,
+                                              keep_path_length=keep_path_length,
+                                              blocks=tuple(blocks))
     return power_solver, trajectory_solver
 
 

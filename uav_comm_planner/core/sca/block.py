@@ -238,6 +238,12 @@ class Block:
         """Whether q (M, 2) metres keeps the block to within the share ``slack``."""
         return True
 
+    def admits(self, q: np.ndarray) -> bool:
+        """Whether Algorithm 1 may start from q (M, 2) metres: the block holds there (True by
+        default, for blocks that hold at every expansion point by construction, like the
+        zones' restriction or the path budget). A start it does not admit is left out."""
+        return True
+
     def repair(self, q: np.ndarray, data: Any) -> np.ndarray:
         """A solver's answer q (M, 2) metres moved to keep the block exactly (q by default)."""
         return q
