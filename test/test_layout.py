@@ -8,7 +8,7 @@
 | ros/      | core, vehicle, mission, rclpy and ROS messages                          |
 | tools/    | core, vehicle, mission, scipy, matplotlib, dask, pyarrow; never rclpy   |
 | top level | errors and files import nothing of the package; ``__init__`` re-exports |
-|           | the public API from core                                                |
+|           | the public API from core, mission and vehicle                            |
 
 Inside vehicle/, ``mavlink/`` builds on the other modules, none of which imports it.
 
@@ -116,14 +116,34 @@ def test_errors_and_files_import_nothing_of_the_package():
         assert not [n for n in names if n.split('.')[0] == PACKAGE], stem
 
 
-def test_the_public_api_comes_from_core_and_errors():
+def test_the_public_api_comes_from_core_mission_vehicle_and_errors():
     names = imported_modules(ROOT / '__init__.py')
     assert {package_part(n) for n in names if n.split('.')[0] == PACKAGE} <= {'core', 'errors'}
     import uav_comm_planner
+    # The names loaded on first use: from the core, the mission layer and the vehicle's limits.
+    assert {package_part(n) for n in uav_comm_planner._LAZY.values()} == {'core', 'mission',
+                                                                          'vehicle'}
     for name in ('plan', 'paper_scenario', 'Scenario', 'SolverSettings', 'PlanResult',
                  'PlannerError', 'InvalidScenarioError', 'InfeasibleHorizonError',
-                 'SolverError', 'MissionExportError'):
+                 'SolverError', 'MissionExportError', 'plan_mission', 'MissionRequest',
+                 'MissionPlan', 'VehicleLimits'):
         assert hasattr(uav_comm_planner, name), name
+        assert name in uav_comm_planner.__all__, name
+
+
+def test_the_mission_layer_imports_from_the_top_level_package():
+    """``from uav_comm_planner import ...`` gives the mission layer's own objects; a name the
+    package does not export is an AttributeError, not a lazy import of something else."""
+    import uav_comm_planner
+    from uav_comm_planner import MissionPlan, MissionRequest, plan_mission, VehicleLimits
+    from uav_comm_planner.mission import pipeline, request
+    from uav_comm_planner.vehicle import limits
+
+    assert plan_mission is pipeline.plan_mission and MissionPlan is pipeline.MissionPlan
+    assert MissionRequest is request.MissionRequest
+    assert VehicleLimits is limits.VehicleLimits
+    with pytest.raises(AttributeError, match="no attribute 'plan_missions'"):
+        uav_comm_planner.plan_missions
 
 
 def devtools_modules() -> list[Path]:
