@@ -96,11 +96,12 @@ fuzz: $(STAMP)
 	$(BIN)/python test/fuzz/fuzz_api_cli.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
 	$(BIN)/python test/fuzz/fuzz_vehicle.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
 
-# The flight section flies on ArduCopter SITL: $(SITL), or $$UAV_COMM_PLANNER_SITL if unset.
+# The benchmark, from devtools/ (not installed). Its flight section flies on ArduCopter SITL:
+# $(SITL), or $$UAV_COMM_PLANNER_SITL if unset.
 SITL ?= $(wildcard ../shared/sitl/arducopter)
 
 bench: $(STAMP)
-	$(BIN)/uav-comm-planner bench $(if $(SITL),--sitl $(SITL)) $(ARGS)
+	$(BIN)/python -m devtools.bench $(if $(SITL),--sitl $(SITL)) $(ARGS)
 
 figures: $(STAMP)
 	mkdir -p docs
@@ -111,9 +112,10 @@ figures: $(STAMP)
 	$(BIN)/uav-comm-planner plan --case I --bandwidth 1e6 --beta0 1e-6 --budget 0.5 \
 		--figure docs/fig1_case_I_low_snr.png
 
-# The parameter tables of docs/node.md, from the node's own parameter descriptors.
+# The parameter tables of docs/node.md, from the node's own parameter descriptors
+# (devtools/docgen.py, not installed).
 docs: $(STAMP)
-	$(BIN)/python -m uav_comm_planner.ros.docgen docs/node.md
+	$(BIN)/python -m devtools.docgen docs/node.md
 
 clean:
 	rm -rf $(VENV) $(LATEST_VENV) build *.egg-info

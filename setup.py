@@ -16,7 +16,8 @@ setup(
     # Keep equal to package.xml's <version> (a test checks); `uav-comm-planner --version`
     # reads it back from the installed metadata.
     version='0.1.0',
-    packages=find_packages(exclude=['test']),
+    # The package only: devtools/ (SITL launchers, benchmark, docgen) and test/ stay out.
+    packages=find_packages(include=[PACKAGE, f'{PACKAGE}.*']),
     data_files=[
         ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
         (f'share/{PACKAGE}', ['package.xml']),

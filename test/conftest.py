@@ -4,9 +4,16 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+import sys
 from typing import Iterator
 
 import pytest
+
+#: The checkout, whose devtools/ (SITL launchers, the benchmark, docgen) the tests import: it is
+#: not installed with the package.
+CHECKOUT = Path(__file__).resolve().parents[1]
+if str(CHECKOUT) not in sys.path:
+    sys.path.insert(0, str(CHECKOUT))
 
 #: Where CI keeps its ArduCopter SITL binary: ../shared/sitl/ beside the checkout.
 CHECKOUT_SITL = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'arducopter'

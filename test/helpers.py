@@ -22,6 +22,9 @@ from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
+#: Six nodes uniform in a 1500 m x 800 m field, flown from (0, 0) to (1500, 0) at 10 m/s: the
+#: field the flights and the vehicle-aware tests use (the benchmark's own).
+from devtools.flights import random_six_nodes  # noqa: F401
 from uav_comm_planner import paper_scenario, plan, Scenario
 from uav_comm_planner.core import drops
 from uav_comm_planner.ros.messages import nanoseconds_of, pose_array
@@ -29,9 +32,6 @@ from uav_comm_planner.ros.node import (GROUND_NODES_QOS, NODE_NAME, PlannerNode,
                                        TOPIC_GROUND_NODES, TOPIC_UAV_POSE)
 from uav_comm_planner.ros.publishing import (OUTPUT_QOS, TOPIC_MARKERS, TOPIC_MIN_THROUGHPUT,
                                              TOPIC_PATH, TOPIC_POWER)
-#: Six nodes uniform in a 1500 m x 800 m field, flown from (0, 0) to (1500, 0) at 10 m/s: the
-#: field the flights and the vehicle-aware tests use (the package's own, for the benchmark).
-from uav_comm_planner.tools.flights import random_six_nodes  # noqa: F401
 
 
 def random_scenario(seed: int, nodes: int = 6, slots: int = 60, *, side_m: float = 2000.0,

@@ -1,14 +1,18 @@
-"""The benchmark's smallest run, through the command line, read back from its printed tables."""
+"""The benchmark's smallest run, through its command line (``make bench`` runs it), read back
+from its printed tables."""
 
 import math
 import os
+from pathlib import Path
 import re
+import subprocess
+import sys
 
 import pytest
 
+from devtools import bench
+from devtools.bench import peak_memory_mib, share_lower_bound
 from uav_comm_planner.core.drops import random_scenario
-from uav_comm_planner.tools import cli
-from uav_comm_planner.tools.bench import peak_memory_mib, share_lower_bound
 
 
 @pytest.fixture(scope='module')
@@ -19,7 +23,7 @@ def output():
     buffer = io.StringIO()
     with contextlib.redirect_stdout(buffer):
         # The flights are test_sitl_flight.py's: here only the solver's sections.
-        assert cli.main(['bench', '--quick', '--no-flights']) == 0
+        assert bench.main(['--quick', '--no-flights']) == 0
     return buffer.getvalue()
 
 
@@ -27,6 +31,25 @@ def section(text: str, title: str) -> list[str]:
     """The lines of the section whose heading starts with ``title``."""
     body = text.split(f'\n== {title}', 1)[1]
     return body.split('\n== ', 1)[0].strip().splitlines()[1:]
+
+
+def test_make_bench_runs_the_benchmark_from_devtools_not_the_installed_command(capsys):
+    """``make bench`` runs ``python -m devtools.bench`` from the checkout (devtools/ is not
+    installed), and the installed command has no ``bench`` any more."""
+    checkout = Path(__file__).resolve().parents[1]
+    done = subprocess.run(['make', '--dry-run', '--always-make', 'bench', 'SITL=',
+                           f'VENV={sys.prefix}'], cwd=checkout, capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert f'{sys.prefix}/bin/python -m devtools.bench' in done.stdout.splitlines()[-1]
+    helped = subprocess.run([sys.executable, '-m', 'devtools.bench', '--help'], cwd=checkout,
+                            capture_output=True, text=True, timeout=60)
+    assert helped.returncode == 0, helped.stderr
+    assert helped.stdout.startswith('usage: python -m devtools.bench')
+    from uav_comm_planner.tools import cli
+
+    assert cli.main(['bench', '--quick']) == 2
+    assert "invalid choice: 'bench'" in capsys.readouterr().err
 
 
 def test_every_section_is_printed(output):
@@ -141,7 +164,7 @@ def test_random_scenarios_are_reproducible_and_reachable():
 
 
 def test_a_cold_plan_builds_the_cone_structure_again_and_a_warm_one_reuses_it():
-    from uav_comm_planner.tools.bench import FAST, timed_plan
+    from devtools.bench import FAST, timed_plan
     from uav_comm_planner.core.scenario import SolverSettings
     from uav_comm_planner.core.sca.block import Frame
     from uav_comm_planner.core.sca.program import cone_program, step_blocks

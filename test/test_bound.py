@@ -5,6 +5,7 @@ from helpers import random_scenario
 import numpy as np
 import pytest
 
+from devtools.bench import LOW_SNR, quality_drop
 from uav_comm_planner import plan, Scenario, SolverSettings
 from uav_comm_planner.core import bound
 from uav_comm_planner.core.feasibility import project_onto_speed_limit, within_speed_limit
@@ -14,7 +15,6 @@ from uav_comm_planner.core.optimizer import alternate
 from uav_comm_planner.core.steps import step_solvers
 from uav_comm_planner.core.power import power_dual_bound
 from uav_comm_planner.core.tours import random_tours
-from uav_comm_planner.tools.bench import LOW_SNR, quality_drop
 
 
 def random_flight(scenario: Scenario, rng: np.random.Generator) -> np.ndarray:

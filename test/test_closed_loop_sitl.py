@@ -18,6 +18,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from devtools.sitl import (open_link, set_mode, set_parameter, start_sitl, take_off,
+                           why_not_runnable)
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.core.receding import mission_rates_flown
 from uav_comm_planner.ros.messages import pose_array
@@ -26,8 +28,6 @@ from uav_comm_planner.ros.vehicle import TOPIC_VEHICLE_POSE
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.mavlink.items import Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.telemetry import request_telemetry
-from uav_comm_planner.vehicle.sitl import (open_link, set_mode, set_parameter, start_sitl,
-                                           take_off, why_not_runnable)
 
 HOME = Home(-35.363262, 149.165237, 584.0)
 SPEED_MPS = 10.0

@@ -9,7 +9,7 @@ import shutil
 import pytest
 import yaml
 
-from uav_comm_planner.ros import docgen
+from devtools import docgen
 from uav_comm_planner.ros.params import parameter_specs
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,7 +23,7 @@ LINK = re.compile(r'(?<![\w\]])\[[^\]]*\]\(([^)\s]+)\)')
 def test_node_md_parameter_tables_are_what_the_code_generates():
     text = NODE_DOC.read_text(encoding='utf-8')
     assert docgen.replace_section(text, docgen.parameter_tables()) == text, (
-        'docs/node.md is out of date: run python -m uav_comm_planner.ros.docgen')
+        'docs/node.md is out of date: run python -m devtools.docgen')
     assert docgen.main(['--check', str(NODE_DOC)]) == 0
 
 

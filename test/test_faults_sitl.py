@@ -24,6 +24,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from devtools.sitl import (MAV, open_link, set_mode, set_parameter, start_sitl, take_off,
+                           why_not_runnable)
 from uav_comm_planner import paper_scenario, plan, SolverSettings
 from uav_comm_planner.core.receding import mission_rates_flown
 from uav_comm_planner.ros.diagnostics import DIAGNOSTICS_QOS, TOPIC_DIAGNOSTICS, VEHICLE_LINK
@@ -33,8 +35,6 @@ from uav_comm_planner.ros.publishing import STATUS_QOS, TOPIC_STATUS
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, geodetic_to_enu, Home
 from uav_comm_planner.vehicle.mavlink.files import export_mission
 from uav_comm_planner.vehicle.mavlink.link import download_mission
-from uav_comm_planner.vehicle.sitl import (MAV, open_link, set_mode, set_parameter, start_sitl,
-                                           take_off, why_not_runnable)
 
 HOME = Home(-35.363262, 149.165237, 584.0)
 SPEED_MPS = 10.0

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import pytest
 
+from devtools.sitl import fly_plan, why_not_runnable
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.core.zones import KeepOutPolygon, OperatingArea, Zones
 from uav_comm_planner.vehicle.fence import fence_from_zones
@@ -29,7 +30,6 @@ from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink.fence import fence_items
 from uav_comm_planner.vehicle.mavlink.guided import COPTER_MODES
 from uav_comm_planner.vehicle.mavlink.items import mismatches
-from uav_comm_planner.vehicle.sitl import fly_plan, why_not_runnable
 
 pytestmark = [pytest.mark.sitl,
               pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())]

@@ -14,6 +14,7 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from visualization_msgs.msg import Marker, MarkerArray
 
+from devtools.sitl import open_link, start_sitl, why_not_runnable
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, OperatingArea, Zones
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.ros.node import PlannerNode
@@ -23,7 +24,6 @@ from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
 from uav_comm_planner.vehicle.mavlink.fence import fence_items, MISSION_TYPE_FENCE
 from uav_comm_planner.vehicle.mavlink.items import mismatches
 from uav_comm_planner.vehicle.mavlink.link import download_mission
-from uav_comm_planner.vehicle.sitl import open_link, start_sitl, why_not_runnable
 
 HOME = Home(*DEFAULT_HOME)
 #: Away from the harness's plan (its nodes lie between y = -150 and 250).

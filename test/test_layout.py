@@ -8,10 +8,12 @@
 | ros/      | core, vehicle, mission, rclpy and ROS messages                          |
 | tools/    | core, vehicle, mission, scipy, matplotlib, dask, pyarrow; never rclpy   |
 | top level | errors and files import nothing of the package; ``__init__`` re-exports |
-|           | the public API from core                                                |
+|           | the public API from core, mission and vehicle                            |
 
-Inside vehicle/, ``mavlink/`` builds on the other modules; of those, only ``sitl`` (which flies
-missions over the link) imports it.
+Inside vehicle/, ``mavlink/`` builds on the other modules, none of which imports it.
+
+Beside the package, ``devtools/`` (SITL launchers, the benchmark, docgen; not installed) may
+import any part of the package; no module of the package imports it.
 """
 
 from __future__ import annotations
@@ -24,6 +26,9 @@ import pytest
 
 PACKAGE = 'uav_comm_planner'
 ROOT = Path(__file__).resolve().parents[1] / PACKAGE
+#: The development tools beside the package, which setup.py leaves out.
+DEVTOOLS_NAME = 'devtools'
+DEVTOOLS = ROOT.parent / DEVTOOLS_NAME
 FOLDERS = ('core', 'vehicle', 'mission', 'ros', 'tools')
 
 #: For each folder, the package's own folders it may import.
@@ -111,14 +116,65 @@ def test_errors_and_files_import_nothing_of_the_package():
         assert not [n for n in names if n.split('.')[0] == PACKAGE], stem
 
 
-def test_the_public_api_comes_from_core_and_errors():
+def test_the_public_api_comes_from_core_mission_vehicle_and_errors():
     names = imported_modules(ROOT / '__init__.py')
     assert {package_part(n) for n in names if n.split('.')[0] == PACKAGE} <= {'core', 'errors'}
     import uav_comm_planner
+    # The names loaded on first use: from the core, the mission layer and the vehicle's limits.
+    assert {package_part(n) for n in uav_comm_planner._LAZY.values()} == {'core', 'mission',
+                                                                          'vehicle'}
     for name in ('plan', 'paper_scenario', 'Scenario', 'SolverSettings', 'PlanResult',
                  'PlannerError', 'InvalidScenarioError', 'InfeasibleHorizonError',
-                 'SolverError', 'MissionExportError'):
+                 'SolverError', 'MissionExportError', 'plan_mission', 'MissionRequest',
+                 'MissionPlan', 'VehicleLimits'):
         assert hasattr(uav_comm_planner, name), name
+        assert name in uav_comm_planner.__all__, name
+
+
+def test_the_mission_layer_imports_from_the_top_level_package():
+    """``from uav_comm_planner import ...`` gives the mission layer's own objects; a name the
+    package does not export is an AttributeError, not a lazy import of something else."""
+    import uav_comm_planner
+    from uav_comm_planner import MissionPlan, MissionRequest, plan_mission, VehicleLimits
+    from uav_comm_planner.mission import pipeline, request
+    from uav_comm_planner.vehicle import limits
+
+    assert plan_mission is pipeline.plan_mission and MissionPlan is pipeline.MissionPlan
+    assert MissionRequest is request.MissionRequest
+    assert VehicleLimits is limits.VehicleLimits
+    with pytest.raises(AttributeError, match="no attribute 'plan_missions'"):
+        uav_comm_planner.plan_missions
+
+
+def devtools_modules() -> list[Path]:
+    """Every module of devtools/."""
+    return sorted(DEVTOOLS.rglob('*.py'))
+
+
+def test_devtools_holds_the_sitl_launchers_benchmark_and_docgen_outside_the_package():
+    """The development tools live beside the package, none of them inside it."""
+    tools = {'sitl', 'px4_sitl', 'bench', 'replans', 'flights', 'docgen'}
+    assert tools <= {path.stem for path in devtools_modules()}
+    assert (DEVTOOLS / '__init__.py').is_file() and (DEVTOOLS / 'README.md').is_file()
+    assert not [path for path in ROOT.rglob('*.py') if path.stem in tools]
+
+
+def test_the_package_never_imports_devtools_or_the_tests():
+    """The installed package runs without devtools/ and test/ (neither is installed)."""
+    offenders = [f'{path.relative_to(ROOT)} imports {name}' for path in ROOT.rglob('*.py')
+                 for name in imported_modules(path)
+                 if name.split('.')[0] in (DEVTOOLS_NAME, 'test', 'helpers', 'conftest')]
+    assert offenders == []
+
+
+def test_devtools_import_the_package_and_each_other_only():
+    """devtools/ may use any part of the package (absolute imports), the standard library,
+    numpy, scipy and pymavlink; never rclpy itself (docgen reaches ROS through ros/)."""
+    allowed = {PACKAGE, DEVTOOLS_NAME, 'numpy', 'scipy', 'pymavlink', '__future__'} | set(
+        sys.stdlib_module_names)
+    wrong = [f'{path.relative_to(DEVTOOLS)} imports {name}' for path in devtools_modules()
+             for name in imported_modules(path) if name.split('.')[0] not in allowed]
+    assert wrong == []
 
 
 def module_name(path: Path) -> str:
@@ -165,7 +221,7 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 def test_imports_go_one_way():
     """No module imports itself through others, counting the imports inside functions: a
     cycle would make the import order matter (study imported its figures, which imported it)."""
-    paths = {module_name(path): path for path in ROOT.rglob('*.py')}
+    paths = {module_name(path): path for path in (*ROOT.rglob('*.py'), *devtools_modules())}
     graph = {name: package_imports(path, set(paths)) for name, path in paths.items()}
     assert cycles(graph) == []
     assert cycles({'a': {'b'}, 'b': {'c'}, 'c': {'a'}}) == [['a', 'b', 'c', 'a']]
@@ -173,11 +229,10 @@ def test_imports_go_one_way():
 
 def test_mavlink_builds_on_the_other_vehicle_modules_never_the_reverse():
     """limits, timing, flyable, evaluation, geodesy and firmware never import vehicle/mavlink/
-    (which imports them): the mission, its files and the link sit above the vehicle's model;
-    the two software-in-the-loop harnesses (sitl, px4_sitl) fly missions over it."""
+    (which imports them): the mission, its files and the link sit above the vehicle's model
+    (the software-in-the-loop launchers that fly missions over it are in devtools/)."""
     modules = {module_name(path) for path in ROOT.rglob('*.py')}
-    beside = [path for path in (ROOT / 'vehicle').glob('*.py')
-              if path.stem not in ('__init__', 'sitl', 'px4_sitl')]
+    beside = [path for path in (ROOT / 'vehicle').glob('*.py') if path.stem != '__init__']
     mavlink = f'{PACKAGE}.vehicle.mavlink'
     offenders = [f'{path.relative_to(ROOT)} imports {name}' for path in beside
                  for name in package_imports(path, modules)
@@ -203,13 +258,14 @@ MAX_CLASS_LINES = 200
 
 def test_no_module_or_class_outgrows_its_room():
     too_long = []
-    for path in sorted(ROOT.rglob('*.py')):
+    for path in sorted((*ROOT.rglob('*.py'), *devtools_modules())):
         text = path.read_text()
+        where = path.relative_to(ROOT.parent)
         if len(text.splitlines()) > MAX_MODULE_LINES:
-            too_long.append(f'{path.relative_to(ROOT)}: {len(text.splitlines())} lines')
+            too_long.append(f'{where}: {len(text.splitlines())} lines')
         for node in ast.walk(ast.parse(text, str(path))):
             if isinstance(node, ast.ClassDef):
                 lines = node.end_lineno - node.lineno + 1
                 if lines > MAX_CLASS_LINES:
-                    too_long.append(f'{path.relative_to(ROOT)}: class {node.name}, {lines} lines')
+                    too_long.append(f'{where}: class {node.name}, {lines} lines')
     assert too_long == []

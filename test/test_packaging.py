@@ -10,6 +10,8 @@
 - The launch file runs against stand-ins of launch's classes that take only the keywords of
   Jazzy's (launch itself is not on PyPI), and builds for real where launch is installed; the
   RViz file is YAML that names the node's own topics, relative, so a namespace works.
+- What is installed (pip's wheel, colcon's install tree) holds the package only: none of the
+  development tools of ``devtools/`` (SITL launchers, benchmark harnesses, docgen).
 """
 
 from __future__ import annotations
@@ -268,6 +270,59 @@ def test_the_installed_command_runs_in_the_sourced_workspace(workspace, lookups)
     version = ElementTree.parse(PACKAGE_XML).getroot().findtext('version')
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == f'uav-comm-planner {version}'
+
+
+# --- what is installed -----------------------------------------------------------------------
+
+#: The development tools, in devtools/ beside the package: never installed.
+DEVTOOLS = ('sitl', 'px4_sitl', 'bench', 'replans', 'flights', 'docgen')
+
+
+def development_tools_among(paths: list[str]) -> list[str]:
+    """The paths (with / separators) that are a development tool or lie under devtools/."""
+    return [path for path in paths if 'devtools' in path.split('/')
+            or Path(path).suffix == '.py' and Path(path).stem in DEVTOOLS]
+
+
+def test_the_wheel_holds_the_package_and_no_development_tools(tmp_path):
+    """The wheel pip installs from the checkout (setup.py's packages) has every module of the
+    package and nothing of devtools/, although a copy of the checkout holds devtools/."""
+    import zipfile
+
+    source = tmp_path / 'src'
+    shutil.copytree(ROOT, source, ignore=NOT_SOURCES)
+    copied = {path.stem for path in (source / 'devtools').glob('*.py')}
+    assert set(DEVTOOLS) <= copied
+    done = subprocess.run([sys.executable, '-m', 'pip', 'wheel', '--quiet', '--no-deps',
+                           '--no-build-isolation', '--no-index', '--wheel-dir',
+                           str(tmp_path / 'wheel'), str(source)],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    (wheel,) = (tmp_path / 'wheel').glob(f'{PACKAGE}-*.whl')
+    names = zipfile.ZipFile(wheel).namelist()
+    modules = sorted(str(path.relative_to(ROOT)) for path in (ROOT / PACKAGE).rglob('*.py'))
+    assert sorted(name for name in names if name.startswith(f'{PACKAGE}/')) == modules
+    version = wheel.name.split('-')[1]
+    assert {name.split('/')[0] for name in names} == {
+        PACKAGE, f'{PACKAGE}-{version}.data', f'{PACKAGE}-{version}.dist-info'}
+    assert development_tools_among(names) == []
+    assert development_tools_among(['devtools/__init__.py', f'{PACKAGE}/vehicle/sitl.py']) == [
+        'devtools/__init__.py', f'{PACKAGE}/vehicle/sitl.py']
+
+
+def test_the_colcon_install_holds_no_development_tools(workspace, lookups, request):
+    """colcon's install of the package: its modules, none of devtools/. (A symlink-install
+    links the package's folder in the checkout, as an editable install does; there the
+    package itself is checked.)"""
+    package = Path(lookups['module']).parent
+    installed = sorted(str(path.relative_to(package.parent)) for path in package.rglob('*.py'))
+    assert f'{PACKAGE}/vehicle/limits.py' in installed
+    assert development_tools_among(installed) == []
+    if not request.node.callspec.params['workspace']:
+        files = [str(path.relative_to(workspace / 'install'))
+                 for path in (workspace / 'install').rglob('*')]
+        assert package.is_relative_to(workspace / 'install')
+        assert development_tools_among(files) == []
 
 
 # --- launch file -----------------------------------------------------------------------------

@@ -27,12 +27,11 @@ import sys
 from helpers import random_six_nodes
 import pytest
 
+from devtools.px4_sitl import fly_px4_mission, PX4_HOME, start_px4, why_px4_not_runnable
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.mission.pipeline import plan_mission
 from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.px4_sitl import (fly_px4_mission, PX4_HOME, start_px4,
-                                               why_px4_not_runnable)
 
 RUN_PX4 = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'px4' / 'run_px4.sh'
 CLI = [sys.executable, '-m', 'uav_comm_planner.tools.cli']

@@ -20,10 +20,10 @@ from __future__ import annotations
 from helpers import random_six_nodes
 import pytest
 
+from devtools.sitl import fly_plan, why_not_runnable
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle
 from uav_comm_planner.vehicle.geodesy import Home
-from uav_comm_planner.vehicle.sitl import fly_plan, why_not_runnable
 
 pytestmark = [pytest.mark.sitl,
               pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())]

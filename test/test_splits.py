@@ -103,7 +103,7 @@ def _power_only(scenario, q, power_solver=waterfilling_power):
 def test_the_default_plan_takes_a_resplit_tour_where_it_serves_better():
     # Drop 1000 of the benchmark's low-SNR set: the screened tour the default continued ends
     # 0.7 % below its best order with another split; its split searched, it is within 0.01 %.
-    from uav_comm_planner.tools.bench import quality_drop
+    from devtools.bench import quality_drop
 
     scenario = quality_drop(1000, low_snr=True, max_slots=199)
     default = plan(scenario, SolverSettings(compute_baselines=False))

@@ -198,7 +198,7 @@ def test_an_extra_start_of_a_builtin_name_replaces_it():
 def test_the_default_is_never_below_the_letter_on_seeded_drops(seed):
     # Drops like the benchmark's (N 3-20, slots of 0.5-2 s, V 20-100 m/s), both radios: the
     # letter's own run is the default's straight start, so not even round-off puts it below.
-    from uav_comm_planner.tools.bench import quality_drop
+    from devtools.bench import quality_drop
 
     scenario = quality_drop(2000 + seed, low_snr=seed % 3 == 2, max_slots=90)
     letter = plan(scenario, SolverSettings.letter(compute_baselines=False))

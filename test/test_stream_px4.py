@@ -21,14 +21,13 @@ from helpers import LinkRecord, SpunNode
 import numpy as np
 import pytest
 
+from devtools.px4_sitl import (FLIGHT_ATTEMPTS, fly_px4_mission, PX4_HOME, quiet_streams,
+                               start_mission, start_px4, TAKEOFF_HEIGHT_M, TakeoffError,
+                               why_px4_not_runnable)
 from uav_comm_planner.vehicle.evaluation import evaluate_flight
 from uav_comm_planner.vehicle.mavlink.guided import PX4_MODES
 from uav_comm_planner.vehicle.mavlink.link import connect
 from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu
-from uav_comm_planner.vehicle.px4_sitl import (FLIGHT_ATTEMPTS, fly_px4_mission, PX4_HOME,
-                                               quiet_streams, start_mission, start_px4,
-                                               TAKEOFF_HEIGHT_M, TakeoffError,
-                                               why_px4_not_runnable)
 
 RUN_PX4 = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'px4' / 'run_px4.sh'
 #: This module's PX4 SITL instance (onboard port 14540 + 9, ground station 18570 + 9).

@@ -15,13 +15,13 @@ from helpers import LinkRecord, SpunNode
 import numpy as np
 import pytest
 
+from devtools.sitl import (open_link, set_mode, set_parameter, start_sitl, take_off,
+                           why_not_runnable)
 from uav_comm_planner.ros.wind import PREFLIGHT_RESOLUTION_MPS, TOPIC_WIND, WIND_QOS
 from uav_comm_planner.vehicle.evaluation import evaluate_flight
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.mavlink.guided import COPTER_MODES
 from uav_comm_planner.vehicle.mavlink.telemetry import request_telemetry
-from uav_comm_planner.vehicle.sitl import (open_link, set_mode, set_parameter, start_sitl,
-                                           take_off, why_not_runnable)
 
 HOME = Home(-35.363262, 149.165237, 584.0)
 #: Instances of this module's vehicles (MAVLink TCP 5760 + 10 I).

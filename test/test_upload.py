@@ -16,13 +16,13 @@ import threading
 from pymavlink import mavutil
 import pytest
 
+from devtools.sitl import open_link, start_sitl, why_not_runnable
 from uav_comm_planner import paper_scenario, plan, SolverSettings
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink.files import (export_mission, read_mission_file,
                                                     read_waypoints)
 from uav_comm_planner.vehicle.mavlink.items import mismatches
 from uav_comm_planner.vehicle.mavlink.link import download_mission
-from uav_comm_planner.vehicle.sitl import open_link, start_sitl, why_not_runnable
 
 HOME = Home(-35.363262, 149.165237, 584.0)
 CLI = [sys.executable, '-m', 'uav_comm_planner.tools.cli']

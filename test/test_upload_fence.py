@@ -13,6 +13,8 @@ import sys
 import pytest
 from test_upload_px4 import RUN_PX4
 
+from devtools.px4_sitl import start_px4, why_px4_not_runnable
+from devtools.sitl import open_link, start_sitl, why_not_runnable
 from uav_comm_planner import paper_scenario, plan, SolverSettings
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, OperatingArea, Zones
 from uav_comm_planner.errors import VehicleLinkError
@@ -23,8 +25,6 @@ from uav_comm_planner.vehicle.mavlink.fence import (fence_from_items, fence_item
 from uav_comm_planner.vehicle.mavlink.items import build_mission_items, mismatches, MissionItem
 from uav_comm_planner.vehicle.mavlink.link import connect, download_mission, upload_and_verify
 from uav_comm_planner.vehicle.mavlink.telemetry import LinkEvent, VehicleBridge
-from uav_comm_planner.vehicle.px4_sitl import start_px4, why_px4_not_runnable
-from uav_comm_planner.vehicle.sitl import open_link, start_sitl, why_not_runnable
 
 CLI = [sys.executable, '-m', 'uav_comm_planner.tools.cli']
 ARDUPILOT_HOME = Home(-35.363262, 149.165237, 584.0)

@@ -17,12 +17,12 @@ import sys
 
 import pytest
 
+from devtools.px4_sitl import runnable_copy
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.mavlink.files import read_mission_file
 from uav_comm_planner.vehicle.mavlink.items import mismatches, MissionItem
 from uav_comm_planner.vehicle.mavlink.link import (connect, download_mission, has_home_row,
                                                    upload_and_verify)
-from uav_comm_planner.vehicle.px4_sitl import runnable_copy
 
 RUN_PX4 = Path(__file__).resolve().parents[2] / 'shared' / 'sitl' / 'px4' / 'run_px4.sh'
 CLI = [sys.executable, '-m', 'uav_comm_planner.tools.cli']

@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from devtools.replans import replan_mission
 from uav_comm_planner import plan, SolverSettings
 from uav_comm_planner.core.drops import random_scenario
 from uav_comm_planner.core.feasibility import retimed, within_speed_limit
@@ -25,7 +26,6 @@ from uav_comm_planner.ros.flight import MissionFlight
 from uav_comm_planner.ros.params import NodeSettings, PlannerConfig
 from uav_comm_planner.errors import InfeasibleHorizonError
 from uav_comm_planner.mission.progress import MissionProgress
-from uav_comm_planner.tools.replans import replan_mission
 from uav_comm_planner.vehicle.flyable import (plan_for_vehicle, schedule_flight,
                                               WIDER_SEARCH_GAIN)
 from uav_comm_planner.vehicle.limits import VehicleLimits

@@ -5,6 +5,13 @@ The numerical core (scenario, model, power, trajectory, optimizer) has no ROS in
     from uav_comm_planner import plan, paper_scenario
     result = plan(paper_scenario('I'))
     result.min_throughput, result.baselines['straight'], result.baselines['static']
+
+The mission layer plans for a vehicle, as the node and the command line do::
+
+    from uav_comm_planner import MissionRequest, paper_scenario, plan_mission, VehicleLimits
+    scenario = paper_scenario('I', max_speed_mps=10.0, horizon_s=300.0)
+    mission = plan_mission(MissionRequest(scenario, vehicle=VehicleLimits()))
+    mission.result.min_throughput, mission.items
 """
 
 import importlib
@@ -14,14 +21,19 @@ from uav_comm_planner.errors import (ComputeBudgetError, InfeasibleHorizonError,
                                      PlanCancelledError, PlannerError, SolverError,
                                      WalledInError)
 
-# The core (numpy, scipy, cvxpy) loads on first use, so that importing a light module of the
-# package, such as the planner's entry point, does not wait for it.
+# The core (numpy, scipy, cvxpy), and the mission layer and vehicle limits above it, load on
+# first use, so that importing a light module of the package, such as the planner's entry
+# point, does not wait for them.
 _LAZY = {
     'plan': 'uav_comm_planner.core.optimizer',
     'PlanResult': 'uav_comm_planner.core.optimizer',
     'paper_scenario': 'uav_comm_planner.core.scenario',
     'Scenario': 'uav_comm_planner.core.scenario',
     'SolverSettings': 'uav_comm_planner.core.scenario',
+    'MissionPlan': 'uav_comm_planner.mission.pipeline',
+    'plan_mission': 'uav_comm_planner.mission.pipeline',
+    'MissionRequest': 'uav_comm_planner.mission.request',
+    'VehicleLimits': 'uav_comm_planner.vehicle.limits',
 }
 
 
@@ -35,7 +47,7 @@ def __getattr__(name: str) -> object:
 
 __all__ = [
     'ComputeBudgetError', 'PlanCancelledError', 'InfeasibleHorizonError',
-    'InvalidScenarioError', 'MissionExportError', 'PlanResult',
-    'PlannerError', 'Scenario', 'SolverError', 'SolverSettings', 'WalledInError',
-    'paper_scenario', 'plan',
+    'InvalidScenarioError', 'MissionExportError', 'MissionPlan', 'MissionRequest', 'PlanResult',
+    'PlannerError', 'Scenario', 'SolverError', 'SolverSettings', 'VehicleLimits',
+    'WalledInError', 'paper_scenario', 'plan', 'plan_mission',
 ]

@@ -1,4 +1,4 @@
-"""Command line: ``uav-comm-planner plan``, ``sweep``, ``bench`` and ``montecarlo``.
+"""Command line: ``uav-comm-planner plan``, ``sweep``, ``upload`` and ``montecarlo``.
 
 Both take the letter's case (``--case I`` or ``II``) or a scenario file, with flags that
 override single settings; bad input ends with a one-line error
@@ -22,7 +22,6 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
-from uav_comm_planner.tools import bench
 from uav_comm_planner.tools.plots import check_figure_path, make_folder, METHOD_LABELS
 from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
                                               scenario_from_dict, scenario_to_dict,
@@ -396,11 +395,6 @@ def _command_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
-def _command_bench(args: argparse.Namespace) -> int:
-    bench.run(quick=args.quick, flights=not args.no_flights, sitl=args.sitl)
-    return 0
-
-
 def _command_upload(args: argparse.Namespace) -> int:
     from uav_comm_planner.vehicle.mavlink.link import LinkSettings
     from uav_comm_planner.vehicle.mavlink.upload import upload_files
@@ -496,11 +490,6 @@ def build_parser() -> argparse.ArgumentParser:
                                     "than this from the vehicle's home (or position), metres "
                                     "(default 1000; inf: no check)")
     upload_parser.set_defaults(handler=_command_upload)
-
-    bench_parser = commands.add_parser('bench', help=bench.DESCRIPTION,
-                                       description=bench.DESCRIPTION)
-    bench.add_arguments(bench_parser)
-    bench_parser.set_defaults(handler=_command_bench)
 
     study_parser = commands.add_parser('montecarlo', help=montecarlo.DESCRIPTION,
                                        description=montecarlo.DESCRIPTION)

@@ -27,6 +27,8 @@ import time
 import numpy as np
 from pymavlink import mavutil
 
+# MAV_CMD by COMMAND_LONG until its COMMAND_ACK: the same for PX4 as for ArduCopter.
+from devtools.sitl import _command, FlightRecord, SitlFlight
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.vehicle.evaluation import evaluate_flight
@@ -38,8 +40,6 @@ from uav_comm_planner.vehicle.mavlink.items import NAV_WAYPOINT, Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.link import connect
 from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu
 from uav_comm_planner.vehicle.mavlink.upload import upload_file
-# MAV_CMD by COMMAND_LONG until its COMMAND_ACK: the same for PX4 as for ArduCopter.
-from uav_comm_planner.vehicle.sitl import _command, FlightRecord, SitlFlight
 
 MAV = mavutil.mavlink
 logger = logging.getLogger(__name__)

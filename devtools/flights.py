@@ -15,11 +15,11 @@ import tempfile
 
 import numpy as np
 
+from devtools.sitl import fly_plan, SitlFlight
 from uav_comm_planner.core.scenario import paper_scenario, Scenario
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.sitl import fly_plan, SitlFlight
 
 #: ArduPilot's SITL home (Canberra model airfield).
 SITL_HOME = Home(-35.363262, 149.165237, 584.0)

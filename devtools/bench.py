@@ -14,11 +14,11 @@
 * Speed of the default plan: the same settings on the reference path and on the fast path
   (loose steps and the solvers kept between plans only help the fast path).
 * Replans in flight: the node's replan of the rest of a mission, warm and with the full search
-  (:mod:`uav_comm_planner.tools.replans`), for ArduCopter and for PX4.
+  (:mod:`devtools.replans`), for ArduCopter and for PX4.
 * Quality: on seeded random drops, the default plan against the letter's Algorithm 1 and the
   best known plan, with the dual upper bound (:mod:`uav_comm_planner.core.bound`) and its gap.
 
-Run ``uav-comm-planner bench`` or ``python -m uav_comm_planner.tools.bench`` (``--quick`` for a
+Run ``make bench`` or, from the checkout, ``python -m devtools.bench`` (``--quick`` for a
 smaller run).
 """
 
@@ -39,6 +39,10 @@ from typing import Callable, Sequence, TextIO
 import numpy as np
 from scipy.special import betaincinv
 
+from devtools.flights import flight_cases, fly_case, format_flights
+from devtools.replans import (format_replan_drops, format_replans, measure_replan_drops,
+                              measure_replans, REPLAN_POINTS)
+from devtools.sitl import why_not_runnable
 from uav_comm_planner.core.drops import random_scenario
 from uav_comm_planner.core.sca.program import clear_programs
 from uav_comm_planner.core.sca.fast import SOLVERS
@@ -46,10 +50,6 @@ from uav_comm_planner.core.optimizer import alternate, plan, PlanResult
 from uav_comm_planner.core.steps import step_solvers
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.core.tours import random_tours, scenario_seed
-from uav_comm_planner.tools.flights import flight_cases, fly_case, format_flights
-from uav_comm_planner.tools.replans import (format_replan_drops, format_replans,
-                                            measure_replan_drops, measure_replans, REPLAN_POINTS)
-from uav_comm_planner.vehicle.sitl import why_not_runnable
 
 REFERENCE = dict(power_method='conic', trajectory_method='cvxpy')
 FAST = dict(power_method='waterfilling', trajectory_method='clarabel')
@@ -381,7 +381,7 @@ DESCRIPTION = ("time the reference and fast paths; compare the default plan with
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The benchmark's options, for ``python -m uav_comm_planner.tools.bench`` and the CLI."""
+    """The benchmark's options (``python -m devtools.bench``, ``make bench``)."""
     parser.add_argument('--quick', action='store_true',
                         help='small sizes and few runs (a smoke test, not the documented run)')
     parser.add_argument('--sitl', metavar='ARDUCOPTER',
@@ -392,7 +392,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='python -m uav_comm_planner.tools.bench',
+    parser = argparse.ArgumentParser(prog='python -m devtools.bench',
                                      description=DESCRIPTION)
     add_arguments(parser)
     return parser

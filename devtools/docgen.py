@@ -1,12 +1,12 @@
 """The node's parameter tables for docs/node.md, generated from the parameters' own descriptors.
 
-    python -m uav_comm_planner.ros.docgen            # rewrite the marked section of docs/node.md
-    python -m uav_comm_planner.ros.docgen --check    # exit 1 if the file is not up to date
+    python -m devtools.docgen            # rewrite the marked section of docs/node.md
+    python -m devtools.docgen --check    # exit 1 if the file is not up to date
 
 Every parameter of :func:`~uav_comm_planner.ros.params.parameter_specs` becomes one row
 (name, ROS type, default, description with its constraints and range), one table per group
-(scenario, solver, node), between the lines :data:`BEGIN` and :data:`END` of the file. It
-lives beside the node because the descriptors are ROS messages.
+(scenario, solver, node), between the lines :data:`BEGIN` and :data:`END` of the file. Run by
+``make docs``, from the checkout (it is not installed with the package).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from uav_comm_planner.ros.params import NodeSettings, parameter_specs, Parameter
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
 BEGIN = ('<!-- BEGIN parameters: generated from the code by '
-         '`python -m uav_comm_planner.ros.docgen`; do not edit by hand -->')
+         '`python -m devtools.docgen`; do not edit by hand -->')
 END = '<!-- END parameters -->'
 DEFAULT_FILE = Path('docs') / 'node.md'
 
@@ -90,7 +90,7 @@ def replace_section(text: str, tables: str) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog='python -m uav_comm_planner.ros.docgen',
+    parser = argparse.ArgumentParser(prog='python -m devtools.docgen',
                                      description=__doc__.split('\n')[0])
     parser.add_argument('file', nargs='?', type=Path, default=DEFAULT_FILE,
                         help=f'Markdown file with the marked section (default {DEFAULT_FILE})')
@@ -106,7 +106,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.check:
         if updated != text:
             print(f'{args.file}: the parameter tables differ from the code; run '
-                  f'python -m uav_comm_planner.ros.docgen', file=sys.stderr)
+                  f'python -m devtools.docgen', file=sys.stderr)
             return 1
         return 0
     if updated != text:
