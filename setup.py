@@ -18,6 +18,8 @@ setup(
     version='0.1.0',
     # The package only: devtools/ (SITL launchers, benchmark, docgen) and test/ stay out.
     packages=find_packages(include=[PACKAGE, f'{PACKAGE}.*']),
+    # The airframes measured for this package, read by name (vehicle/airframe.py).
+    package_data={f'{PACKAGE}.vehicle': ['airframes/*.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
         (f'share/{PACKAGE}', ['package.xml']),
@@ -33,6 +35,8 @@ setup(
         'scipy>=1.11,<2',
         'pymavlink>=2.4.40,<3',
         'pymap3d>=3.0,<4',
+        # Airframe files (the propulsion model of the vehicle, vehicle/airframe.py).
+        'pyyaml>=6,<7',
     ],
     extras_require={
         # In a ROS 2 Jazzy workspace these come from the distribution (rosdep);

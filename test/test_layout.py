@@ -3,7 +3,7 @@
 | folder    | may import (besides the standard library and errors/files)              |
 | --------- | ----------------------------------------------------------------------- |
 | core/     | numpy, scipy, cvxpy, clarabel                                           |
-| vehicle/  | core, pymavlink, pymap3d                                                |
+| vehicle/  | core, pymavlink, pymap3d, yaml (airframe files)                         |
 | mission/  | core, vehicle (the pipeline the node and the command line share)        |
 | ros/      | core, vehicle, mission, rclpy and ROS messages                          |
 | tools/    | core, vehicle, mission, scipy, matplotlib, dask, pyarrow; never rclpy   |
@@ -42,7 +42,7 @@ ALLOWED_INSIDE = {
 #: Third-party top-level modules each folder may import.
 THIRD_PARTY = {
     'core': {'numpy', 'scipy', 'cvxpy', 'clarabel'},
-    'vehicle': {'numpy', 'pymavlink', 'pymap3d'},
+    'vehicle': {'numpy', 'pymavlink', 'pymap3d', 'yaml'},
     'mission': {'numpy'},
     'ros': {'numpy', 'rclpy', 'builtin_interfaces', 'geometry_msgs', 'nav_msgs', 'std_msgs',
             'std_srvs', 'visualization_msgs', 'rcl_interfaces', 'diagnostic_msgs',
