@@ -19,8 +19,9 @@ from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per
                                          snr_scale, spectral_efficiencies,
                                          spectral_efficiency_to_rate)
 from uav_comm_planner.core.power import checked_offsets, waterfilling_power
-from uav_comm_planner.core.sca.block import BlockFactory, Frame
+from uav_comm_planner.core.sca.block import BlockFactory
 from uav_comm_planner.core.sca.fast import LOOSE_TOLERANCE
+from uav_comm_planner.core.sca.program import no_start_error, start_filter
 from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.splits import resplit
@@ -508,7 +509,7 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
             logger.info('start %r left out: it does not keep out of the zones', name)
             continue
         starts[name] = Start.given(name, trajectory)
-    admitted = _admitted_by(scenario, blocks)
+    admitted = start_filter(scenario, blocks)
     run_from = functools.partial(alternate, scenario, power_solver=power_solver,
                                  trajectory_solver=trajectory_solver, should_stop=should_stop,
                                  offsets=offsets)
@@ -520,8 +521,7 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
         starts = {name: start for name, start in starts.items()
                   if admitted(start.make(scenario))}
         if not starts and not tours:
-            raise InvalidScenarioError('no start keeps the extra blocks: give a start that does '
-                                       '(extra_starts) or loosen them')
+            raise no_start_error(scenario, STARTS['straight'].make(scenario))
         starts.update({name: Start.given(name, q) for name, q in tours.items()})
         runs = _screened_runs(scenario, starts, settings, run_from, trajectory_solver,
                               {name: draws[name] for name in tours})
@@ -529,8 +529,7 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
         starts = {name: start for name, start in starts.items()
                   if admitted(start.make(scenario))}
         if not starts:
-            raise InvalidScenarioError('no start keeps the extra blocks: give a start that does '
-                                       '(extra_starts) or loosen them')
+            raise no_start_error(scenario, STARTS['straight'].make(scenario))
         runs = {name: run_from(start.make(scenario), settings) for name, start in starts.items()}
     order = list(runs)
     values = {name: run.min_throughput for name, run in runs.items()}
@@ -549,20 +548,6 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
         solve_time_s=time.perf_counter() - began, start=best,
         upper_bound=(throughput_upper_bound(scenario) if offsets is None else math.inf),
         start_throughputs=values, offsets=offsets)
-
-
-def _admitted_by(scenario: Scenario,
-                 blocks: tuple[BlockFactory, ...]) -> Callable[[np.ndarray], bool]:
-    """Whether a start q (M, 2) metres is admitted by every extra block (always, without)."""
-    if not blocks:
-        return lambda q: True
-    frame = Frame.of(scenario)
-    built = [make(frame) for make in blocks]
-
-    def admitted(q: np.ndarray) -> bool:
-        q = project_onto_speed_limit(np.asarray(q, dtype=float), scenario)
-        return all(block.admits(q) for block in built)
-    return admitted
 
 
 def plan_along(scenario: Scenario, q: np.ndarray, settings: SolverSettings | None = None, *,

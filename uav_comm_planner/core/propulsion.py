@@ -11,10 +11,7 @@ with P0 + Pi the hover power. A climb at v_z > 0 adds ``climb_w_per_mps`` v_z (a
 the propulsive efficiency) and a descent changes the power by ``descent_w_per_mps`` |v_z|
 (usually a small saving, so a negative number); both measured per airframe.
 
-The horizon's energy: the legs q0 -> q[1] -> ... -> q[M] -> qF are each flown at constant
-velocity over one slot delta, so leg l's ground velocity is (its vector) / delta and its
-airspeed ||v_l - w|| in the wind w; the energy is sum_l P(||v_l - w||) delta
-(:func:`leg_powers`, :func:`horizon_energy_j`).
+The energy of a planned horizon is in :mod:`uav_comm_planner.core.energy`.
 """
 
 from __future__ import annotations
@@ -25,13 +22,7 @@ import math
 import numpy as np
 from scipy import optimize
 
-from uav_comm_planner.core.model import legs
-from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import InvalidScenarioError
-
-#: Standard gravity, m/s^2.
-GRAVITY = 9.80665
-
 
 @dataclass(frozen=True)
 class Airframe:
@@ -125,39 +116,4 @@ ZENG2019 = Airframe(name='zeng2019', blade_profile_power_w=79.86, induced_power_
                     top_airspeed_mps=30.0)
 
 
-def leg_airspeeds(q: np.ndarray, scenario: Scenario) -> np.ndarray:
-    """||v_l - w|| of the M + 1 legs q0 -> q[1] -> ... -> qF flown at constant velocity over a
-    slot each, in the scenario's wind: (M + 1,) m/s."""
-    velocity = legs(q, scenario) / scenario.slot_s
-    return np.linalg.norm(velocity - scenario.wind_mps, axis=1)
-
-
-def leg_powers(q: np.ndarray, scenario: Scenario, airframe: Airframe) -> np.ndarray:
-    """The propulsion power of each of the M + 1 legs of q (M, 2) metres: (M + 1,) W."""
-    return airframe.level_power_w(leg_airspeeds(q, scenario))
-
-
-def horizon_energy_j(q: np.ndarray, scenario: Scenario, airframe: Airframe) -> float:
-    """The propulsion energy of the horizon's M + 1 legs, sum_l P(||v_l - w||) delta, J."""
-    return float(leg_powers(q, scenario, airframe).sum() * scenario.slot_s)
-
-
-def least_horizon_energy_j(scenario: Scenario, airframe: Airframe) -> float:
-    """A lower bound on any plan's horizon energy: the M + 1 legs at the least level power."""
-    return (scenario.num_slots + 1) * scenario.slot_s * airframe.least_power()[1]
-
-
-def vertical_energy_j(airframe: Airframe, height_m: float, climb_mps: float,
-                      descent_mps: float) -> tuple[float, float]:
-    """(takeoff, landing) energy, J: climbing ``height_m`` at ``climb_mps`` and descending it at
-    ``descent_mps``, hovering otherwise (no airspeed)."""
-    if height_m < 0 or climb_mps <= 0 or descent_mps <= 0:
-        raise InvalidScenarioError('height must be at least 0 m and the vertical speeds '
-                                   'positive')
-    up = float(airframe.power_w(0.0, climb_mps)) * height_m / climb_mps
-    down = float(airframe.power_w(0.0, -descent_mps)) * height_m / descent_mps
-    return up, down
-
-
-__all__ = ['Airframe', 'GRAVITY', 'horizon_energy_j', 'least_horizon_energy_j',
-           'leg_airspeeds', 'leg_powers', 'vertical_energy_j', 'ZENG2019']
+__all__ = ['Airframe', 'ZENG2019']

@@ -17,6 +17,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from uav_comm_planner.core.numbers import real_number
+from uav_comm_planner.core.propulsion import Airframe
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import (ComputeBudgetError, InfeasibleHorizonError,
                                      InvalidScenarioError)
@@ -122,6 +123,45 @@ def _check_scales(scenario: 'Scenario') -> None:
         2 * span ** 2 + scenario.altitude_m ** 2), 'change altitude_m or the noise')
 
 
+def _check_duplicates(scenario: Scenario) -> None:
+    """Refuse two nodes within DUPLICATE_NODE_DISTANCE_M: O(N log N) with a k-d tree."""
+    if scenario.num_nodes < 2:
+        return
+    pairs = cKDTree(scenario.nodes).query_pairs(
+        np.nextafter(DUPLICATE_NODE_DISTANCE_M, 0.0), output_type='ndarray')
+    if len(pairs):
+        i, j = (int(v) for v in min(map(tuple, pairs.tolist())))
+        raise InvalidScenarioError(
+            f'duplicate ground nodes: node {i + 1} and node {j + 1} are both at '
+            f'{scenario.ground_nodes_m[i]}; give each node once')
+
+
+def _check_energy(scenario: Scenario) -> None:
+    """The airframe is one; an energy budget needs it and at least the least energy any
+    flight of the horizon takes (its M + 1 legs at the airframe's least power)."""
+    if scenario.airframe is not None and not isinstance(scenario.airframe, Airframe):
+        raise InvalidScenarioError(f'airframe must be an Airframe or None, got '
+                                   f'{type(scenario.airframe).__name__}')
+    if scenario.energy_budget_wh is None:
+        return
+    budget = real_number('energy_budget_wh', scenario.energy_budget_wh)
+    if not (math.isfinite(budget) and budget > 0.0):
+        raise InvalidScenarioError(
+            f'energy_budget_wh must be positive and finite, got {scenario.energy_budget_wh!r}')
+    object.__setattr__(scenario, 'energy_budget_wh', budget)
+    if scenario.airframe is None:
+        raise InvalidScenarioError('an energy budget needs an airframe (its propulsion '
+                                   'model): give airframe')
+    speed, power = scenario.airframe.least_power()
+    least_wh = (scenario.num_slots + 1) * scenario.slot_s * power / 3600.0
+    if budget < least_wh * (1 + 1e-9):
+        raise InfeasibleHorizonError(
+            f'energy budget {budget:.4g} Wh below what any flight of this horizon needs: '
+            f'{least_wh:.4g} Wh ({scenario.horizon_s + scenario.slot_s:g} s of legs at the '
+            f"airframe's least power, {power:.1f} W at {speed:.1f} m/s); raise "
+            f'energy_budget_wh or shorten horizon_s')
+
+
 def _check_zones(scenario: 'Scenario') -> None:
     """q0 and qF keep the zones' margin (a path between them may still be refused when the
     plan is made: :mod:`uav_comm_planner.core.detour`)."""
@@ -159,6 +199,10 @@ class Scenario:
     ``zones`` (:class:`~uav_comm_planner.core.zones.Zones`, None: none) are where the UAV may
     fly: every slot point and every leg, q0 and qF included, keeps ``zones.margin_m`` inside
     the operating area and out of every keep-out zone.
+
+    ``airframe`` (:class:`~uav_comm_planner.core.propulsion.Airframe`, None: none): its top
+    airspeed bounds V_air; with ``energy_budget_wh`` the horizon's propulsion energy
+    (:mod:`uav_comm_planner.core.energy`) is at most that.
     """
 
     ground_nodes_m: tuple[Point, ...]
@@ -176,6 +220,8 @@ class Scenario:
     wind_from_deg: float = 0.0
     max_airspeed_mps: float | None = None
     zones: Zones | None = None
+    airframe: Airframe | None = None
+    energy_budget_wh: float | None = None
 
     def __post_init__(self) -> None:
         nodes = self.ground_nodes_m
@@ -200,9 +246,10 @@ class Scenario:
                 f'noise_psd_dbm_per_hz must be finite, got {self.noise_psd_dbm_per_hz!r}')
         object.__setattr__(self, 'noise_psd_dbm_per_hz', noise)
         object.__setattr__(self, 'num_slots', _count('num_slots', self.num_slots))
+        _check_energy(self)
         self._check_wind()
         _check_scales(self)
-        self._check_duplicates()
+        _check_duplicates(self)
         self._check_reachable()
         _check_zones(self)
 
@@ -223,18 +270,6 @@ class Scenario:
                 f'a wind of {speed:g} m/s is at or above the airspeed the UAV may fly, '
                 f'{self.airspeed_mps:g} m/s: it cannot hold its position against it; raise '
                 f'max_airspeed_mps if the airframe is faster, or wait for less wind')
-
-    def _check_duplicates(self) -> None:
-        """Refuse two nodes within DUPLICATE_NODE_DISTANCE_M: O(N log N) with a k-d tree."""
-        if self.num_nodes < 2:
-            return
-        pairs = cKDTree(self.nodes).query_pairs(
-            np.nextafter(DUPLICATE_NODE_DISTANCE_M, 0.0), output_type='ndarray')
-        if len(pairs):
-            i, j = (int(v) for v in min(map(tuple, pairs.tolist())))
-            raise InvalidScenarioError(
-                f'duplicate ground nodes: node {i + 1} and node {j + 1} are both at '
-                f'{self.ground_nodes_m[i]}; give each node once')
 
     def _check_reachable(self) -> None:
         """Every leg of the straight line q0 -> qF at uniform speed is feasible: since the
@@ -305,8 +340,11 @@ class Scenario:
 
     @property
     def airspeed_mps(self) -> float:
-        """V_air: the fastest the UAV moves through the air, m/s (V unless given)."""
-        return self.max_speed_mps if self.max_airspeed_mps is None else self.max_airspeed_mps
+        """V_air: the fastest the UAV moves through the air, m/s (V unless given), at most the
+        airframe's top airspeed."""
+        airspeed = self.max_speed_mps if self.max_airspeed_mps is None else self.max_airspeed_mps
+        return airspeed if self.airframe is None else min(airspeed,
+                                                          self.airframe.top_airspeed_mps)
 
     @property
     def airspeed_limited(self) -> bool:

@@ -426,6 +426,10 @@ NOT_PARAMETERS = {
     (Scenario, 'max_airspeed_mps'): 'a vehicle-aware plan takes the airspeed from the vehicle '
                                     '(vehicle_airframe_speed_mps less vehicle_gust_margin_mps)',
     (Scenario, 'zones'): 'the zones come from fence_file, anchored at home',
+    (Scenario, 'airframe'): 'an airframe is named by airframe (a name or a file), not given '
+                            'field by field',
+    (Scenario, 'energy_budget_wh'): 'planned with energy_budget_wh and battery_wh on the '
+                                    'command line and in the Python API',
 }
 
 

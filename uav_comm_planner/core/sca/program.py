@@ -12,23 +12,29 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import threading
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 from scipy import sparse
 
+from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
+from uav_comm_planner.core.feasibility import project_onto_speed_limit
+from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.sca.block import Block, BlockFactory, Columns, Frame
+from uav_comm_planner.core.sca.energy import EnergyBudget
 from uav_comm_planner.core.sca.legs import LegLimits
 from uav_comm_planner.core.sca.path_budget import PathBudget
 from uav_comm_planner.core.sca.rates import NodeRates
 from uav_comm_planner.core.sca.zones import ZoneHalfPlanes
 from uav_comm_planner.core.zone_rows import zone_model
+from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 
 
 def step_blocks(frame: Frame, *, keep_path_length: bool = False, partial_sums: bool = True,
                 extra: Sequence[BlockFactory] = ()) -> list[Block]:
     """The blocks of the SCA step for ``frame``'s scenario: the node rates (always first: they
-    define t), the legs, the zones where there are some, the ``extra`` blocks, and with
+    define t), the legs, the zones where there are some, the energy budget where there is one,
+    the ``extra`` blocks, and with
     ``keep_path_length`` the path budget (last: its certificate picks its multiplier's
     direction against the others')."""
     blocks: list[Block] = [NodeRates(frame, partial_sums=partial_sums),
@@ -36,10 +42,40 @@ def step_blocks(frame: Frame, *, keep_path_length: bool = False, partial_sums: b
     model = zone_model(frame.scenario.zones)
     if model is not None and model.rows_per_slot:
         blocks.append(ZoneHalfPlanes(frame))
+    if frame.scenario.energy_budget_wh is not None:
+        blocks.append(EnergyBudget(frame))
     blocks.extend(make(frame) for make in extra)
     if keep_path_length:
         blocks.append(PathBudget(frame))
     return blocks
+
+
+def start_filter(scenario: Scenario,
+                 extra: Sequence[BlockFactory] = ()) -> Callable[[np.ndarray], bool]:
+    """Whether a start q (M, 2) metres, projected onto the speed limit, is admitted by every
+    block of the step (:meth:`Block.admits`: the energy budget, the extra blocks); always,
+    without such blocks."""
+    if not extra and scenario.energy_budget_wh is None:
+        return lambda q: True
+    built = step_blocks(Frame.of(scenario), extra=extra)
+
+    def admitted(q: np.ndarray) -> bool:
+        q = project_onto_speed_limit(np.asarray(q, dtype=float), scenario)
+        return all(block.admits(q) for block in built)
+    return admitted
+
+
+def no_start_error(scenario: Scenario, straight: np.ndarray) -> InvalidScenarioError:
+    """The refusal when no start keeps the step's blocks (``straight``: the straight line
+    q0 -> qF at uniform speed, (M, 2) metres, whose energy it states)."""
+    if scenario.energy_budget_wh is not None:
+        line = horizon_energy_j(straight, scenario, scenario.airframe)
+        return InfeasibleHorizonError(
+            f'no start keeps the energy budget of {scenario.energy_budget_wh:.4g} Wh (the '
+            f'straight line q0 -> qF at uniform speed needs {line / JOULES_PER_WH:.4g} Wh); '
+            f'raise energy_budget_wh, or give a start that keeps it (extra_starts)')
+    return InvalidScenarioError('no start keeps the extra blocks: give a start that does '
+                                '(extra_starts) or loosen them')
 
 
 @dataclass(frozen=True)
@@ -167,5 +203,5 @@ def _build(num_slots: int, forms: tuple, blocks: Sequence[Block]) -> ConeProgram
     return program
 
 
-__all__ = ['clear_programs', 'cone_program', 'ConeProgram', 'CscLists', 'PROGRAMS_KEPT',
-           'step_blocks']
+__all__ = ['clear_programs', 'cone_program', 'ConeProgram', 'CscLists', 'no_start_error',
+           'PROGRAMS_KEPT', 'start_filter', 'step_blocks']
