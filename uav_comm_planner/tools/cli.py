@@ -22,6 +22,8 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
+from uav_comm_planner.tools.energy_cli import (add_energy_arguments, energy_record,
+                                               energy_request, format_energy, planner_for)
 from uav_comm_planner.tools.plots import check_figure_path, make_folder, METHOD_LABELS
 from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
                                               scenario_from_dict, scenario_to_dict,
@@ -305,19 +307,23 @@ def _command_plan(args: argparse.Namespace) -> int:
     if args.fence is not None:
         from uav_comm_planner.vehicle.fence import read_zones
         zones = read_zones(args.fence, args.home, margin_m=args.fence_margin)
+    scenario, energy = energy_request(args, _scenario(args, limits if vehicle_aware else None))
     request = MissionRequest(
-        _scenario(args, limits if vehicle_aware else None), _settings(args), limits,
+        scenario, _settings(args), limits,
         vehicle_aware=vehicle_aware, firmware=args.firmware, end=args.mission_end,
         home=args.home, items=args.mission is not None, zones=zones)
-    planned = plan_mission(request)
+    planned = plan_mission(request, planner=planner_for(energy))
     if vehicle_aware:
         print(format_plan(planned.vehicle_plan.ideal))
         print(format_flown(planned.vehicle_plan))
     else:
         print(format_plan(planned.result))
     result = planned.result
+    if energy is not None:
+        print(format_energy(result, energy))
     # Every check before the first file: the JSON text and the mission's rows.
-    text = (json_text(result_to_dict(result, settings=request.settings))
+    text = (json_text({**result_to_dict(result, settings=request.settings),
+                       **energy_record(result, energy)})
             if args.json is not None else None)
     if args.mission is not None and planned.items is None:
         raise PlannerError(planned.items_error)
@@ -455,6 +461,7 @@ def build_parser() -> argparse.ArgumentParser:
                               '(ardupilot) or MPC_XY_CRUISE, MPC_ACC_HOR, MPC_JERK_AUTO (px4)')
     for field, (flag, text) in _VEHICLE_FLAGS.items():
         vehicle.add_argument(flag, dest=_VEHICLE_DEST + field, type=float, help=text)
+    add_energy_arguments(plan_parser)
     plan_parser.set_defaults(handler=_command_plan)
 
     sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')

@@ -9,9 +9,11 @@ import re
 from typing import Any, Mapping
 
 from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.propulsion import Airframe
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.vehicle.airframe import airframe_from_mapping
 
 DISTRIBUTION = 'uav_comm_planner'
 
@@ -60,6 +62,8 @@ def scenario_from_dict(data: Mapping[str, Any], base: Scenario | None = None) ->
             f'unknown scenario field(s) {unknown}; known fields: {sorted(known)}')
     if data.get('zones') is not None and not isinstance(data['zones'], Zones):
         data = {**data, 'zones': Zones.from_dict(data['zones'])}
+    if data.get('airframe') is not None and not isinstance(data['airframe'], Airframe):
+        data = {**data, 'airframe': airframe_from_mapping(data['airframe'], 'airframe')}
     if base is None:
         if 'ground_nodes_m' not in data:
             raise InvalidScenarioError('a scenario needs ground_nodes_m: [[x, y], ...]')
