@@ -111,6 +111,8 @@ figures: $(STAMP)
 	$(BIN)/uav-comm-planner sweep --case II --budgets 0.5,1,2,5,10,20 --figure docs/fig2_sweep_case_II.png
 	$(BIN)/uav-comm-planner plan --case I --bandwidth 1e6 --beta0 1e-6 --budget 0.5 \
 		--figure docs/fig1_case_I_low_snr.png
+	$(BIN)/uav-comm-planner energy-sweep --case I --speed 30 --horizon 200 --airframe zeng2019 \
+		--figure docs/fig_energy_tradeoff_case_I.png
 
 # The parameter tables of docs/node.md, from the node's own parameter descriptors
 # (devtools/docgen.py, not installed).

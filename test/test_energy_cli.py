@@ -130,3 +130,21 @@ def test_an_unknown_airframe_is_refused_with_the_names(capsys, tmp_path):
     bad.write_text('name: x\nblade_profile_power_w: 80\n')
     status, _, err = run(capsys, *CASE[:-1], str(bad))
     assert status == 2 and 'missing' in err and err.count('\n') == 1
+
+
+def test_the_energy_sweep_buys_throughput_with_energy(tmp_path, capsys):
+    table, figure = tmp_path / 'sweep.json', tmp_path / 'sweep.svg'
+    status, out, _ = run(capsys, 'energy-sweep', '--case', 'I', '--speed', '30', '--horizon',
+                         '200', '--airframe', 'zeng2019', '--budgets-wh', '7.0,8.0,10.0,14.0',
+                         '--json', str(table), '--figure', str(figure))
+    assert status == 0 and 'no plan' in out       # 7 Wh: below the least energy, 7.14 Wh
+    rows = json.loads(table.read_text())['rows']
+    assert rows[0]['min_throughput'] is None
+    planned = rows[1:]
+    for row in planned:
+        assert row['energy_wh'] <= row['budget_wh'] * (1 + 1e-6)
+    assert planned[0]['min_throughput'] < planned[1]['min_throughput'] \
+        < planned[2]['min_throughput']
+    assert '<svg' in figure.read_text()
+    status, _, err = run(capsys, 'energy-sweep', '--case', 'I', '--budgets-wh', '8')
+    assert status == 2 and 'needs --airframe' in err

@@ -22,6 +22,7 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
+from uav_comm_planner.tools import energy_sweep
 from uav_comm_planner.tools.energy_cli import (add_energy_arguments, energy_record,
                                                energy_request, format_energy, planner_for)
 from uav_comm_planner.tools.plots import check_figure_path, make_folder, METHOD_LABELS
@@ -401,6 +402,15 @@ def _command_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _command_energy_sweep(args: argparse.Namespace) -> int:
+    _check_outputs(args.json, figure=args.figure)
+
+    def write(path: Path, record: dict) -> None:
+        print(f'wrote {write_text_atomic(path, json_text(record))}')
+    energy_sweep.run(_scenario(args), _settings(args), args, write)
+    return 0
+
+
 def _command_upload(args: argparse.Namespace) -> int:
     from uav_comm_planner.vehicle.mavlink.link import LinkSettings
     from uav_comm_planner.vehicle.mavlink.upload import upload_files
@@ -474,6 +484,14 @@ def build_parser() -> argparse.ArgumentParser:
     sweep_parser.add_argument('--figure', type=Path, metavar='FILE.png',
                               help="draw the letter's Fig. 2 (.png, .pdf or .svg)")
     sweep_parser.set_defaults(handler=_command_sweep)
+
+    energy_parser = commands.add_parser(
+        'energy-sweep', help='min throughput against the propulsion energy budget')
+    _add_scenario_arguments(energy_parser)
+    energy_parser.add_argument('--airframe', metavar='NAME|FILE.yaml',
+                               help='propulsion model (docs/energy.md)')
+    energy_sweep.add_arguments(energy_parser)
+    energy_parser.set_defaults(handler=_command_energy_sweep)
 
     upload_parser = commands.add_parser(
         'upload', help='upload a mission and/or a fence over MAVLink and verify them by reading '
