@@ -18,6 +18,7 @@ from uav_comm_planner import InvalidScenarioError, MissionExportError, paper_sce
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import MissionFileError, VehicleLinkError
+from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline
 from uav_comm_planner.vehicle.flyable import (MERGE_RADIUS_M, MIN_SPEED_MPS, PATH_TOLERANCE_M,
                                               plan_for_vehicle, schedule_flight)
@@ -403,7 +404,7 @@ def test_home_is_validated(values, message):
 
 
 def test_home_is_parsed_from_the_command_line_form():
-    assert Home.parse(' 47.397742, 8.545594 ,488') == Home(*DEFAULT_HOME)
+    assert Home.parse(' -35.363262, 149.165237 ,584') == Home(*DEFAULT_HOME)
     for text in ('47.3,8.5', '47.3,8.5,abc', '47.3;8.5;400'):
         with pytest.raises(InvalidScenarioError, match='LAT,LON,ALT'):
             Home.parse(text)
@@ -449,6 +450,27 @@ def test_command_line_writes_a_mission_that_pymavlink_loads(tmp_path, capsys):
     assert [items[0].command, items[1].command, items[-1].command] == [WAYPOINT, TAKEOFF, LAND]
     expected = build_mission_items(plan_for_vehicle(multirotor_case_one()), Home(*DEFAULT_HOME))
     assert [item.command for item in items] == [item.command for item in expected]
+
+
+@pytest.mark.parametrize('firmware, speed, horizon, home', [
+    ('ardupilot', '10', '400', [-35.363262, 149.165237, 584.0]),    # ArduPilot SITL's CMAC
+    ('px4', '5', '500', [47.397742, 8.545594, 489.0]),              # PX4 SITL's Zurich
+])
+def test_the_default_home_is_the_firmware_s_simulator_home(tmp_path, capsys, firmware, speed,
+                                                           horizon, home):
+    from uav_comm_planner.tools import cli
+    command = ['plan', '--case', 'I', '--speed', speed, '--horizon', horizon, '--slots', '100',
+               '--firmware', firmware, '--mission']
+    assert cli.main([*command, str(tmp_path / 'default.plan')]) == 0
+    default = json.loads((tmp_path / 'default.plan').read_text())['mission']
+    assert default['plannedHomePosition'] == home
+    assert MissionRequest(paper_scenario('I'), firmware=firmware).home == Home(*home)
+    # An explicit home always wins, the other firmware's simulator home included.
+    other = '47.397742,8.545594,489' if firmware == 'ardupilot' else '-35.363262,149.165237,584'
+    assert cli.main([*command, str(tmp_path / 'given.plan'), f'--home={other}']) == 0
+    given = json.loads((tmp_path / 'given.plan').read_text())['mission']
+    assert given['plannedHomePosition'] == [float(v) for v in other.split(',')]
+    capsys.readouterr()
 
 
 def test_command_line_refuses_what_the_vehicle_cannot_fly(tmp_path, capsys):

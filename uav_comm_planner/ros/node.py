@@ -46,7 +46,7 @@ import sys
 
 from geometry_msgs.msg import PoseArray, PoseStamped
 import rclpy
-from rclpy.exceptions import InvalidParameterValueException
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -322,7 +322,7 @@ def main(args: list[str] | None = None) -> int:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (PlannerError, InvalidParameterValueException) as exc:
+    except (PlannerError, InvalidParameterTypeException, InvalidParameterValueException) as exc:
         print(f'{NODE_NAME}: invalid parameters: {exc}', file=sys.stderr)
         status = 2
     finally:

@@ -29,7 +29,7 @@ from uav_comm_planner.tools.serialize import (package_version, result_to_dict, r
                                               settings_from_dict)
 from uav_comm_planner.tools.study import command as montecarlo
 from uav_comm_planner.vehicle.firmware import FIRMWARES
-from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
+from uav_comm_planner.vehicle.geodesy import default_home, Home
 from uav_comm_planner.vehicle.mavlink.items import MISSION_ENDS
 
 #: The budgets of the letter's Fig. 2, watts.
@@ -302,14 +302,15 @@ def _command_plan(args: argparse.Namespace) -> int:
     from uav_comm_planner.mission.request import MissionRequest
     vehicle_aware = _vehicle_asked(args)
     limits = _vehicle_limits(args)
+    home = args.home if args.home is not None else default_home(args.firmware)
     zones = None
     if args.fence is not None:
         from uav_comm_planner.vehicle.fence import read_zones
-        zones = read_zones(args.fence, args.home, margin_m=args.fence_margin)
+        zones = read_zones(args.fence, home, margin_m=args.fence_margin)
     request = MissionRequest(
         _scenario(args, limits if vehicle_aware else None), _settings(args), limits,
         vehicle_aware=vehicle_aware, firmware=args.firmware, end=args.mission_end,
-        home=args.home, items=args.mission is not None, zones=zones)
+        home=home, items=args.mission is not None, zones=zones)
     planned = plan_mission(request)
     if vehicle_aware:
         print(format_plan(planned.vehicle_plan.ideal))
@@ -432,12 +433,13 @@ def build_parser() -> argparse.ArgumentParser:
                              help="draw the letter's Fig. 1 for this plan (.png, .pdf or .svg)")
     plan_parser.add_argument('--mission', type=Path, metavar='FILE.waypoints|FILE.plan',
                              help='write a MAVLink mission: QGC WPL 110 or QGroundControl .plan')
-    plan_parser.add_argument('--home', type=_home, default=Home(*DEFAULT_HOME),
-                             metavar='LAT,LON,ALT',
+    plan_parser.add_argument('--home', type=_home, metavar='LAT,LON,ALT',
                              help='where x = east, y = north metres start: degrees, degrees, '
-                                  'metres above sea level (default %s, the PX4 and ArduPilot '
-                                  "simulators' launch point in Zurich; give your own field's)"
-                                  % ','.join(f'{v:.10g}' for v in DEFAULT_HOME))
+                                  "metres above sea level (default: the --firmware simulator's "
+                                  'home, %s; give your own field\'s)'
+                                  % '; '.join(f'{name} ' + ','.join(f'{v:.10g}' for v in
+                                                                     firmware.sitl_home)
+                                              for name, firmware in FIRMWARES.items()))
     plan_parser.add_argument('--fence', type=Path, metavar='FENCE.plan|FENCE.geojson',
                              help="where the vehicle may fly: a .plan file's geoFence or a "
                                   'GeoJSON FeatureCollection, anchored at --home '
