@@ -199,6 +199,18 @@ def test_summary_line_has_objective_baselines_and_time():
     assert f'{result.baselines["straight"]:.4g}' in line
     assert f'{result.baselines["static"]:.4g}' in line
     assert 'planned in' in line and '\n' not in line
+    assert result.min_throughput > result.baselines['static'] and 'ignores' not in line
+
+
+def test_summary_line_says_the_static_point_ignores_launch_and_landing_when_it_is_higher():
+    # Two nodes 300 m off the line from q0 to qF, and hardly more time than the flight takes:
+    # the static point hovers over them all the time, which no flight from q0 to qF can.
+    result = plan(paper_scenario('I', ground_nodes_m=((1000.0, 300.0), (1050.0, 300.0)),
+                                 max_speed_mps=10.0, horizon_s=210.0, num_slots=42))
+    assert result.min_throughput < result.baselines['static']
+    line = summary_line(result)
+    assert f'static point {result.baselines["static"]:.4g}, which ignores launch and landing' \
+        in line
 
 
 @pytest.mark.parametrize('values, message', [

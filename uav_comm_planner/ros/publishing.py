@@ -103,12 +103,17 @@ def plan_values(outcome: PlanOutcome) -> dict[str, object]:
 
 
 def summary_line(result: PlanResult) -> str:
-    """The one log line per plan: objective, both baselines, size and plan time."""
+    """The one log line per plan: objective, both baselines, size and plan time. A plan below
+    the static point is said not to be worse than it: the static point hovers over the nodes
+    for the whole horizon, so it ignores the flight from launch and to landing."""
     scenario = result.scenario
     baselines = result.baselines
     if baselines:
+        static = baselines.get('static', math.nan)
+        caveat = (', which ignores launch and landing' if result.min_throughput < static
+                  else '')
         compared = (f'straight line {baselines.get("straight", math.nan):.4g}, '
-                    f'static point {baselines.get("static", math.nan):.4g}')
+                    f'static point {static:.4g}{caveat}')
     else:
         compared = 'baselines off'
     nodes = f'{scenario.num_nodes} node' + ('' if scenario.num_nodes == 1 else 's')
