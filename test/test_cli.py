@@ -29,6 +29,24 @@ def test_plan_writes_the_json_and_the_figure(tmp_path, capsys):
     assert figure.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 
+@pytest.mark.parametrize('flags', [(), ('--speed', '10', '--horizon', '400', '--slots', '100',
+                                          '--vehicle')])
+def test_the_json_result_carries_the_dual_bound_the_command_prints(tmp_path, capsys, flags):
+    """Beside the loose upper_bound, the dual bound over the flyable paths (for a plan as the
+    vehicle flies it: the optimiser's plan's, as the table prints it)."""
+    result_file = tmp_path / 'r.json'
+    status, out, _ = run(capsys, 'plan', '--case', 'I', *flags, '--json', str(result_file))
+    assert status == 0
+    (printed,) = [float(line.split()[-1]) for line in out.splitlines()
+                  if line.startswith('upper bound (dual over the flyable paths)')]
+    (loose,) = [float(line.split()[-1]) for line in out.splitlines()
+                if line.startswith('upper bound (every channel at its best)')]
+    data = json.loads(result_file.read_text())
+    assert round(data['dual_upper_bound'], 4) == printed
+    assert round(data['upper_bound'], 4) == loose
+    assert data['min_throughput'] <= data['dual_upper_bound'] < data['upper_bound']
+
+
 def test_a_result_file_is_a_scenario_file_and_flags_override_it(tmp_path, capsys):
     first = tmp_path / 'first.json'
     assert run(capsys, 'plan', '--case', 'II', '--json', str(first))[0] == 0

@@ -319,7 +319,8 @@ def _command_plan(args: argparse.Namespace) -> int:
         print(format_plan(planned.result))
     result = planned.result
     # Every check before the first file: the JSON text and the mission's rows.
-    text = (json_text(result_to_dict(result, settings=request.settings))
+    text = (json_text(result_to_dict(result, settings=request.settings,
+                                     optimised=planned.optimised))
             if args.json is not None else None)
     if args.mission is not None and planned.items is None:
         raise PlannerError(planned.items_error)
