@@ -100,3 +100,17 @@ def test_letter_flag_runs_algorithm_1_from_the_straight_line_only(tmp_path, caps
     letter_plan, default_plan = json.loads(letter.read_text()), json.loads(default.read_text())
     assert letter_plan['start'] == 'straight'
     assert default_plan['min_throughput'] >= letter_plan['min_throughput'] * (1 - 1e-9)
+
+
+def test_counts_are_in_the_singular_for_one(capsys):
+    """PX4's 5 m/s over case I stops once: '1 stop', not '1 stops'."""
+    from uav_comm_planner.core.numbers import counted
+    from uav_comm_planner.tools.study.runner import format_run, StudyRun
+
+    status, out, _ = run(capsys, 'plan', '--case', 'I', '--speed', '5', '--horizon', '500',
+                         '--slots', '125', '--firmware', 'px4', '--vehicle')
+    assert status == 0 and '; 2 legs, 1 stop, qF reached at' in out
+    assert [counted(n, 'worker') for n in (0, 1, 2)] == ['0 workers', '1 worker', '2 workers']
+    one = StudyRun(planned=10, failed=0, wall_s=1.0, workers=1, batch_size=2, cpu_s=1.0,
+                   coordinator_cpu_s=0.1, startup_s=0.5, in_table=10, total=10)
+    assert ' on 1 worker: ' in format_run(one)

@@ -17,6 +17,7 @@ from pathlib import Path
 import sys
 from typing import Sequence
 
+from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
@@ -267,7 +268,8 @@ def format_flown(vehicle_plan) -> str:
              f'{flown.min_throughput:>28.4f}',
              f'vehicle: cruise {limits.describe_cruise()}, acceleration '
              f'{limits.max_accel_mpss:g} m/s/s, jerk {limits.max_jerk_mpsss:g} m/s/s/s; '
-             f'{len(schedule.legs)} legs, {len(schedule.stops) - 2} stops, qF reached at '
+             f'{counted(len(schedule.legs), "leg")}, {counted(len(schedule.stops) - 2, "stop")}, '
+             f'qF reached at '
              f'{schedule.arrival_s:.1f} s of {end_s:g}']
     return '\n'.join(lines)
 
