@@ -8,6 +8,7 @@ import json
 import math
 import os
 from pathlib import Path
+import re
 
 import numpy as np
 import pymap3d
@@ -153,6 +154,23 @@ def test_the_file_holds_the_schedule(case_one, home, tmp_path, firmware):
             assert to_enu(item, home) == pytest.approx(position, abs=POSITION_TOLERANCE_M)
     if firmware == 'ardupilot':
         assert all(float(item.param1).is_integer() for item in timed if item.command == WAYPOINT)
+
+
+@pytest.mark.parametrize('firmware', ['ardupilot', 'px4'])
+def test_a_plan_file_holds_its_numbers_rounded(tmp_path, capsys, firmware):
+    """No float arithmetic's tail (a PX4 hold of 6.380000000002752 s): holds and speeds to
+    1e-6, latitude and longitude to 1e-8 degree."""
+    from uav_comm_planner.tools import cli
+    target = tmp_path / 'm.plan'
+    speed, horizon = ('5', '500') if firmware == 'px4' else ('10', '400')
+    assert cli.main(['plan', '--case', 'I', '--speed', speed, '--horizon', horizon, '--slots',
+                     '125', '--firmware', firmware, '--mission', str(target)]) == 0
+    capsys.readouterr()
+    text = target.read_text()
+    assert re.findall(r'\d\.\d{9,}', text) == []
+    holds = [item['params'][0] for item in json.loads(text)['mission']['items']
+             if item['command'] == 16]
+    assert any(0 < hold != round(hold) for hold in holds) == (firmware == 'px4')
 
 
 def test_every_waypoint_has_the_coordinates_of_its_point_converted_alone(case_one, home):
