@@ -220,8 +220,9 @@ DESCRIPTIONS = {
     'frame_id': 'frame of the ground nodes, the UAV pose and every output',
     'mission_dir': 'folder of mission files, fixed at start-up (read-only); empty: the '
                    "node's working directory",
-    'mission_file': 'write the planned flight to this file in mission_dir on every plan '
-                    '(a bare name ending in .waypoints or .plan); empty: no mission file',
+    'mission_file': 'write the planned flight to this file in mission_dir on every plan, and '
+                    'the plan in force at once when set (a bare name ending in .waypoints or '
+                    '.plan); empty: no mission file',
     'home_latitude_deg': 'WGS84 latitude of the frame origin (deg); the three home_* at their '
                          "defaults: the mission_firmware simulator's home (ArduPilot SITL's "
                          "CMAC, here; PX4 SITL's 47.397742, 8.545594, 489 m), or with "
