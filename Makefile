@@ -34,6 +34,7 @@ $(MODE_STAMP):
 	touch $@
 
 $(STAMP): $(SOURCES) $(MODE_STAMP)
+	@echo 'Installing the package and its dependencies into $(VENV): minutes the first time...'
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade 'pip>=23,<27'
 	$(BIN)/python -m pip install --quiet --constraint $(CONSTRAINTS) $(if $(wildcard $(EDITABLE)),--editable )'.[$(EXTRAS)]'

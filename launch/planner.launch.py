@@ -16,10 +16,12 @@ Arguments:
         parameter only when not empty (default: empty, the file's value or the node's own
         default stands).
     use_sim_time: true to follow /clock (a simulator or a bag) instead of the wall clock, for
-        the node and RViz (default: false).
+        the node and RViz (default: false). Booleans are read as launch's conditions read
+        them: true, True, TRUE or 1; false, False or 0.
     log_level: the node's log level: debug, info, warn, error or fatal (default: info).
     use_rviz: true to start RViz with the package's view (rviz/planner.rviz) in the same
-        namespace, so that it shows this planner's plan (default: false).
+        namespace, so that it shows this planner's plan (default: false). When rviz2 is not
+        installed, the launch stops before it starts anything (no planner left running).
     color: colour codes in the node's log lines: auto (only when this launch writes to a
         terminal, so a redirected log stays plain text), true or false (default: auto).
 """
@@ -32,15 +34,17 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
+from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
 import yaml
 
 PACKAGE = 'uav_comm_planner'
 EXECUTABLE = 'planner'
 NODE_NAME = 'uav_comm_planner'
 RVIZ_CONFIG = ('rviz', 'planner.rviz')
-BOOLEANS = ('true', 'false')
+#: The spellings launch's conditions (IfCondition) take, after strip() and lower().
+TRUE_WORDS = ('true', '1')
+FALSE_WORDS = ('false', '0')
 LOG_LEVELS = ('debug', 'info', 'warn', 'error', 'fatal')
-COLORS = ('auto', 'true', 'false')
 
 
 def node_parameters(path, namespace, node_name=NODE_NAME):
@@ -66,6 +70,29 @@ def node_parameters(path, namespace, node_name=NODE_NAME):
     return values
 
 
+def launch_boolean(name, text):
+    """The boolean argument ``name`` given as ``text``, read as launch reads a condition:
+    true, True, TRUE or 1; false, False or 0 (spaces around ignored). RuntimeError otherwise."""
+    word = text.strip().lower()
+    if word in TRUE_WORDS:
+        return True
+    if word in FALSE_WORDS:
+        return False
+    raise RuntimeError(f'{name}:={text!r}: expected true or false (or True, False, 1, 0)')
+
+
+def required_package(package, argument, find_share=None):
+    """The share folder of ``package``, which ``argument`` asks for; RuntimeError naming both
+    when it is not installed. Called before any action is returned, so that a launch that
+    cannot start a part it asks for starts nothing (no planner left running without it)."""
+    try:
+        return (find_share or get_package_share_directory)(package)
+    except PackageNotFoundError:
+        raise RuntimeError(f"{argument}: package '{package}' is not installed, so nothing was "
+                           f'started; install it (ros-jazzy-{package}) or launch without '
+                           f'{argument.split(":=")[0]}') from None
+
+
 def colorized_output(color, stdout_is_terminal):
     """RCUTILS_COLORIZED_OUTPUT for the node: '1' or '0'.
 
@@ -75,7 +102,7 @@ def colorized_output(color, stdout_is_terminal):
     """
     if color == 'auto':
         return '1' if stdout_is_terminal else '0'
-    return '1' if color == 'true' else '0'
+    return '1' if launch_boolean('color', color) else '0'
 
 
 def _actions(context):
@@ -84,7 +111,10 @@ def _actions(context):
 
     namespace = argument('namespace')
     mavlink_url = argument('mavlink_url')
-    use_sim_time = argument('use_sim_time') == 'true'
+    use_sim_time = launch_boolean('use_sim_time', argument('use_sim_time'))
+    use_rviz = launch_boolean('use_rviz', argument('use_rviz'))
+    if use_rviz:
+        required_package('rviz2', 'use_rviz:=true')
     parameters = [node_parameters(argument('params_file'), namespace),
                   {'use_sim_time': use_sim_time}]
     if mavlink_url:
@@ -94,7 +124,7 @@ def _actions(context):
                     parameters=parameters, ros_arguments=['--log-level', argument('log_level')],
                     additional_env={'RCUTILS_COLORIZED_OUTPUT': color},
                     output='screen', emulate_tty=True)]
-    if argument('use_rviz') == 'true':
+    if use_rviz:
         # In the node's namespace, RViz resolves the view's relative topics to this planner's.
         view = os.path.join(FindPackageShare(PACKAGE).perform(context), *RVIZ_CONFIG)
         actions.append(Node(package='rviz2', executable='rviz2', name='rviz2',
@@ -118,17 +148,19 @@ def generate_launch_description():
             description='vehicle MAVLink connection for the mavlink_url parameter, e.g. '
                         'udpin:0.0.0.0:14550; empty: not passed'),
         DeclareLaunchArgument(
-            'use_sim_time', default_value='false', choices=BOOLEANS,
-            description='follow /clock (simulator or bag) instead of the wall clock'),
+            'use_sim_time', default_value='false',
+            description='follow /clock (simulator or bag) instead of the wall clock: true or '
+                        'false (also True, False, 1, 0)'),
         DeclareLaunchArgument(
             'log_level', default_value='info', choices=LOG_LEVELS,
             description='log level of the node'),
         DeclareLaunchArgument(
-            'use_rviz', default_value='false', choices=BOOLEANS,
-            description='start RViz with the package\'s view of the plan, in the namespace'),
+            'use_rviz', default_value='false',
+            description='start RViz with the package\'s view of the plan, in the namespace: '
+                        'true or false (also True, False, 1, 0); nothing starts without rviz2'),
         DeclareLaunchArgument(
-            'color', default_value='auto', choices=COLORS,
+            'color', default_value='auto',
             description='colour codes in the node\'s log: auto (only on a terminal), true, '
-                        'false'),
+                        'false (also True, False, 1, 0)'),
         OpaqueFunction(function=_actions),
     ])

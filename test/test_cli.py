@@ -29,6 +29,24 @@ def test_plan_writes_the_json_and_the_figure(tmp_path, capsys):
     assert figure.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 
+@pytest.mark.parametrize('flags', [(), ('--speed', '10', '--horizon', '400', '--slots', '100',
+                                          '--vehicle')])
+def test_the_json_result_carries_the_dual_bound_the_command_prints(tmp_path, capsys, flags):
+    """Beside the loose upper_bound, the dual bound over the flyable paths (for a plan as the
+    vehicle flies it: the optimiser's plan's, as the table prints it)."""
+    result_file = tmp_path / 'r.json'
+    status, out, _ = run(capsys, 'plan', '--case', 'I', *flags, '--json', str(result_file))
+    assert status == 0
+    (printed,) = [float(line.split()[-1]) for line in out.splitlines()
+                  if line.startswith('upper bound (dual over the flyable paths)')]
+    (loose,) = [float(line.split()[-1]) for line in out.splitlines()
+                if line.startswith('upper bound (every channel at its best)')]
+    data = json.loads(result_file.read_text())
+    assert round(data['dual_upper_bound'], 4) == printed
+    assert round(data['upper_bound'], 4) == loose
+    assert data['min_throughput'] <= data['dual_upper_bound'] < data['upper_bound']
+
+
 def test_a_result_file_is_a_scenario_file_and_flags_override_it(tmp_path, capsys):
     first = tmp_path / 'first.json'
     assert run(capsys, 'plan', '--case', 'II', '--json', str(first))[0] == 0
@@ -82,3 +100,17 @@ def test_letter_flag_runs_algorithm_1_from_the_straight_line_only(tmp_path, caps
     letter_plan, default_plan = json.loads(letter.read_text()), json.loads(default.read_text())
     assert letter_plan['start'] == 'straight'
     assert default_plan['min_throughput'] >= letter_plan['min_throughput'] * (1 - 1e-9)
+
+
+def test_counts_are_in_the_singular_for_one(capsys):
+    """PX4's 5 m/s over case I stops once: '1 stop', not '1 stops'."""
+    from uav_comm_planner.core.numbers import counted
+    from uav_comm_planner.tools.study.runner import format_run, StudyRun
+
+    status, out, _ = run(capsys, 'plan', '--case', 'I', '--speed', '5', '--horizon', '500',
+                         '--slots', '125', '--firmware', 'px4', '--vehicle')
+    assert status == 0 and '; 2 legs, 1 stop, qF reached at' in out
+    assert [counted(n, 'worker') for n in (0, 1, 2)] == ['0 workers', '1 worker', '2 workers']
+    one = StudyRun(planned=10, failed=0, wall_s=1.0, workers=1, batch_size=2, cpu_s=1.0,
+                   coordinator_cpu_s=0.1, startup_s=0.5, in_table=10, total=10)
+    assert ' on 1 worker: ' in format_run(one)

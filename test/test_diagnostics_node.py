@@ -74,6 +74,10 @@ def test_diagnostics_carry_the_plan_the_link_and_the_clock(harness):
     assert float(values['min_throughput_bps']) == outcome.min_throughput
     assert float(values['straight_bps']) == outcome.result.baselines['straight']
     assert values['slots'] == '40' and 'longest_leg_m' not in values
+    # The power used of the budget P_T: a sum of watts over nodes and slots, named as such.
+    assert float(values['power_sum_w']) == float(outcome.result.power.sum())
+    assert float(values['power_sum_w']) <= outcome.result.scenario.power_budget_w * (1 + 1e-9)
+    assert 'energy_w' not in values
     link = probe.status(VEHICLE_LINK)
     assert link.level == DiagnosticStatus.OK and link.message.startswith('off: ')
     clock = probe.status(MISSION_CLOCK)

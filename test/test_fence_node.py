@@ -160,11 +160,12 @@ def test_a_fenced_plan_is_not_moved_to_a_vehicle_home_its_zones_were_not_placed_
     state = VehicleState()
     state._report = lambda message, is_error: reports.append((message, is_error))
     state._bridge = SimpleNamespace(upload=lambda *a, **k: uploads.append(a))
-    state._reset_state(Home(-35.363262, 149.165237, 584.0))       # the vehicle's home
+    state._reset_state(Home(47.397742, 8.545594, 489.0))       # the vehicle's home
     request = SimpleNamespace(home=HOME, planned_scenario=SimpleNamespace(zones=ZONES))
     state.upload(SimpleNamespace(plan=SimpleNamespace(request=request),
                                  request=SimpleNamespace(start_ns=1)))
     assert uploads == [] and state._pending_tag is None
     (message, is_error), = reports
     assert is_error and 'zones were placed from the home parameters' in message
-    assert '-35.3632620' in message and f'{HOME.latitude_deg:.7f}' in message
+    assert HOME.latitude_deg != 47.397742
+    assert '47.3977420' in message and f'{HOME.latitude_deg:.7f}' in message

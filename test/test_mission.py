@@ -8,6 +8,7 @@ import json
 import math
 import os
 from pathlib import Path
+import re
 
 import numpy as np
 import pymap3d
@@ -18,6 +19,7 @@ from uav_comm_planner import InvalidScenarioError, MissionExportError, paper_sce
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import MissionFileError, VehicleLinkError
+from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline
 from uav_comm_planner.vehicle.flyable import (MERGE_RADIUS_M, MIN_SPEED_MPS, PATH_TOLERANCE_M,
                                               plan_for_vehicle, schedule_flight)
@@ -152,6 +154,23 @@ def test_the_file_holds_the_schedule(case_one, home, tmp_path, firmware):
             assert to_enu(item, home) == pytest.approx(position, abs=POSITION_TOLERANCE_M)
     if firmware == 'ardupilot':
         assert all(float(item.param1).is_integer() for item in timed if item.command == WAYPOINT)
+
+
+@pytest.mark.parametrize('firmware', ['ardupilot', 'px4'])
+def test_a_plan_file_holds_its_numbers_rounded(tmp_path, capsys, firmware):
+    """No float arithmetic's tail (a PX4 hold of 6.380000000002752 s): holds and speeds to
+    1e-6, latitude and longitude to 1e-8 degree."""
+    from uav_comm_planner.tools import cli
+    target = tmp_path / 'm.plan'
+    speed, horizon = ('5', '500') if firmware == 'px4' else ('10', '400')
+    assert cli.main(['plan', '--case', 'I', '--speed', speed, '--horizon', horizon, '--slots',
+                     '125', '--firmware', firmware, '--mission', str(target)]) == 0
+    capsys.readouterr()
+    text = target.read_text()
+    assert re.findall(r'\d\.\d{9,}', text) == []
+    holds = [item['params'][0] for item in json.loads(text)['mission']['items']
+             if item['command'] == 16]
+    assert any(0 < hold != round(hold) for hold in holds) == (firmware == 'px4')
 
 
 def test_every_waypoint_has_the_coordinates_of_its_point_converted_alone(case_one, home):
@@ -403,7 +422,7 @@ def test_home_is_validated(values, message):
 
 
 def test_home_is_parsed_from_the_command_line_form():
-    assert Home.parse(' 47.397742, 8.545594 ,488') == Home(*DEFAULT_HOME)
+    assert Home.parse(' -35.363262, 149.165237 ,584') == Home(*DEFAULT_HOME)
     for text in ('47.3,8.5', '47.3,8.5,abc', '47.3;8.5;400'):
         with pytest.raises(InvalidScenarioError, match='LAT,LON,ALT'):
             Home.parse(text)
@@ -449,6 +468,27 @@ def test_command_line_writes_a_mission_that_pymavlink_loads(tmp_path, capsys):
     assert [items[0].command, items[1].command, items[-1].command] == [WAYPOINT, TAKEOFF, LAND]
     expected = build_mission_items(plan_for_vehicle(multirotor_case_one()), Home(*DEFAULT_HOME))
     assert [item.command for item in items] == [item.command for item in expected]
+
+
+@pytest.mark.parametrize('firmware, speed, horizon, home', [
+    ('ardupilot', '10', '400', [-35.363262, 149.165237, 584.0]),    # ArduPilot SITL's CMAC
+    ('px4', '5', '500', [47.397742, 8.545594, 489.0]),              # PX4 SITL's Zurich
+])
+def test_the_default_home_is_the_firmware_s_simulator_home(tmp_path, capsys, firmware, speed,
+                                                           horizon, home):
+    from uav_comm_planner.tools import cli
+    command = ['plan', '--case', 'I', '--speed', speed, '--horizon', horizon, '--slots', '100',
+               '--firmware', firmware, '--mission']
+    assert cli.main([*command, str(tmp_path / 'default.plan')]) == 0
+    default = json.loads((tmp_path / 'default.plan').read_text())['mission']
+    assert default['plannedHomePosition'] == home
+    assert MissionRequest(paper_scenario('I'), firmware=firmware).home == Home(*home)
+    # An explicit home always wins, the other firmware's simulator home included.
+    other = '47.397742,8.545594,489' if firmware == 'ardupilot' else '-35.363262,149.165237,584'
+    assert cli.main([*command, str(tmp_path / 'given.plan'), f'--home={other}']) == 0
+    given = json.loads((tmp_path / 'given.plan').read_text())['mission']
+    assert given['plannedHomePosition'] == [float(v) for v in other.split(',')]
+    capsys.readouterr()
 
 
 def test_command_line_refuses_what_the_vehicle_cannot_fly(tmp_path, capsys):

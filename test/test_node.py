@@ -7,6 +7,7 @@ The last test runs the installed ``planner`` executable and hears its plan acros
 
 from __future__ import annotations
 
+import json
 import math
 import os
 from pathlib import Path as FilePath
@@ -293,6 +294,22 @@ def test_mission_written_on_every_plan_and_on_demand(harness, tmp_path):
     h.errors_after(errors)
     assert 'mission export failed' in h.node.stats.last_error
     assert not h.call('export_mission', Trigger.Request()).success
+
+
+def test_setting_mission_file_writes_the_plan_in_force_at_once(harness, tmp_path):
+    """Not at the next plan: the file is there when the change is accepted, and another end
+    writes it again; neither replans."""
+    h = harness(mission_dir=str(tmp_path), **MULTIROTOR)
+    h.published(1)
+    assert list(tmp_path.iterdir()) == []
+    requests = h.node.stats.requests_made
+    for name, value in (('mission_file', 'now.plan'), ('mission_end', 'rtl')):
+        answer = h.call('set_parameters', SetParameters.Request(
+            parameters=[Parameter(name, value=value).to_parameter_msg()]))
+        assert answer.results[0].successful, answer.results[0].reason
+        items = json.loads((tmp_path / 'now.plan').read_text())['mission']['items']
+        assert items[-1]['command'] == (20 if value == 'rtl' else 21)   # RTL, else LAND
+    assert h.node.stats.requests_made == requests
 
 
 def test_mission_file_with_unknown_extension_is_refused(harness, tmp_path):

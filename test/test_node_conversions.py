@@ -20,6 +20,7 @@ from uav_comm_planner.ros.messages import (ground_nodes_of, headings, marker_arr
 from uav_comm_planner.ros.params import (config_from_parameters, NodeSettings, NOT_PARAMETERS,
                                          PARAMETER_NAMES, parameter_specs)
 from uav_comm_planner.ros.publishing import summary_line
+from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
 CONFIG = Path(__file__).resolve().parent.parent / 'config' / 'planner.yaml'
@@ -54,7 +55,12 @@ def test_descriptors_carry_units_and_ranges():
         assert spec.descriptor().description, spec.name
     altitude = specs['altitude_m'].descriptor()
     assert '(m)' in altitude.description
-    assert altitude.floating_point_range[0].from_value == 0.0
+    # H = 0 is refused, so no range that includes it (a descriptor's range is inclusive).
+    assert not altitude.floating_point_range
+    assert altitude.additional_constraints == 'greater than 0, at most 100000'
+    budget = specs['power_budget_w'].descriptor()
+    assert not budget.floating_point_range and 'greater than 0' in budget.additional_constraints
+    assert specs['fence_margin_m'].descriptor().floating_point_range[0].from_value == 0.0
     assert specs['num_slots'].descriptor().integer_range[0].from_value == 1
     assert 'land' in specs['mission_end'].descriptor().additional_constraints
 
@@ -65,6 +71,20 @@ def test_shipped_config_lists_every_parameter_with_its_default():
     assert shipped == defaults
     for spec in parameter_specs():
         assert type(shipped[spec.name]) is type(spec.default), spec.name
+
+
+def test_the_default_home_is_the_mission_firmware_s_simulator_home():
+    cmac, zurich = Home(-35.363262, 149.165237, 584.0), Home(47.397742, 8.545594, 489.0)
+    assert config_from_parameters({}).node.home == cmac
+    px4 = {'mission_firmware': 'px4', 'max_speed_mps': 5.0, 'horizon_s': 500.0}
+    assert config_from_parameters(px4, explicit=set(px4)).node.home == zurich
+    # Explicit home parameters always win, ArduPilot's simulator home for PX4 included.
+    given = {**px4, 'home_latitude_deg': 50.0, 'home_longitude_deg': 8.0,
+             'home_altitude_m': 100.0}
+    assert config_from_parameters(given).node.home == Home(50.0, 8.0, 100.0)
+    one = {**px4, 'home_altitude_m': 100.0}     # one home parameter set: the rest default
+    assert config_from_parameters(one, explicit=set(one)).node.home == \
+        Home(-35.363262, 149.165237, 100.0)
 
 
 def test_parameters_become_the_dataclasses():
@@ -179,6 +199,18 @@ def test_summary_line_has_objective_baselines_and_time():
     assert f'{result.baselines["straight"]:.4g}' in line
     assert f'{result.baselines["static"]:.4g}' in line
     assert 'planned in' in line and '\n' not in line
+    assert result.min_throughput > result.baselines['static'] and 'ignores' not in line
+
+
+def test_summary_line_says_the_static_point_ignores_launch_and_landing_when_it_is_higher():
+    # Two nodes 300 m off the line from q0 to qF, and hardly more time than the flight takes:
+    # the static point hovers over them all the time, which no flight from q0 to qF can.
+    result = plan(paper_scenario('I', ground_nodes_m=((1000.0, 300.0), (1050.0, 300.0)),
+                                 max_speed_mps=10.0, horizon_s=210.0, num_slots=42))
+    assert result.min_throughput < result.baselines['static']
+    line = summary_line(result)
+    assert f'static point {result.baselines["static"]:.4g}, which ignores launch and landing' \
+        in line
 
 
 @pytest.mark.parametrize('values, message', [

@@ -409,8 +409,8 @@ def test_launch_declares_its_arguments_with_their_choices(launch_file):
     (description,) = launch_file.generate_launch_description().args
     declared = {a.name: a.kwargs for a in description if isinstance(a, _Argument)}
     assert list(declared) == ARGUMENTS
-    assert declared['use_sim_time']['choices'] == declared['use_rviz']['choices'] == \
-        ('true', 'false')
+    # Booleans take every spelling launch's conditions take, so no fixed choices.
+    assert declared['use_sim_time']['choices'] is declared['use_rviz']['choices'] is None
     assert declared['log_level']['choices'] == ('debug', 'info', 'warn', 'error', 'fatal')
     assert [declared[name]['default_value'] for name in ARGUMENTS[1:]] == [
         '', '', 'false', 'info', 'false', 'auto']
@@ -451,7 +451,40 @@ def test_launch_arguments_reach_the_node(launch_file, monkeypatch):
     assert plain.kwargs['additional_env'] == {'RCUTILS_COLORIZED_OUTPUT': '0'}
 
 
-def test_use_rviz_starts_rviz_with_the_package_s_view_in_the_namespace(launch_file):
+def test_launch_booleans_take_the_spellings_launch_takes(launch_file, monkeypatch):
+    monkeypatch.setattr(launch_file, 'get_package_share_directory', lambda package: '/opt')
+    for spelling, value in (('true', True), ('True', True), ('TRUE', True), ('1', True),
+                            (' true ', True), ('false', False), ('False', False), ('0', False)):
+        nodes = _launch(launch_file, use_sim_time=spelling, use_rviz=spelling, color=spelling)
+        assert nodes[0].kwargs['parameters'][1] == {'use_sim_time': value}, spelling
+        assert len(nodes) == (2 if value else 1), spelling
+        assert nodes[0].kwargs['additional_env'] == {
+            'RCUTILS_COLORIZED_OUTPUT': '1' if value else '0'}
+    for bad in ('yes', 'on', '', 'treu'):
+        with pytest.raises(RuntimeError, match='expected true or false'):
+            _launch(launch_file, use_sim_time=bad)
+
+
+def test_without_rviz2_a_launch_that_asks_for_it_starts_nothing(launch_file, monkeypatch):
+    """rviz2 not installed: the launch fails before it returns any action, the planner's
+    included, so no planner is left running without its parent (with mavlink_url, commanding
+    the vehicle)."""
+    from ament_index_python.packages import PackageNotFoundError
+
+    def not_installed(package):
+        raise PackageNotFoundError(package)
+    monkeypatch.setattr(launch_file, 'get_package_share_directory', not_installed)
+    with pytest.raises(RuntimeError, match="package 'rviz2' is not installed, so nothing was "
+                                           'started'):
+        _launch(launch_file, use_rviz='True', mavlink_url='udpin:0.0.0.0:14550')
+    (planner,) = _launch(launch_file, use_rviz='false')     # not asked for: not needed
+    assert planner.kwargs['executable'] == 'planner'
+
+
+def test_use_rviz_starts_rviz_with_the_package_s_view_in_the_namespace(launch_file,
+                                                                        monkeypatch):
+    monkeypatch.setattr(launch_file, 'get_package_share_directory',
+                        lambda package: f'/opt/ros/jazzy/share/{package}')
     planner, rviz = _launch(launch_file, namespace='uav1', use_rviz='true', use_sim_time='true')
     options = rviz.kwargs
     assert (options['package'], options['executable']) == ('rviz2', 'rviz2')
@@ -642,3 +675,15 @@ def test_the_lock_file_pins_every_requirement_within_setup_pys_ranges():
         assert requirement.specifier.contains(pins[name], prereleases=True), \
             f'{requirement.name}=={pins[name]} is outside setup.py\'s {requirement.specifier}'
     assert '--constraint $(CONSTRAINTS)' in (ROOT / 'Makefile').read_text(encoding='utf-8')
+
+
+@pytest.mark.skipif(shutil.which('make') is None, reason='needs make')
+def test_make_run_says_it_installs_before_the_long_install():
+    """`make run` on a fresh clone installs for minutes before the node starts: its first line
+    says so (make -n: the commands, none run; -W setup.py: as if a source changed)."""
+    done = subprocess.run(['make', '-n', '-W', 'setup.py', 'run'], cwd=ROOT, text=True,
+                          capture_output=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    first = done.stdout.splitlines()[0]
+    assert first.startswith('echo ') and 'Installing' in first and 'minutes' in first
+    assert done.stdout.index('Installing') < done.stdout.index('pip install')

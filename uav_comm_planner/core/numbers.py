@@ -1,4 +1,5 @@
-"""Real numbers from user input: one check for the scenario's fields and the zones'."""
+"""Real numbers from user input: one check for the scenario's fields and the zones'; and
+counts in words for messages."""
 
 from __future__ import annotations
 
@@ -20,4 +21,9 @@ def real_number(name: str, value: object, unit: str = '') -> float:
         raise InvalidScenarioError(f'{name} must be a finite number{of}, got {value!r}') from None
 
 
-__all__ = ['real_number']
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, plural unless the count is one: '1 stop', '3 stops'."""
+    return f'{count} {noun}' + ('' if count == 1 else 's')
+
+
+__all__ = ['counted', 'real_number']

@@ -21,7 +21,7 @@ from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.vehicle.flyable import GOAL_TOLERANCE_SLOTS
-from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
+from uav_comm_planner.vehicle.geodesy import default_home, Home
 from uav_comm_planner.vehicle.leg_models import leg_model
 from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
 from uav_comm_planner.vehicle.timing import leg_time
@@ -138,8 +138,9 @@ class MissionRequest:
     scenario and settings: what the optimiser solves (settings None: the defaults);
     vehicle_aware: plan for ``vehicle``'s limits and return the plan as it flies (else the
     optimiser's plan as is); firmware, end, home: how its mission items are built
-    (``items=False`` builds none); in_flight: replan the rest of a mission in flight instead
-    of the whole mission from the scenario's start; zones: where the vehicle may fly (for
+    (``items=False`` builds none; home None: the firmware's simulator home,
+    :func:`~uav_comm_planner.vehicle.geodesy.default_home`); in_flight: replan the rest of a
+    mission in flight instead of the whole mission from the scenario's start; zones: where the vehicle may fly (for
     example read from a fence file), which replace the scenario's own when given
     (:attr:`planned_scenario`).
     """
@@ -150,12 +151,14 @@ class MissionRequest:
     vehicle_aware: bool = True
     firmware: str = 'ardupilot'
     end: str = 'land'
-    home: Home = Home(*DEFAULT_HOME)
+    home: Home | None = None
     items: bool = True
     in_flight: InFlight | None = None
     zones: Zones | None = None
 
     def __post_init__(self) -> None:
+        if self.home is None:
+            object.__setattr__(self, 'home', default_home(self.firmware))
         if self.zones is not None and not isinstance(self.zones, Zones):
             raise InvalidScenarioError(
                 f'zones must be a Zones or None, got {type(self.zones).__name__}')

@@ -9,8 +9,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from uav_comm_planner.errors import PlannerError
-from uav_comm_planner.ros.params import (config_from_parameters, FenceReader, parameter_specs,
-                                         PlannerConfig)
+from uav_comm_planner.ros.params import (coerced_value, config_from_parameters, FenceReader,
+                                         parameter_specs, PlannerConfig)
 
 
 class ParameterBinding:
@@ -19,7 +19,10 @@ class ParameterBinding:
     Declares every parameter of :func:`parameter_specs` on ``node`` with its descriptor,
     refuses a change that does not make a valid configuration (with the reason, also given to
     ``on_refused`` with the names), and after an accepted change rebuilds :attr:`config` and
-    calls ``on_change`` with the changed names.
+    calls ``on_change`` with the changed names. A value of the habitual other numeric type (an
+    integer for a double, a whole-number double for an integer;
+    :func:`~uav_comm_planner.ros.params.coerced_value`) is taken as the declared type, from
+    the command line, a parameters file or a set.
     Raises :class:`~uav_comm_planner.errors.PlannerError` when the initial values are invalid.
     """
 
@@ -30,6 +33,13 @@ class ParameterBinding:
         self._on_refused = on_refused
         self._fences = FenceReader()
         specs = parameter_specs()
+        self._kinds = {spec.name: spec.kind for spec in specs}
+        # Overrides (-p NAME:=VALUE, --params-file) are applied when declaring, where rclpy
+        # calls no pre-set callback: converted here first.
+        overrides = getattr(node, '_parameter_overrides', {})
+        for name in self._kinds.keys() & overrides.keys():
+            overrides[name] = self._coerced(overrides[name])
+        node.add_pre_set_parameters_callback(self._coerce)
         node.declare_parameters('', [(spec.name, spec.default, spec.descriptor())
                                      for spec in specs])
         self._names = tuple(spec.name for spec in specs)
@@ -46,6 +56,18 @@ class ParameterBinding:
         """The parameters set explicitly: given at start-up (other than the default) or set
         since."""
         return frozenset(self._explicit)
+
+    def _coerced(self, parameter: Parameter) -> Parameter:
+        kind = self._kinds.get(parameter.name)
+        if kind is None or parameter.type_ == Parameter.Type.NOT_SET:
+            return parameter
+        value = coerced_value(parameter.value, kind)
+        return parameter if value is parameter.value else Parameter(parameter.name, value=value)
+
+    def _coerce(self, changes: list[Parameter]) -> list[Parameter]:
+        """Pre-set callback: each change in its declared numeric type where it was given in
+        the other."""
+        return [self._coerced(p) for p in changes]
 
     def _values(self, changes: Sequence[Parameter] = ()) -> dict[str, object]:
         values = {name: self._node.get_parameter(name).value for name in self._names}

@@ -30,9 +30,33 @@ def _stop_after_loading(_signum: int, _frame: object) -> None:
 
 _STOP_REQUESTED = threading.Event()
 
+USAGE = """usage: planner [-h] [--ros-args ROS_ARGUMENTS ...]
+
+The uav_comm_planner ROS 2 node: plans the communication UAV's flight (trajectory and transmit
+power) for the ground nodes, publishes it, writes it as a mission file and, with mavlink_url
+set, uploads it to the vehicle and replans in flight. It runs until Ctrl-C.
+
+options:
+  -h, --help   show this help and exit (the node is not started)
+
+ROS arguments follow --ros-args, e.g.
+  planner --ros-args -p power_budget_w:=2.0 -p num_slots:=125
+  planner --ros-args --params-file config/planner.yaml
+Every parameter, topic and service: docs/node.md.
+"""
+
+
+def wants_help(args: list[str]) -> bool:
+    """Whether the arguments before ``--ros-args`` (the node's own) ask for help."""
+    own = args[:args.index('--ros-args')] if '--ros-args' in args else args
+    return any(arg in ('-h', '--help') for arg in own)
+
 
 def main(args: list[str] | None = None) -> int:
-    """Run the planner node; returns the exit status (0 after Ctrl-C)."""
+    """Run the planner node; returns the exit status (0 after Ctrl-C, or after ``--help``)."""
+    if wants_help(sys.argv[1:] if args is None else list(args)):
+        print(USAGE, end='')
+        return 0
     signal.signal(signal.SIGINT, _stop_after_loading)
     from uav_comm_planner.ros.node import main as run_node
     if _STOP_REQUESTED.is_set():

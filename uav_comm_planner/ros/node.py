@@ -46,7 +46,7 @@ import sys
 
 from geometry_msgs.msg import PoseArray, PoseStamped
 import rclpy
-from rclpy.exceptions import InvalidParameterValueException
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -62,7 +62,7 @@ from uav_comm_planner.ros.flight import MissionFlight, SOURCE_TELEMETRY
 from uav_comm_planner.ros.messages import ground_nodes_of, nodes_text
 from uav_comm_planner.ros.params import flat_pairs, NodeSettings, OUTPUT_ONLY, PlannerConfig
 from uav_comm_planner.ros.planning import (open_mission_folder, PlanningWorker, PlanOutcome,
-                                           PlanRequest)
+                                           PlanRequest, write_mission)
 from uav_comm_planner.ros.publishing import PlanPublisher, summary_line
 from uav_comm_planner.ros.services import PlannerServices
 from uav_comm_planner.ros.vehicle import HOME_PARAMETERS, VehicleAdapter
@@ -98,6 +98,12 @@ class PlannerStats:
     plans_cancelled: int = 0
     error_count: int = 0
     last_error: str = ''
+
+
+#: Parameters that change what the mission file holds or where it is: a change writes the plan
+#: in force again at once.
+MISSION_OUTPUT = frozenset({'mission_file', 'mission_end', 'mission_firmware',
+                            'home_latitude_deg', 'home_longitude_deg', 'home_altitude_m'})
 
 
 def _replans(name: str, settings: NodeSettings) -> bool:
@@ -202,10 +208,25 @@ class PlannerNode(Node):
         if not planning:
             self.get_logger().info(
                 f'parameters {", ".join(names)} set; they apply to the next plan (no replan)')
+            if MISSION_OUTPUT & set(names):
+                self._rewrite_mission()
             return
         reason = (TOPIC_GROUND_NODES if self._refusing_nodes is not None
                   else 'parameters ' + ', '.join(planning))
         self.flight.request_update(reason)
+
+    def _rewrite_mission(self) -> None:
+        """The plan in force written at once as the mission file the parameters now name (a
+        new mission_file, or another end, firmware or home for it), not at the next plan."""
+        output = self.config.node
+        if not output.mission_file or self.current_plan is None:
+            return
+        try:
+            written = write_mission(self.current_plan, output, self.mission_folder)
+        except PlannerError as exc:
+            self.report_error(f'mission export failed: {exc}')
+        else:
+            self.get_logger().info(f'mission of the plan in force written to {written}')
 
     def _on_uav_pose(self, message: PoseStamped) -> None:
         if self._frame_accepted(message.header.frame_id, TOPIC_UAV_POSE):
@@ -322,7 +343,7 @@ def main(args: list[str] | None = None) -> int:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (PlannerError, InvalidParameterValueException) as exc:
+    except (PlannerError, InvalidParameterTypeException, InvalidParameterValueException) as exc:
         print(f'{NODE_NAME}: invalid parameters: {exc}', file=sys.stderr)
         status = 2
     finally:

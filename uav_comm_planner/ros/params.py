@@ -220,9 +220,13 @@ DESCRIPTIONS = {
     'frame_id': 'frame of the ground nodes, the UAV pose and every output',
     'mission_dir': 'folder of mission files, fixed at start-up (read-only); empty: the '
                    "node's working directory",
-    'mission_file': 'write the planned flight to this file in mission_dir on every plan '
-                    '(a bare name ending in .waypoints or .plan); empty: no mission file',
-    'home_latitude_deg': 'WGS84 latitude of the frame origin (deg)',
+    'mission_file': 'write the planned flight to this file in mission_dir on every plan, and '
+                    'the plan in force at once when set (a bare name ending in .waypoints or '
+                    '.plan); empty: no mission file',
+    'home_latitude_deg': 'WGS84 latitude of the frame origin (deg); the three home_* at their '
+                         "defaults: the mission_firmware simulator's home (ArduPilot SITL's "
+                         "CMAC, here; PX4 SITL's 47.397742, 8.545594, 489 m), or with "
+                         "mavlink_url the vehicle's home",
     'home_longitude_deg': 'WGS84 longitude of the frame origin (deg)',
     'home_altitude_m': 'altitude of the frame origin above mean sea level (m)',
     'mission_end': 'what the mission does at the goal: land or rtl',
@@ -270,6 +274,11 @@ DESCRIPTIONS = {
                                '(m/s)',
 }
 
+#: The home parameters, latitude, longitude, altitude: set explicitly, they anchor the frame;
+#: otherwise the firmware's simulator home does (or, with a link, the vehicle's home).
+HOME_PARAMETERS_IN_ORDER = ('home_latitude_deg', 'home_longitude_deg', 'home_altitude_m')
+HOME_PARAMETERS = frozenset(HOME_PARAMETERS_IN_ORDER)
+
 #: Parameters that change only what is done with a plan, never the plan: changing one never
 #: replans nor restarts the mission clock.
 OUTPUT_ONLY = frozenset({
@@ -307,6 +316,12 @@ RANGES = {
     'home_distance_limit_m': (0.0, 1.0e7),
     'fence_margin_m': (0.0, 1.0e5),
 }
+#: Fields whose value must be above the low limit of :data:`RANGES`, not at it (0 is refused):
+#: a descriptor's range is inclusive, so theirs is stated in words instead.
+ABOVE_LOW_LIMIT = frozenset({
+    'altitude_m', 'max_speed_mps', 'horizon_s', 'bandwidth_hz', 'reference_gain',
+    'power_budget_w', 'replan_distance_m', 'replan_delay_s', 'replan_interval_s',
+    'wind_time_constant_s', 'wind_replan_mps', 'home_distance_limit_m'})
 #: Parameters that only the node's start-up (overrides, a parameter file) may set: the
 #: limits on the work a plan may take and where mission files go.
 READ_ONLY = frozenset({'max_nodes', 'max_node_slots', 'mission_dir', 'fence_file'})
@@ -351,7 +366,10 @@ class ParameterSpec:
         elif self.kind == 'pairs':
             descriptor.additional_constraints = 'an even number of values: x1, y1, x2, y2, ...'
         limits = RANGES.get(self.field)
-        if limits and self.kind == 'float':
+        if limits and self.kind == 'float' and self.field in ABOVE_LOW_LIMIT:
+            descriptor.additional_constraints = (f'greater than {limits[0]:g}, at most '
+                                                 f'{limits[1]:g}')
+        elif limits and self.kind == 'float':
             descriptor.floating_point_range = [FloatingPointRange(
                 from_value=float(limits[0]), to_value=float(limits[1]), step=0.0)]
         elif limits and self.kind == 'int':
@@ -370,6 +388,25 @@ def to_parameter_value(value: Any, kind: str) -> ParameterValue:
         return float(value)
     if kind == 'strings':
         return [str(v) for v in value]
+    return value
+
+
+def coerced_value(value: Any, kind: str) -> Any:
+    """``value`` as ``kind`` holds it where a ROS user's habitual spelling differs only in type:
+    an integer where a double is declared (``power_budget_w:=2``, ``goal_m:=[2000, 0]``) and a
+    whole-number double where an integer is (``num_slots:=100.0``). Anything else is returned
+    as it is, for the parameter's own type check to refuse."""
+    def is_number(v: Any) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+    if kind == 'float' and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if kind == 'int' and isinstance(value, float) and value.is_integer():
+        return int(value)
+    if (kind in ('pair', 'pairs') and not isinstance(value, (str, bytes))
+            and isinstance(value, Sequence) and value and all(is_number(v) for v in value)
+            and any(not isinstance(v, float) for v in value)):
+        return [float(v) for v in value]
     return value
 
 
@@ -445,7 +482,9 @@ def config_from_parameters(values: Mapping[str, Any],
     """Validated settings from parameter values by ROS name; missing names take defaults.
 
     The scenario's zones are those of ``fence_file`` (read by ``fences``, a node's
-    :class:`FenceReader`; None: read now).
+    :class:`FenceReader`; None: read now). With no ``home_*`` parameter in ``explicit``, home
+    is the simulator home of ``mission_firmware``
+    (:attr:`~uav_comm_planner.vehicle.firmware.Firmware.sitl_home`).
 
     The vehicle's limits follow the one precedence rule
     (:func:`~uav_comm_planner.mission.request.vehicle_limits`): the ``vehicle_*`` parameters
@@ -457,8 +496,18 @@ def config_from_parameters(values: Mapping[str, Any],
     explicit = set(values if explicit is None else explicit)
     chosen: dict[type, dict[str, Any]] = {owner: {} for owner in OWNERS}
     for spec in parameter_specs():
-        value = values.get(spec.name, spec.default)
-        chosen[spec.owner][spec.field] = from_parameter_value(spec.name, value, spec.kind)
+        value = from_parameter_value(spec.name, values.get(spec.name, spec.default), spec.kind)
+        if (spec.field in ABOVE_LOW_LIMIT and isinstance(value, (int, float))
+                and value > RANGES[spec.field][1]):
+            # No descriptor range checks it (that would claim the low limit).
+            raise InvalidScenarioError(f'{spec.name} must be at most '
+                                       f'{RANGES[spec.field][1]:g}, got {value!r}')
+        chosen[spec.owner][spec.field] = value
+    node_fields = chosen[NodeSettings]
+    if not HOME_PARAMETERS & explicit and node_fields['mission_firmware'] in FIRMWARES:
+        # No home given: the firmware's simulator home, not the other firmware's.
+        node_fields.update(zip(HOME_PARAMETERS_IN_ORDER,
+                               FIRMWARES[node_fields['mission_firmware']].sitl_home))
     settings = SolverSettings(**chosen[SolverSettings])
     # The limit first: the scenario's own checks cost more the more nodes there are.
     settings.check_node_count(len(chosen[Scenario]['ground_nodes_m']))
@@ -508,6 +557,6 @@ def flat_pairs(points: Sequence[Sequence[float]]) -> list[float]:
     return to_parameter_value(points, 'pairs')
 
 
-__all__ = ['FenceReader', 'NodeSettings', 'OUTPUT_ONLY', 'ParameterSpec', 'PlannerConfig',
-           'config_from_parameters', 'flat_pairs', 'from_parameter_value', 'parameter_specs',
-           'to_parameter_value']
+__all__ = ['FenceReader', 'HOME_PARAMETERS', 'NodeSettings', 'OUTPUT_ONLY', 'ParameterSpec',
+           'PlannerConfig', 'coerced_value', 'config_from_parameters', 'flat_pairs',
+           'from_parameter_value', 'parameter_specs', 'to_parameter_value']

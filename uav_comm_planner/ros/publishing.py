@@ -85,30 +85,38 @@ class PlanPublisher:
 
 
 def plan_values(outcome: PlanOutcome) -> dict[str, object]:
-    """What the status says about a plan: node set, throughput, energy, slots."""
+    """What the status says about a plan: node set, throughput, slots, and the power used of
+    the budget: ``power_sum_w``, the sum of every node's transmit power over the slots (W),
+    which P_T (``power_budget_w``) bounds; for a replan in flight ``mission_power_sum_w``, the
+    same over the whole mission, the slots flown included."""
     result = outcome.result
     values: dict[str, object] = {
         'nodes': nodes_text(result.scenario.ground_nodes_m),
         'min_throughput_bps': repr(outcome.min_throughput),
         'slots': result.scenario.num_slots,
-        'energy_w': repr(float(result.power.sum())),
+        'power_sum_w': repr(float(result.power.sum())),
     }
     if outcome.receding is not None:
         receding = outcome.receding
         values.update({'elapsed_slots': receding.flown.num_slots,
-                       'mission_energy_w': repr(receding.mission_energy_w),
+                       'mission_power_sum_w': repr(receding.mission_energy_w),
                        'mission_rates_bps': ','.join(repr(float(r))
                                                      for r in receding.mission_rates)})
     return values
 
 
 def summary_line(result: PlanResult) -> str:
-    """The one log line per plan: objective, both baselines, size and plan time."""
+    """The one log line per plan: objective, both baselines, size and plan time. A plan below
+    the static point is said not to be worse than it: the static point hovers over the nodes
+    for the whole horizon, so it ignores the flight from launch and to landing."""
     scenario = result.scenario
     baselines = result.baselines
     if baselines:
+        static = baselines.get('static', math.nan)
+        caveat = (', which ignores launch and landing' if result.min_throughput < static
+                  else '')
         compared = (f'straight line {baselines.get("straight", math.nan):.4g}, '
-                    f'static point {baselines.get("static", math.nan):.4g}')
+                    f'static point {static:.4g}{caveat}')
     else:
         compared = 'baselines off'
     nodes = f'{scenario.num_nodes} node' + ('' if scenario.num_nodes == 1 else 's')

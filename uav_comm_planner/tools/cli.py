@@ -17,6 +17,7 @@ from pathlib import Path
 import sys
 from typing import Sequence
 
+from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
@@ -31,7 +32,7 @@ from uav_comm_planner.tools.serialize import (package_version, result_to_dict, r
                                               settings_from_dict)
 from uav_comm_planner.tools.study import command as montecarlo
 from uav_comm_planner.vehicle.firmware import FIRMWARES
-from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
+from uav_comm_planner.vehicle.geodesy import default_home, Home
 from uav_comm_planner.vehicle.mavlink.items import MISSION_ENDS
 
 #: The budgets of the letter's Fig. 2, watts.
@@ -269,7 +270,8 @@ def format_flown(vehicle_plan) -> str:
              f'{flown.min_throughput:>28.4f}',
              f'vehicle: cruise {limits.describe_cruise()}, acceleration '
              f'{limits.max_accel_mpss:g} m/s/s, jerk {limits.max_jerk_mpsss:g} m/s/s/s; '
-             f'{len(schedule.legs)} legs, {len(schedule.stops) - 2} stops, qF reached at '
+             f'{counted(len(schedule.legs), "leg")}, {counted(len(schedule.stops) - 2, "stop")}, '
+             f'qF reached at '
              f'{schedule.arrival_s:.1f} s of {end_s:g}']
     return '\n'.join(lines)
 
@@ -304,15 +306,16 @@ def _command_plan(args: argparse.Namespace) -> int:
     from uav_comm_planner.mission.request import MissionRequest
     vehicle_aware = _vehicle_asked(args)
     limits = _vehicle_limits(args)
+    home = args.home if args.home is not None else default_home(args.firmware)
     zones = None
     if args.fence is not None:
         from uav_comm_planner.vehicle.fence import read_zones
-        zones = read_zones(args.fence, args.home, margin_m=args.fence_margin)
+        zones = read_zones(args.fence, home, margin_m=args.fence_margin)
     scenario, energy = energy_request(args, _scenario(args, limits if vehicle_aware else None))
     request = MissionRequest(
         scenario, _settings(args), limits,
         vehicle_aware=vehicle_aware, firmware=args.firmware, end=args.mission_end,
-        home=args.home, items=args.mission is not None, zones=zones)
+        home=home, items=args.mission is not None, zones=zones)
     planned = plan_mission(request, planner=planner_for(energy))
     if vehicle_aware:
         print(format_plan(planned.vehicle_plan.ideal))
@@ -323,7 +326,8 @@ def _command_plan(args: argparse.Namespace) -> int:
     if energy is not None:
         print(format_energy(result, energy))
     # Every check before the first file: the JSON text and the mission's rows.
-    text = (json_text({**result_to_dict(result, settings=request.settings),
+    text = (json_text({**result_to_dict(result, settings=request.settings,
+                                        optimised=planned.optimised),
                        **energy_record(result, energy)})
             if args.json is not None else None)
     if args.mission is not None and planned.items is None:
@@ -442,12 +446,13 @@ def build_parser() -> argparse.ArgumentParser:
                              help="draw the letter's Fig. 1 for this plan (.png, .pdf or .svg)")
     plan_parser.add_argument('--mission', type=Path, metavar='FILE.waypoints|FILE.plan',
                              help='write a MAVLink mission: QGC WPL 110 or QGroundControl .plan')
-    plan_parser.add_argument('--home', type=_home, default=Home(*DEFAULT_HOME),
-                             metavar='LAT,LON,ALT',
+    plan_parser.add_argument('--home', type=_home, metavar='LAT,LON,ALT',
                              help='where x = east, y = north metres start: degrees, degrees, '
-                                  'metres above sea level (default %s, the PX4 and ArduPilot '
-                                  "simulators' launch point in Zurich; give your own field's)"
-                                  % ','.join(f'{v:.10g}' for v in DEFAULT_HOME))
+                                  "metres above sea level (default: the --firmware simulator's "
+                                  'home, %s; give your own field\'s)'
+                                  % '; '.join(f'{name} ' + ','.join(f'{v:.10g}' for v in
+                                                                     firmware.sitl_home)
+                                              for name, firmware in FIRMWARES.items()))
     plan_parser.add_argument('--fence', type=Path, metavar='FENCE.plan|FENCE.geojson',
                              help="where the vehicle may fly: a .plan file's geoFence or a "
                                   'GeoJSON FeatureCollection, anchored at --home '

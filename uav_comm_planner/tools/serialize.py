@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.metadata
+import math
 from pathlib import Path
 import re
 from typing import Any, Mapping
@@ -102,12 +103,17 @@ def run_record(settings: SolverSettings | None) -> dict[str, Any]:
     return record
 
 
-def result_to_dict(result: PlanResult, *,
-                   settings: SolverSettings | None = None) -> dict[str, Any]:
+def result_to_dict(result: PlanResult, *, settings: SolverSettings | None = None,
+                   optimised: PlanResult | None = None) -> dict[str, Any]:
     """The plan with the keys trajectory, times, power, rates, min_throughput, baselines,
     history and scenario (units: metres, seconds, watts, bit/s), plus how it was solved:
     the package ``version`` and, when given, the solver ``settings`` it ran with, so that
-    ``uav-comm-planner plan --scenario FILE`` runs it again."""
+    ``uav-comm-planner plan --scenario FILE`` runs it again. ``upper_bound`` is the loose
+    bound (every channel at its best), ``dual_upper_bound`` the Lagrangian dual bound over the
+    flyable paths that the command line prints (of ``optimised``, the optimiser's plan when
+    ``result`` is the plan as the vehicle flies it; default ``result``), null where there is
+    none."""
+    dual = (optimised or result).tight_upper_bound
     return {
         'trajectory': result.trajectory.tolist(),
         'times': result.times.tolist(),
@@ -124,5 +130,6 @@ def result_to_dict(result: PlanResult, *,
         'trajectory_steps': result.trajectory_steps,
         'start': result.start,
         'upper_bound': result.upper_bound,
+        'dual_upper_bound': dual if math.isfinite(dual) else None,
         **run_record(settings),
     }

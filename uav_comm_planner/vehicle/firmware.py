@@ -75,7 +75,10 @@ class Firmware:
     (which are ArduCopter's): a plan for this firmware without a parameter file or explicit
     limits uses them;
     stream_modes: the flight modes the streamed trajectory uses
-    (:mod:`.mavlink.guided`).
+    (:mod:`.mavlink.guided`);
+    sitl_home: where its software-in-the-loop simulator starts (latitude deg, longitude deg,
+    altitude m above mean sea level): the home a plan for it is anchored at when no home is
+    given (:func:`~uav_comm_planner.vehicle.geodesy.default_home`).
     """
 
     autopilot: int
@@ -86,6 +89,7 @@ class Firmware:
     timing: str
     default_limits: Mapping[str, float]
     stream_modes: StreamModes
+    sitl_home: tuple[float, float, float]
 
 
 FIRMWARES = {
@@ -99,7 +103,9 @@ FIRMWARES = {
         timing='scurve', default_limits={},
         stream_modes=StreamModes(modes={'AUTO': 3, 'GUIDED': 4, 'BRAKE': 17}, follow='GUIDED',
                                  resume='AUTO', hold='BRAKE', lead_s=0.0,
-                                 amsl_targets=False)),
+                                 amsl_targets=False),
+        # ArduPilot SITL's default location, CMAC (Canberra Model Aircraft Club).
+        sitl_home=(-35.363262, 149.165237, 584.0)),
     'px4': Firmware(
         autopilot=MAV.MAV_AUTOPILOT_PX4, hold_resolution_s=0.01, max_hold_s=1e9,
         waypoint_yaw=math.nan,
@@ -115,7 +121,9 @@ FIRMWARES = {
                                         'OFFBOARD': px4_mode(PX4_OFFBOARD),
                                         'AUTO.LOITER': px4_mode(PX4_AUTO, PX4_LOITER)},
                                  follow='OFFBOARD', resume='AUTO.MISSION', hold='AUTO.LOITER',
-                                 lead_s=0.5, amsl_targets=True)),
+                                 lead_s=0.5, amsl_targets=True),
+        # PX4 SITL's default home, Zurich (SIH's SIH_LOC_LAT0, SIH_LOC_LON0, SIH_LOC_H0).
+        sitl_home=(47.397742, 8.545594, 489.0)),
 }
 
 

@@ -41,6 +41,7 @@ from typing import Callable
 import numpy as np
 
 from uav_comm_planner.core.model import flown_path
+from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.optimizer import plan, plan_along, PlanResult
 from uav_comm_planner.core.scenario import MIN_STEP_M, Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, WalledInError
@@ -246,8 +247,9 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
             f'the vehicle cannot fly this plan on time: with cruise speed '
             f'{limits.describe_cruise()}, acceleration {limits.max_accel_mpss:g} m/s/s and '
             f'jerk {limits.max_jerk_mpsss:g} m/s/s/s it reaches the goal at '
-            f'{schedule.arrival_s:.1f} s, the horizon ends at {end:g} s ({len(legs)} legs, '
-            f'{len(stops) - 2} stops): lengthen horizon_s by '
+            f'{schedule.arrival_s:.1f} s, the horizon ends at {end:g} s '
+            f'({counted(len(legs), "leg")}, {counted(len(stops) - 2, "stop")}): lengthen '
+            f'horizon_s by '
             f'{math.ceil(schedule.arrival_s - end)} s or more')
     return schedule
 

@@ -15,9 +15,8 @@ import numpy as np
 import pymap3d
 
 from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.vehicle.firmware import FIRMWARES, firmware_named
 
-#: PX4 and ArduPilot SITL's default launch point (Zurich, 488 m above sea level).
-DEFAULT_HOME = (47.397742, 8.545594, 488.0)
 #: Home altitudes accepted, metres above mean sea level: from below the Dead Sea shore
 #: (-430 m) to above the highest airfields, with margin.
 HOME_ALTITUDE_RANGE_M = (-1000.0, 10000.0)
@@ -108,4 +107,16 @@ def geodetic_to_enu(latitude_deg: np.ndarray, longitude_deg: np.ndarray,
     return np.asarray(east), np.asarray(north), np.asarray(up)
 
 
-__all__ = ['DEFAULT_HOME', 'HOME_ALTITUDE_RANGE_M', 'Home', 'enu_to_geodetic', 'geodetic_to_enu']
+def default_home(firmware: str) -> Home:
+    """The home a plan for ``firmware`` is anchored at when none is given: that firmware's
+    simulator home (ArduPilot SITL's CMAC, -35.363262, 149.165237, 584 m; PX4 SITL's Zurich,
+    47.397742, 8.545594, 489 m). Raises InvalidScenarioError for an unknown firmware."""
+    return Home(*firmware_named(firmware).sitl_home)
+
+
+#: The default firmware's (ArduPilot's) home: ArduPilot SITL's CMAC, Canberra.
+DEFAULT_HOME = FIRMWARES['ardupilot'].sitl_home
+
+
+__all__ = ['DEFAULT_HOME', 'default_home', 'HOME_ALTITUDE_RANGE_M', 'Home', 'enu_to_geodetic',
+           'geodetic_to_enu']

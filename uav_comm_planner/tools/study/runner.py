@@ -17,6 +17,7 @@ import tempfile
 import time
 from typing import Iterator, Sequence, TextIO
 
+from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.tools.study.design import StudyDesign, StudyError
 from uav_comm_planner.tools.study.tables import failed_row, one_line, open_table, plan_batch
 
@@ -242,7 +243,7 @@ def run_study(design: StudyDesign, out: str | os.PathLike, *, workers: int | Non
         if progress is not None:
             pinned = all(info['omp_num_threads'] == '1' for info in infos.values())
             progress.write(f'montecarlo: {len(todo)} scenarios to plan ({in_table} of '
-                           f'{design.total_rows} in {out}), {len(infos)} workers with '
+                           f'{design.total_rows} in {out}), {counted(len(infos), "worker")} with '
                            f'{threads} threads, batches of {size}; cluster ready in '
                            f'{startup_s:.1f} s'
                            + ('' if pinned else '; warning: OMP_NUM_THREADS is not 1 on every '
@@ -290,7 +291,7 @@ def format_run(run: StudyRun) -> str:
     if run.planned == 0:
         return f'nothing to plan: {run.in_table} of {run.total} rows are in the table'
     return (f'planned {run.planned} scenarios ({run.failed} failed) in {run.wall_s:.1f} s on '
-            f'{run.workers} workers: {run.rate:.2f} scenarios/s, batches of {run.batch_size}, '
+            f'{counted(run.workers, "worker")}: {run.rate:.2f} scenarios/s, batches of {run.batch_size}, '
             f'workers on a core {100 * run.cpu_share:.0f} % of the time; cluster start '
             f'{run.startup_s:.1f} s; '
             f'{run.in_table} of {run.total} rows in the table')
@@ -309,14 +310,14 @@ def measure_scaling(design: StudyDesign, worker_counts: Sequence[int], repeats: 
                 target = Path(folder) / f'run-{repeat}-{count}.parquet'
                 run = run_study(design, target, workers=count, batch_size=batch_size)
                 runs[count].append(run)
-                print(f'round {repeat + 1}, {count} worker(s): {run.rate:.2f} scenarios/s '
+                print(f'round {repeat + 1}, {counted(count, "worker")}: {run.rate:.2f} scenarios/s '
                       f'({run.planned} in {run.wall_s:.2f} s, workers on a core '
                       f'{100 * run.cpu_share:.0f} % of the time, this process '
                       f'{100 * run.coordinator_cpu_s / run.wall_s:.0f} % of a core, cluster '
                       f'start {run.startup_s:.1f} s)', file=out, flush=True)
     medians = {k: statistics.median(r.rate for r in v) for k, v in runs.items()}
     for count, rate in medians.items():
-        print(f'{count} worker(s): median {rate:.2f} scenarios/s', file=out)
+        print(f'{counted(count, "worker")}: median {rate:.2f} scenarios/s', file=out)
     base = min(medians)
     for count in medians:
         if count != base:

@@ -53,6 +53,9 @@ THROTTLE_UNCHANGED = -1.0
 #: with %f: steps of 1e-6 degree (0.11 m of latitude), so a point moves by at most 6 cm, far
 #: inside the 2 m waypoint radius.
 DEGREE_DECIMALS = 8
+#: Holds (s) and speeds (m/s) are rounded to 1e-6, so that a file holds 6.38, not the
+#: 6.380000000002752 that timing arithmetic leaves (MAVLink carries them as float32 anyway).
+VALUE_DECIMALS = 6
 #: A hold split into more waypoints than this (about 49 days for ArduPilot) is refused.
 MAX_HOLD_PARTS = 64
 #: MISSION_ITEM_INT carries latitude and longitude in 1e-7 degree.
@@ -159,14 +162,16 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
                     home.longitude_deg, altitude)]
     in_force = None
     for index, stop in enumerate(schedule.stops):
-        rows += [(stop.position_m, hold) for hold in _hold_parts(stop.hold_s, dialect.max_hold_s)]
+        rows += [(stop.position_m, round(hold, VALUE_DECIMALS))
+                 for hold in _hold_parts(stop.hold_s, dialect.max_hold_s)]
         if index == len(schedule.legs):
             break
         leg = schedule.legs[index]
         if leg.speed_mps != in_force:
             in_force = leg.speed_mps
             rows.append(MissionItem(DO_CHANGE_SPEED, FRAME_MISSION,
-                                    (SPEED_TYPE_GROUND, in_force, THROTTLE_UNCHANGED, 0.0)))
+                                    (SPEED_TYPE_GROUND, round(in_force, VALUE_DECIMALS),
+                                     THROTTLE_UNCHANGED, 0.0)))
         rows += [(vertex, 0.0) for vertex in leg.vertices[1:-1]]
     points = np.array([row[0] for row in rows if not isinstance(row, MissionItem)],
                       dtype=float).reshape(-1, 2)

@@ -1,0 +1,113 @@
+"""The numeric parameters take the other numeric type a ROS user habitually types: an integer
+where a double is declared (``-p power_budget_w:=2``), a whole-number double where an integer
+is (``num_slots:=100.0``), on the command line, in a parameters file and when set; on real
+rclpy."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from rcl_interfaces.msg import ParameterType
+from rclpy.exceptions import InvalidParameterTypeException
+from rclpy.parameter import Parameter
+
+from uav_comm_planner.ros.params import coerced_value, parameter_specs
+
+
+def _node_from_arguments(arguments: list[str]):
+    """A planner node made with ``arguments`` as its command line's ROS arguments (how the
+    executable gets -p and --params-file), in a context of its own."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    from uav_comm_planner.ros.node import PlannerNode
+
+    context = rclpy.Context()
+    rclpy.init(args=['planner', '--ros-args', *arguments], context=context,
+               signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        return context, PlannerNode(context=context)
+    except BaseException:
+        context.try_shutdown()
+        raise
+
+
+def _check_types(node) -> None:
+    """Every numeric parameter holds its declared type."""
+    declared = {'float': ParameterType.PARAMETER_DOUBLE, 'int': ParameterType.PARAMETER_INTEGER,
+                'pair': ParameterType.PARAMETER_DOUBLE_ARRAY,
+                'pairs': ParameterType.PARAMETER_DOUBLE_ARRAY}
+    for spec in parameter_specs():
+        if spec.kind in declared:
+            assert node.get_parameter(spec.name).type_.value == declared[spec.kind], spec.name
+
+
+@pytest.mark.parametrize('source', ['command line', 'parameters file'])
+def test_an_integer_for_a_double_and_a_whole_double_for_an_integer_are_taken(tmp_path: Path,
+                                                                              source: str):
+    given = {'power_budget_w': '2', 'num_slots': '100.0', 'goal_m': '[2000, 0]',
+             'horizon_s': '400', 'vehicle_max_accel_mpss': '3', 'replan_interval_s': '15'}
+    if source == 'command line':
+        arguments = [part for name, text in given.items() for part in ('-p', f'{name}:={text}')]
+    else:
+        params = tmp_path / 'field.yaml'
+        params.write_text('uav_comm_planner:\n  ros__parameters:\n' + ''.join(
+            f'    {name}: {text}\n' for name, text in given.items()))
+        arguments = ['--params-file', str(params)]
+    context, node = _node_from_arguments(arguments)
+    try:
+        _check_types(node)
+        config = node._binding.config
+        assert config.scenario.power_budget_w == 2.0
+        assert config.scenario.num_slots == 100 and type(config.scenario.num_slots) is int
+        assert config.scenario.goal_m == (2000.0, 0.0) and config.scenario.horizon_s == 400.0
+        assert config.vehicle.max_accel_mpss == 3.0
+        assert config.node.replan_interval_s == 15.0
+        # Set at run time (what `ros2 param set` and a parameter service call do).
+        results = node.set_parameters([Parameter('power_budget_w', value=3),
+                                       Parameter('num_slots', value=120.0),
+                                       Parameter('start_m', value=[10, 0])])
+        assert all(result.successful for result in results), results
+        _check_types(node)
+        assert node.get_parameter('power_budget_w').value == 3.0
+        assert node.get_parameter('num_slots').value == 120
+        assert node._binding.config.scenario.start_m == (10.0, 0.0)
+        # Not a number of the other type: still refused, with the reason.
+        (fraction,) = node.set_parameters([Parameter('num_slots', value=12.5)])
+        (text,) = node.set_parameters([Parameter('power_budget_w', value='two')])
+        assert not fraction.successful and not text.successful
+        assert node.get_parameter('num_slots').value == 120
+    finally:
+        node.destroy_node()
+        context.try_shutdown()
+
+
+def test_a_number_of_the_wrong_kind_at_start_up_is_refused_by_name():
+    with pytest.raises(InvalidParameterTypeException, match='num_slots'):
+        _node_from_arguments(['-p', 'num_slots:=12.5'])
+
+
+def test_coerced_value_converts_only_the_habitual_slips():
+    assert coerced_value(2, 'float') == 2.0 and type(coerced_value(2, 'float')) is float
+    assert coerced_value(100.0, 'int') == 100 and type(coerced_value(100.0, 'int')) is int
+    assert coerced_value([2000, 0], 'pair') == [2000.0, 0.0]
+    assert coerced_value([1, 2.5, 3, 4], 'pairs') == [1.0, 2.5, 3.0, 4.0]
+    for value, kind in ((12.5, 'int'), (True, 'float'), ('2', 'float'), (1, 'bool'),
+                        (['a', 'b'], 'pair'), (2.0, 'float'), (3, 'int')):
+        assert coerced_value(value, kind) is value, (value, kind)
+
+
+def test_the_node_binary_says_which_parameter_has_the_wrong_type(tmp_path):
+    """`planner --ros-args -p num_slots:=12.5`: one line and exit status 2, no traceback."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    done = subprocess.run([str(Path(sys.executable).with_name('planner')), '--ros-args', '-p',
+                           'num_slots:=12.5'], capture_output=True, text=True, timeout=60,
+                          cwd=tmp_path, env=env)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count('\n') == 1 and 'num_slots' in done.stderr
+    assert 'Traceback' not in done.stderr
