@@ -13,7 +13,7 @@ segment to each zone, which the planner's constraints and the tests that check i
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 from typing import Union
 
@@ -147,6 +147,9 @@ class KeepOutCircle:
 
     center_m: tuple[float, float]
     radius_m: float
+    #: Where the zone came from, as its file gave it (a fence's latitude and longitude), so
+    #: that it is written back as it was read; not compared.
+    source: object = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         try:
@@ -178,7 +181,9 @@ class KeepOutCircle:
 class _Polygon:
     """What a polygon zone does with its vertices: validated as a simple polygon, stored
     counter-clockwise and read-only, compared and hashed by value (so that scenarios holding
-    zones compare and hash as dataclasses do). ``what`` names it in errors."""
+    zones compare and hash as dataclasses do). ``what`` names it in errors; ``source`` is
+    where it came from, as its file gave it (a fence's latitude and longitude), written back
+    as it was read and not compared."""
 
     what = 'a polygon'
     vertices_m: np.ndarray
@@ -205,6 +210,7 @@ class KeepOutPolygon(_Polygon):
 
     what = 'a keep-out polygon'
     vertices_m: np.ndarray
+    source: object = field(default=None, compare=False, repr=False)
 
     def convex_pieces(self) -> list[np.ndarray]:
         """Convex polygons (CCW vertices) whose union is this one: itself when convex, else its
@@ -227,6 +233,7 @@ class OperatingArea(_Polygon):
 
     what = 'the operating area'
     vertices_m: np.ndarray
+    source: object = field(default=None, compare=False, repr=False)
 
     def hull_and_pockets(self) -> tuple[np.ndarray, list[np.ndarray]]:
         """The area's convex hull (CCW vertices) and its pockets, the polygons between the hull
