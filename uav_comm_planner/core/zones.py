@@ -25,21 +25,41 @@ from uav_comm_planner.errors import InvalidScenarioError
 
 #: Vertices a polygon zone may have at most (a fence vertex is one MAVLink item).
 MAX_POLYGON_VERTICES = 1000
+#: Keep-out zones a set of zones may hold at most, and polygon vertices in all (the area's
+#: included): the paths round them are built from every zone's corners.
+MAX_KEEP_OUT_ZONES = 200
+MAX_TOTAL_VERTICES = 4000
+#: A zone's coordinates and a circle's radius, metres from the planning frame's origin, at most
+#: (the scenario's own bound: beyond 10 000 km they leave the Earth).
+MAX_ZONE_EXTENT_M = 1.0e7
 
 
 def _finite_points(name: str, vertices: ArrayLike) -> np.ndarray:
     try:
         points = np.array(vertices, dtype=float)
+    except OverflowError:
+        raise InvalidScenarioError(f'{name} has a vertex beyond a double: '
+                                   f'{_short(vertices)}') from None
     except (TypeError, ValueError):
         raise InvalidScenarioError(f'{name} must be a list of (x, y) vertices in metres, '
-                                   f'got {vertices!r}') from None
+                                   f'got {_short(vertices)}') from None
     if points.ndim != 2 or points.shape[1] != 2 or not 3 <= len(points) <= MAX_POLYGON_VERTICES:
         raise InvalidScenarioError(
             f'{name} must have 3 to {MAX_POLYGON_VERTICES} (x, y) vertices, got shape '
             f'{points.shape}')
     if not np.isfinite(points).all():
         raise InvalidScenarioError(f'{name} has a vertex that is not finite')
+    if np.abs(points).max() > MAX_ZONE_EXTENT_M:
+        raise InvalidScenarioError(
+            f'{name} has a vertex {np.abs(points).max():g} m from the origin, farther than '
+            f'{MAX_ZONE_EXTENT_M:g} m: zones are metres from a local origin')
     return points
+
+
+def _short(value: object, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for a one-line error."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + '...'
 
 
 def _segments_cross(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> bool:
@@ -158,11 +178,17 @@ class KeepOutCircle:
             center = np.array([math.nan])
         if center.shape != (2,) or not np.isfinite(center).all():
             raise InvalidScenarioError(f'a keep-out circle\'s centre must be a finite (x, y) '
-                                       f'in metres, got {self.center_m!r}')
+                                       f'in metres, got {_short(self.center_m)}')
         radius = real_number('a keep-out circle\'s radius', self.radius_m, 'metres')
         if not (math.isfinite(radius) and radius > 0):
             raise InvalidScenarioError(
-                f'a keep-out circle\'s radius must be positive and finite, got {self.radius_m!r}')
+                f'a keep-out circle\'s radius must be positive and finite, got '
+                f'{_short(self.radius_m)}')
+        if max(np.abs(center).max(), radius) > MAX_ZONE_EXTENT_M:
+            raise InvalidScenarioError(
+                f'a keep-out circle (centre ({center[0]:g}, {center[1]:g}) m, radius '
+                f'{radius:g} m) reaches beyond {MAX_ZONE_EXTENT_M:g} m from the origin: zones '
+                f'are metres from a local origin')
         object.__setattr__(self, 'center_m', (float(center[0]), float(center[1])))
         object.__setattr__(self, 'radius_m', radius)
 
@@ -414,6 +440,16 @@ class Zones:
         if not (math.isfinite(margin) and margin >= 0):
             raise InvalidScenarioError(
                 f'the zone margin must be >= 0 and finite, got {self.margin_m!r} m')
+        if len(keep_out) > MAX_KEEP_OUT_ZONES:
+            raise InvalidScenarioError(
+                f'{len(keep_out)} keep-out zones given, more than {MAX_KEEP_OUT_ZONES}: merge '
+                f'neighbouring zones')
+        vertices = sum(len(zone.vertices_m) for zone in (self.area, *keep_out)
+                       if isinstance(zone, (OperatingArea, KeepOutPolygon)))
+        if vertices > MAX_TOTAL_VERTICES:
+            raise InvalidScenarioError(
+                f'the zones have {vertices} polygon vertices in all, more than '
+                f'{MAX_TOTAL_VERTICES}: simplify them')
         object.__setattr__(self, 'keep_out', keep_out)
         object.__setattr__(self, 'margin_m', margin)
 
@@ -455,10 +491,14 @@ class Zones:
         """The zones of :meth:`to_dict`'s form; InvalidScenarioError for anything else."""
         if not isinstance(data, dict) or not set(data) <= {'area', 'keep_out', 'margin_m'}:
             raise InvalidScenarioError(
-                f"zones must be a mapping of 'area', 'keep_out' and 'margin_m', got {data!r}")
+                f"zones must be a mapping of 'area', 'keep_out' and 'margin_m', got "
+                f'{_short(data)}')
         items = data.get('keep_out', [])
         if not isinstance(items, (list, tuple)):
-            raise InvalidScenarioError(f"zones' keep_out must be a list, got {items!r}")
+            raise InvalidScenarioError(f"zones' keep_out must be a list, got {_short(items)}")
+        if len(items) > MAX_KEEP_OUT_ZONES:
+            raise InvalidScenarioError(f"zones' keep_out holds {len(items)} zones, more than "
+                                       f'{MAX_KEEP_OUT_ZONES}')
         keep_out = []
         for item in items:
             if isinstance(item, dict) and set(item) == {'center_m', 'radius_m'}:
@@ -468,11 +508,12 @@ class Zones:
             else:
                 raise InvalidScenarioError(
                     f"a keep-out zone is {{'center_m', 'radius_m'}} or {{'vertices_m'}}, got "
-                    f'{item!r}')
+                    f'{_short(item)}')
         area = data.get('area')
         return cls(area=None if area is None else OperatingArea(area),
                    keep_out=tuple(keep_out), margin_m=data.get('margin_m', 5.0))
 
 
-__all__ = ['KeepOut', 'KeepOutCircle', 'KeepOutPolygon', 'MAX_POLYGON_VERTICES',
+__all__ = ['KeepOut', 'KeepOutCircle', 'KeepOutPolygon', 'MAX_KEEP_OUT_ZONES',
+           'MAX_POLYGON_VERTICES', 'MAX_TOTAL_VERTICES', 'MAX_ZONE_EXTENT_M',
            'OperatingArea', 'Zones']

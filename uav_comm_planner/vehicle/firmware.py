@@ -9,7 +9,7 @@ the same table.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 from typing import Mapping
 
@@ -75,7 +75,11 @@ class Firmware:
     (which are ArduCopter's): a plan for this firmware without a parameter file or explicit
     limits uses them;
     stream_modes: the flight modes the streamed trajectory uses
-    (:mod:`.mavlink.guided`).
+    (:mod:`.mavlink.guided`);
+    parameter_floors: name -> the least value the firmware flies with, whatever the parameter
+    says (ArduCopter's S-curve takes max(ATC_INPUT_TC, 0.1): AC_WPNav's snap is
+    J pi / (2 max(ATC_INPUT_TC, 0.1)), halved, and SCurve's jerk time J pi / (2 snap), so
+    tj = 2 max(ATC_INPUT_TC, 0.1)); applied before the factor.
     """
 
     autopilot: int
@@ -86,6 +90,7 @@ class Firmware:
     timing: str
     default_limits: Mapping[str, float]
     stream_modes: StreamModes
+    parameter_floors: Mapping[str, float] = field(default_factory=dict)
 
 
 FIRMWARES = {
@@ -99,7 +104,8 @@ FIRMWARES = {
         timing='scurve', default_limits={},
         stream_modes=StreamModes(modes={'AUTO': 3, 'GUIDED': 4, 'BRAKE': 17}, follow='GUIDED',
                                  resume='AUTO', hold='BRAKE', lead_s=0.0,
-                                 amsl_targets=False)),
+                                 amsl_targets=False),
+        parameter_floors={'ATC_INPUT_TC': 0.1}),
     'px4': Firmware(
         autopilot=MAV.MAV_AUTOPILOT_PX4, hold_resolution_s=0.01, max_hold_s=1e9,
         waypoint_yaw=math.nan,
