@@ -171,7 +171,7 @@ def test_zones_written_to_a_plan_read_back_the_same(tmp_path, result):
 
 
 def test_zones_that_leave_the_globe_are_an_export_error(tmp_path, result):
-    zones = Zones(keep_out=(KeepOutCircle((0.0, 3e7), 10.0),))
+    zones = Zones(keep_out=(KeepOutCircle((0.0, 9e6), 10.0),))
     target = tmp_path / 'mission.plan'
     with pytest.raises(MissionExportError, match='farther than a fence goes'):
         export_mission(result, target, HOME, zones=zones)

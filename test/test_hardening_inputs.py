@@ -144,8 +144,8 @@ def test_accepted_scheduler_addresses():
 
 @pytest.mark.parametrize('draws, match', [
     ({'nodes': '100000000'}, f'nodes reach 1e\\+08, more than {MAX_STUDY_NODES}'),
-    ({'nodes': '2:1000'}, 'more than 100'),
-    ({'nodes': '50', 'slots': '10,5000'}, 'compute budget of 100000'),
+    ({'nodes': '2:20000'}, 'nodes reach 20000, more than 10000'),
+    ({'slots': '10,1000000'}, 'slots reach 1e\\+06, more than 100000'),
 ])
 def test_a_study_design_beyond_the_planners_budget_is_refused(draws, match):
     with pytest.raises(InvalidScenarioError, match=match):

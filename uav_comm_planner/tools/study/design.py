@@ -22,7 +22,7 @@ from typing import Mapping
 import numpy as np
 
 from uav_comm_planner.core.drops import AREAS, random_nodes, random_scenario
-from uav_comm_planner.core.scenario import MAX_NODE_SLOTS, Scenario, SolverSettings
+from uav_comm_planner.core.scenario import MAX_NODE_SLOTS, Scenario
 from uav_comm_planner.errors import InvalidScenarioError, PlannerError
 from uav_comm_planner.tools.study.methods import METHODS
 
@@ -32,9 +32,11 @@ TABLE_FORMAT = 'uav_comm_planner montecarlo 1'
 
 #: The most rows (cases x grid points) a study may have (a run lists the rows it lacks).
 MAX_ROWS = 1_000_000
-#: A study's scenarios are within the planner's default compute budget: at most this many
-#: nodes N, and N x M at most MAX_NODE_SLOTS (checked on the largest values a draw gives).
-MAX_STUDY_NODES = SolverSettings().max_nodes
+#: The most nodes N and slots M a study's scenario may have: a drop is made before the planner
+#: checks its compute budget (max_nodes, max_node_slots: such rows are then recorded as
+#: invalid), so the drop itself stays small.
+MAX_STUDY_NODES = 10_000
+MAX_STUDY_SLOTS = MAX_NODE_SLOTS
 
 
 class StudyError(PlannerError):
@@ -192,14 +194,11 @@ class StudyDesign:
             if value is not None:
                 draws[name] = value
         object.__setattr__(self, 'draws', draws)
-        nodes, slots = (_largest(draws.get(name)) for name in ('nodes', 'slots'))
-        if nodes > MAX_STUDY_NODES:
-            raise InvalidScenarioError(f'nodes reach {nodes:g}, more than {MAX_STUDY_NODES} '
-                                       f'(the planner\'s max_nodes)')
-        if nodes * slots > MAX_NODE_SLOTS:
-            raise InvalidScenarioError(
-                f'nodes x slots reach {nodes:g} x {slots:g} = {nodes * slots:g}, more than the '
-                f'planner\'s compute budget of {MAX_NODE_SLOTS}')
+        for name, bound in (('nodes', MAX_STUDY_NODES), ('slots', MAX_STUDY_SLOTS)):
+            largest = _largest(draws.get(name))
+            if largest > bound:
+                raise InvalidScenarioError(f'{name} reach {largest:g}, more than {bound} a '
+                                           f'scenario may have')
         # Counted before the grid is crossed: the rows grow as the product of the grids.
         points = math.prod(len(d.grid) for d in draws.values() if not d.is_range)
         if self.cases * points > MAX_ROWS:
