@@ -97,11 +97,16 @@ def the_geojson(closed: bool = True) -> dict:
 
 
 def same_polygon(vertices: np.ndarray, expected, tolerance_m: float) -> None:
-    """``vertices`` are ``expected`` (in either orientation, from any vertex) to the
-    tolerance."""
-    assert len(vertices) == len(expected)
-    for vertex in vertices:
-        assert min(math.dist(vertex, p) for p in expected) < tolerance_m, vertex
+    """``vertices`` hold ``expected`` (in either orientation, from any vertex) to the
+    tolerance, and any others lie on its edges within the bend of an edge straight in latitude
+    and longitude (the cut points :func:`read_zones` puts on a long edge; 8 cm at 2.4 km)."""
+    matched = [min(range(len(vertices)), key=lambda i: math.dist(vertices[i], p))
+               for p in expected]
+    for index, vertex in zip(matched, expected):
+        assert math.dist(vertices[index], vertex) < tolerance_m, vertex
+    steps = np.diff(sorted(matched) + [sorted(matched)[0] + len(vertices)])
+    assert len(set(matched)) == len(expected) and (steps > 0).all()
+    assert np.abs(KeepOutPolygon(expected).clearance(vertices)).max() < 0.2
 
 
 def check_zones(zones: Zones, tolerance_m: float = 0.001) -> None:
@@ -158,10 +163,7 @@ def test_zones_written_to_a_plan_read_back_the_same(tmp_path, result):
     assert [p['inclusion'] for p in section['polygons']] == [True, False]
     assert [c['inclusion'] for c in section['circles']] == [False]
     back = read_zones(path, HOME)
-    check_zones(back)
-    np.testing.assert_allclose(back.area.vertices_m, zones.area.vertices_m, atol=0.002)
-    np.testing.assert_allclose(back.keep_out[0].vertices_m, zones.keep_out[0].vertices_m,
-                               atol=0.002)
+    check_zones(back, 0.002)
     # A plan without zones keeps the empty geoFence QGroundControl expects.
     plain = export_mission(result, tmp_path / 'plain.plan', HOME)
     assert json.loads(plain.read_text())['geoFence'] == {'circles': [], 'polygons': [],
@@ -169,7 +171,7 @@ def test_zones_written_to_a_plan_read_back_the_same(tmp_path, result):
 
 
 def test_zones_that_leave_the_globe_are_an_export_error(tmp_path, result):
-    zones = Zones(keep_out=(KeepOutCircle((0.0, 3e7), 10.0),))
+    zones = Zones(keep_out=(KeepOutCircle((0.0, 9e6), 10.0),))
     target = tmp_path / 'mission.plan'
     with pytest.raises(MissionExportError, match='farther than a fence goes'):
         export_mission(result, target, HOME, zones=zones)
@@ -193,7 +195,7 @@ def test_fence_items_carry_the_vertex_count_and_radius_and_read_back(tmp_path):
 def test_zones_to_a_fence_and_back_are_the_same_to_a_millimetre():
     zones = Zones(OperatingArea(AREA_M), (KeepOutCircle(*DISC_M),))
     back = fence_from_zones(zones, HOME).zones(HOME)
-    np.testing.assert_allclose(back.area.vertices_m, zones.area.vertices_m, atol=1e-3)
+    same_polygon(back.area.vertices_m, AREA_M, 1e-3)
     np.testing.assert_allclose(back.keep_out[0].center_m, DISC_M[0], atol=1e-3)
 
 

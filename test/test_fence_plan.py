@@ -13,6 +13,7 @@ import sys
 
 import numpy as np
 import pytest
+from test_fence import same_polygon
 
 from uav_comm_planner import paper_scenario, plan, SolverSettings
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, OperatingArea, Zones
@@ -56,8 +57,8 @@ def test_plan_fence_writes_the_zones_into_the_plan_mission_and_the_figure(tmp_pa
                '--mission', str(mission), '--figure', str(figure))
     assert done.returncode == 0, done.stderr
     back = read_zones(mission, HOME)
-    np.testing.assert_allclose(back.area.vertices_m, AREA.vertices_m, atol=1e-3)
-    np.testing.assert_allclose(back.keep_out[0].vertices_m, ASIDE.vertices_m, atol=1e-3)
+    same_polygon(back.area.vertices_m, AREA.vertices_m, 1e-3)
+    same_polygon(back.keep_out[0].vertices_m, ASIDE.vertices_m, 1e-3)
     assert mission_clearance(read_plan(mission), HOME, zones) >= 0
     svg = figure.read_text()
     assert 'operating area' in svg and 'keep-out zone' in svg
@@ -147,8 +148,8 @@ def test_the_documented_example_fence_is_the_flight_tests_field_and_wall():
     from test_fence_flight import AREA as FLIGHT_AREA, HOME as SITL_HOME, WALL
     example = Path(__file__).resolve().parents[1] / 'docs' / 'fence_example.geojson'
     zones = read_zones(example, SITL_HOME)
-    np.testing.assert_allclose(zones.area.vertices_m, FLIGHT_AREA.vertices_m, atol=1e-3)
-    np.testing.assert_allclose(zones.keep_out[0].vertices_m, WALL.vertices_m, atol=1e-3)
+    same_polygon(zones.area.vertices_m, FLIGHT_AREA.vertices_m, 1e-3)
+    same_polygon(zones.keep_out[0].vertices_m, WALL.vertices_m, 1e-3)
 
 
 def test_a_planned_mission_carries_its_zones_fence_items():

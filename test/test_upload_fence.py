@@ -11,6 +11,7 @@ import subprocess
 import sys
 
 import pytest
+from test_fence import same_polygon
 from test_upload_px4 import RUN_PX4
 
 from devtools.px4_sitl import start_px4, why_px4_not_runnable
@@ -115,7 +116,7 @@ def test_arducopter_takes_a_geojson_fence_with_the_mission_and_holds_both(ardupi
     # The fence read back is the zones' fence to MISSION_ITEM_INT's 1e-7 degree.
     held = fence_from_items(stored).zones(ARDUPILOT_HOME)
     for got, expected in zip((held.area, *held.keep_out[:1]), (ZONES.area, ZONES.keep_out[0])):
-        assert abs(got.vertices_m - expected.vertices_m).max() < 0.02
+        same_polygon(got.vertices_m, expected.vertices_m, 0.02)
     assert abs(held.keep_out[1].radius_m - 80.0) < 1e-6
     assert download_mission(link)[-1].command == 21  # the mission's NAV_LAND is there too
 

@@ -52,24 +52,38 @@ _STOP_CHECK: contextvars.ContextVar[Callable[[], None] | None] = contextvars.Con
 MAX_ARC_STEP_RAD = math.pi / 8
 
 
-def _arc(vertex: np.ndarray, first: np.ndarray, second: np.ndarray,
-         radius: float) -> list[np.ndarray]:
+def _arc_chain(vertex: np.ndarray, first: np.ndarray, second: np.ndarray,
+               radius: float) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Corners of the polygon circumscribed about the arc of ``radius`` round ``vertex`` from
-    the unit direction ``first`` to ``second`` (the shorter way): each of its edges is tangent
-    to the arc, so the polygon holds it."""
+    the unit direction ``first`` to ``second`` (the shorter way; each of its edges is tangent
+    to the arc, so the polygon holds it), each with the unit directions along that polygon to
+    the corner before it and to the one after it; the ends' outer directions are along the
+    tangents at the arc's ends (the zone's edges)."""
     start = math.atan2(first[1], first[0])
     turn = (math.atan2(second[1], second[0]) - start + math.pi) % (2 * math.pi) - math.pi
     count = max(1, math.ceil(abs(turn) / MAX_ARC_STEP_RAD))
     step = turn / count
     reach = radius / math.cos(step / 2)
-    return [vertex + reach * np.array([math.cos(start + (i + 0.5) * step),
-                                       math.sin(start + (i + 0.5) * step)])
-            for i in range(count)]
+    corners = [vertex + reach * np.array([math.cos(start + (i + 0.5) * step),
+                                          math.sin(start + (i + 0.5) * step)])
+               for i in range(count)]
+    sense = 1.0 if step >= 0 else -1.0
+
+    def along(angle: float) -> np.ndarray:   # the tangent at ``angle``, in the arc's sense
+        return sense * np.array([-math.sin(angle), math.cos(angle)])
+    chain = []
+    for i, corner in enumerate(corners):
+        back = (corners[i - 1] - corner) if i > 0 else -along(start)
+        ahead = (corners[i + 1] - corner) if i + 1 < count else along(start + turn)
+        chain.append((corner, back / math.hypot(*back), ahead / math.hypot(*ahead)))
+    return chain
 
 
-def _polygon_corners(vertices: np.ndarray, radius: float, outside: bool) -> list[np.ndarray]:
-    """Corners round a CCW polygon's convex vertices (``outside``: a keep-out polygon) or
-    round its reflex vertices on the inside (an operating area)."""
+def _polygon_chain(vertices: np.ndarray, radius: float,
+                   outside: bool) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Corners round a CCW polygon's convex vertices (``outside``: a keep-out polygon) or round
+    its reflex vertices on the inside (an operating area), each with its directions back and
+    ahead (:func:`_arc_chain`)."""
     corners = []
     count = len(vertices)
     for i in range(count):
@@ -79,34 +93,72 @@ def _polygon_corners(vertices: np.ndarray, radius: float, outside: bool) -> list
         if (turn > 0) != outside or turn == 0:
             continue
         side = 1.0 if outside else -1.0      # outward normals (right of a CCW edge), or inward
-        normals = [side * np.array([v[1], -v[0]]) / np.linalg.norm(v)
+        normals = [side * np.array([v[1], -v[0]]) / math.hypot(*v)
                    for v in (incoming, outgoing)]
-        corners += _arc(here, normals[0], normals[1], radius)
+        corners += _arc_chain(here, normals[0], normals[1], radius)
     return corners
 
 
 def graph_corners(zones: Zones) -> np.ndarray:
     """The visibility graph's corners (K, 2) metres that keep the margin."""
+    return _graph_chain(zones)[0]
+
+
+def _graph_chain(zones: Zones) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The graph's corners (K, 2) that keep the margin, and for each the unit directions (K, 2)
+    along the polygon of corners round its zone to its neighbours, back and ahead."""
     radius = zones.margin_m + GRAPH_CLEARANCE_M
-    corners: list[np.ndarray] = []
+    chain: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     for zone in zones.keep_out:
         if isinstance(zone, KeepOutCircle):
             centre = np.array(zone.center_m)
-            corners += _arc_circle(centre, zone.radius_m + radius)
+            chain += _circle_chain(centre, zone.radius_m + radius)
         else:
-            corners += _polygon_corners(zone.vertices_m, radius, outside=True)
+            chain += _polygon_chain(zone.vertices_m, radius, outside=True)
     if zones.area is not None:
-        corners += _polygon_corners(zones.area.vertices_m, radius, outside=False)
-    if not corners:
-        return np.zeros((0, 2))
-    corners = np.array(corners)
-    return corners[zones.clearance(corners) >= zones.margin_m]
+        chain += _polygon_chain(zones.area.vertices_m, radius, outside=False)
+    if not chain:
+        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2))
+    corners, back, ahead = (np.array(part) for part in zip(*chain))
+    # Each corner as a segment of no length: it keeps the margin (it is never on an edge).
+    keep = segments_clear(zones, corners, corners)
+    return corners[keep], back[keep], ahead[keep]
 
 
-def _arc_circle(centre: np.ndarray, radius: float) -> list[np.ndarray]:
+def _circle_chain(centre: np.ndarray,
+                  radius: float) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The corners of the :data:`CIRCLE_SIDES`-gon circumscribed about a circle, each with its
+    directions back and ahead."""
     reach = radius / math.cos(math.pi / CIRCLE_SIDES)
     angles = 2 * math.pi * (np.arange(CIRCLE_SIDES) + 0.5) / CIRCLE_SIDES
-    return list(centre + reach * np.stack([np.cos(angles), np.sin(angles)], axis=1))
+    corners = centre + reach * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    back = np.roll(corners, 1, axis=0) - corners
+    ahead = np.roll(corners, -1, axis=0) - corners
+    back /= np.linalg.norm(back, axis=1)[:, None]
+    ahead /= np.linalg.norm(ahead, axis=1)[:, None]
+    return list(zip(corners, back, ahead))
+
+
+def tangent_pairs(corners: np.ndarray, back: np.ndarray, ahead: np.ndarray,
+                  rows: slice) -> tuple[np.ndarray, np.ndarray]:
+    """The corner pairs (i, j), i in ``rows`` and j > i, whose line is tangent at both corners
+    to the polygon of corners round each one's zone: its neighbours there (``back``,
+    ``ahead``: unit directions) lie on one side of the line, or on it (within 1e-9 of its
+    length). A shortest path round the zones bends only where it wraps round a zone, and there
+    both its segments are tangent (Lee's reduced visibility graph): the other pairs need no
+    visibility test."""
+    first = np.arange(len(corners))[rows]
+    direction = corners[None, :] - corners[first, None]            # (R, K, 2)
+    tolerance = 1e-9 * np.hypot(direction[..., 0], direction[..., 1])
+
+    def tangent(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+        one = direction[..., 0] * before[..., 1] - direction[..., 1] * before[..., 0]
+        two = direction[..., 0] * after[..., 1] - direction[..., 1] * after[..., 0]
+        return (one * two >= 0) | (np.abs(one) <= tolerance) | (np.abs(two) <= tolerance)
+    both = tangent(back[first, None], ahead[first, None]) & tangent(back[None], ahead[None])
+    both &= np.arange(len(corners))[None, :] > first[:, None]
+    i, j = np.nonzero(both)
+    return first[i], j
 
 
 def _orient(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -119,55 +171,103 @@ def _point_segment(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarr
     return np.linalg.norm(points - closest_on_segments(points, a, b), axis=-1)
 
 
-def _against_polygon(a: np.ndarray, b: np.ndarray,
-                     vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For segments ab (S, 2) and a polygon (V, 2): whether each meets its boundary, whether
-    its end a is inside, and its distance to the boundary when they do not meet (0 where a
-    segment crosses it: the distances are measured only for the others)."""
-    c, d = vertices[None], np.roll(vertices, -1, axis=0)[None]
-    a2, b2 = a[:, None], b[:, None]
-    o1, o2, o3, o4 = _orient(a2, b2, c), _orient(a2, b2, d), _orient(c, d, a2), _orient(c, d, b2)
-    crossing = ((o1 * o2 < 0) & (o3 * o4 < 0)).any(axis=1)
-    distance = np.zeros(len(a))
-    rest = ~crossing
-    if rest.any():
-        a3, b3 = a2[rest], b2[rest]
-        distance[rest] = np.minimum.reduce([_point_segment(a3, c, d).min(axis=1),
-                                            _point_segment(b3, c, d).min(axis=1),
-                                            _point_segment(vertices[None], a3, b3).min(axis=1)])
+def _against_edges(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray,
+                   margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """For segments ab (S, 2) and edges cd (E, 2) each: whether each segment meets an edge,
+    and its least distance to them when it meets none (0 where it does; inf where no edge
+    comes within ``margin`` of it, as their bounding boxes show: only the segment-edge pairs
+    whose boxes, one grown by the margin, overlap are measured)."""
+    low_s, high_s = np.minimum(a, b), np.maximum(a, b)
+    low_e, high_e = np.minimum(c, d) - margin, np.maximum(c, d) + margin
+    meets = np.zeros(len(a), dtype=bool)
+    distance = np.full(len(a), np.inf)
+    rows = max(1, CHUNK_PAIRS // max(len(c), 1))
+    for first in range(0, len(a), rows):
+        part = slice(first, first + rows)
+        near = ((low_s[part, None, 0] <= high_e[None, :, 0])
+                & (high_s[part, None, 0] >= low_e[None, :, 0])
+                & (low_s[part, None, 1] <= high_e[None, :, 1])
+                & (high_s[part, None, 1] >= low_e[None, :, 1]))
+        segment, edge = np.nonzero(near)
+        if not len(segment):
+            continue
+        segment = segment + first
+        a2, b2, c2, d2 = a[segment], b[segment], c[edge], d[edge]
+        o1, o2 = _orient(a2, b2, c2), _orient(a2, b2, d2)
+        o3, o4 = _orient(c2, d2, a2), _orient(c2, d2, b2)
+        crossing = (o1 * o2 < 0) & (o3 * o4 < 0)
+        meets[segment[crossing]] = True
+        # Distances only for the segments that cross no edge (the others are out already).
+        keep = ~meets[segment]
+        segment, a2, b2, c2, d2 = segment[keep], a2[keep], b2[keep], c2[keep], d2[keep]
+        apart = np.minimum.reduce([_point_segment(a2, c2, d2), _point_segment(b2, c2, d2),
+                                   _point_segment(c2, a2, b2), _point_segment(d2, a2, b2)])
+        np.minimum.at(distance, segment, apart)
     # A proper crossing, or touching (distance 0: a margin of 0 then still keeps off the
     # boundary). Orientations alone would count any segment on the line through an edge,
     # however far from it, and any hover (a zero-length leg) on such a line.
-    meets = crossing | (distance <= 0.0)
-    return meets, inside_polygon(a, vertices), distance
+    meets |= distance <= 0.0
+    distance[meets] = 0.0
+    return meets, distance
+
+
+def _inside_any(points: np.ndarray, polygons: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Whether each point (S, 2) is inside any of the polygons (only those whose bounding box
+    holds it are tested)."""
+    inside = np.zeros(len(points), dtype=bool)
+    for vertices in polygons:
+        low, high = vertices.min(axis=0), vertices.max(axis=0)
+        boxed = np.nonzero(((points >= low) & (points <= high)).all(axis=1) & ~inside)[0]
+        if len(boxed):
+            inside[boxed] = inside_polygon(points[boxed], vertices)
+    return inside
+
+
+@functools.lru_cache(maxsize=16)
+def _zone_edges(zones: Zones) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                       tuple[np.ndarray, ...]]:
+    """The keep-out zones as arrays: circles' centres (C, 2) and radii (C,); every keep-out
+    polygon's edges, starts and ends (E, 2) each; the polygons."""
+    circles = [zone for zone in zones.keep_out if isinstance(zone, KeepOutCircle)]
+    polygons = tuple(zone.vertices_m for zone in zones.keep_out
+                     if not isinstance(zone, KeepOutCircle))
+    centres = np.array([zone.center_m for zone in circles]).reshape(-1, 2)
+    radii = np.array([zone.radius_m for zone in circles])
+    starts = np.vstack(polygons) if polygons else np.zeros((0, 2))
+    ends = np.vstack([np.roll(v, -1, axis=0) for v in polygons]) if polygons \
+        else np.zeros((0, 2))
+    return centres, radii, starts, ends, polygons
 
 
 def segments_clear(zones: Zones, a: np.ndarray, b: np.ndarray, *,
                    margin_m: float | None = None) -> np.ndarray:
     """Whether each segment a[s] b[s] ((S, 2) each) keeps the margin (``margin_m``, the
-    zones' own by default) from every zone: exact distances, vectorised (the zones'
+    zones' own by default) from every zone: exact distances, vectorised over the segments and
+    every zone's edges at once, only the segment-edge pairs whose bounding boxes come within
+    the margin measured (the zones'
     :meth:`~uav_comm_planner.core.zones.Zones.path_clearance` is the slower reference the
     tests use)."""
     a, b = np.atleast_2d(np.asarray(a, float)), np.atleast_2d(np.asarray(b, float))
     margin = zones.margin_m if margin_m is None else margin_m
-    edges = max([len(zone.vertices_m) for zone in (*zones.keep_out, zones.area)
-                 if zone is not None and not isinstance(zone, KeepOutCircle)], default=1)
-    chunk = max(1, CHUNK_PAIRS // edges)
-    if len(a) > chunk:
-        return np.concatenate([segments_clear(zones, a[i:i + chunk], b[i:i + chunk],
-                                              margin_m=margin)
-                               for i in range(0, len(a), chunk)])
+    centres, radii, starts, ends, polygons = _zone_edges(zones)
     ok = np.ones(len(a), dtype=bool)
-    for zone in zones.keep_out:
-        if isinstance(zone, KeepOutCircle):
-            centre = np.array(zone.center_m)[None]
-            ok &= _point_segment(centre, a, b) >= zone.radius_m + margin
-        else:
-            meets, inside, distance = _against_polygon(a, b, zone.vertices_m)
-            ok &= ~meets & ~inside & (distance >= margin)
+    if len(radii):
+        rows = max(1, CHUNK_PAIRS // len(radii))
+        for first in range(0, len(a), rows):
+            part = slice(first, first + rows)
+            reach = _point_segment(centres[None], a[part, None], b[part, None])
+            ok[part] &= (reach >= radii + margin).all(axis=1)
+    # A segment that meets no edge is wholly inside or wholly outside each polygon: its end a
+    # tells which (asked only of the segments still clear).
+    if len(starts):
+        meets, distance = _against_edges(a, b, starts, ends, margin)
+        ok &= ~meets & (distance >= margin)
+        ok[ok] = ~_inside_any(a[ok], polygons)
     if zones.area is not None:
-        meets, inside, distance = _against_polygon(a, b, zones.area.vertices_m)
-        ok &= ~meets & inside & (distance >= margin)
+        vertices = zones.area.vertices_m
+        meets, distance = _against_edges(a, b, vertices, np.roll(vertices, -1, axis=0), margin)
+        ok &= ~meets & (distance >= margin)
+        ok[ok] = _inside_any(a[ok], (vertices,))
     return ok
 
 
@@ -178,23 +278,37 @@ def clear(zones: Zones, a: np.ndarray, b: np.ndarray) -> bool:
 
 @functools.lru_cache(maxsize=16)
 def _corner_graph(zones: Zones) -> tuple[np.ndarray, np.ndarray]:
-    """The graph's corners (K, 2) and their visibility (K, K), lengths or 0 (none); the
-    check of :func:`stoppable` is asked every :data:`GRAPH_CHUNK` corner pairs."""
-    corners = graph_corners(zones)
-    i, j = np.triu_indices(len(corners), k=1)
+    """The graph's corners (K, 2) and their visibility (K, K), lengths or 0 (none): only
+    corner pairs tangent at both ends (:func:`tangent_pairs`) are tested and joined, in chunks
+    of :data:`GRAPH_CHUNK` pairs, the check of :func:`stoppable` asked between chunks (and
+    between the rows of pairs the tangents are found for)."""
+    corners, back, ahead = _graph_chain(zones)
+    count = len(corners)
+    candidates = [(np.zeros(0, dtype=int), np.zeros(0, dtype=int))]
+    rows_per_chunk = max(1, GRAPH_CHUNK * 50 // max(count, 1))
+    for first in range(0, count, rows_per_chunk):
+        _ask_stop()
+        candidates.append(tangent_pairs(corners, back, ahead,
+                                        slice(first, first + rows_per_chunk)))
+    i = np.concatenate([pair[0] for pair in candidates])
+    j = np.concatenate([pair[1] for pair in candidates])
     visible = np.zeros(len(i), dtype=bool)
     for first in range(0, len(i), GRAPH_CHUNK):
-        check = _STOP_CHECK.get()
-        if check is not None:
-            check()
+        _ask_stop()
         pairs = slice(first, first + GRAPH_CHUNK)
         visible[pairs] = segments_clear(zones, corners[i[pairs]], corners[j[pairs]])
-    lengths = np.zeros((len(corners), len(corners)))
+    lengths = np.zeros((count, count))
     i, j = i[visible], j[visible]
     lengths[i, j] = np.linalg.norm(corners[j] - corners[i], axis=1)
     for array in (corners, lengths):
         array.setflags(write=False)
     return corners, lengths
+
+
+def _ask_stop() -> None:
+    check = _STOP_CHECK.get()
+    if check is not None:
+        check()
 
 
 @contextlib.contextmanager

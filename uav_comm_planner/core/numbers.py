@@ -18,7 +18,9 @@ def real_number(name: str, value: object, unit: str = '') -> float:
     try:
         return float(value)
     except OverflowError:
-        raise InvalidScenarioError(f'{name} must be a finite number{of}, got {value!r}') from None
+        text = repr(value)
+        shown = text if len(text) <= 40 else f'{text[:20]}... ({len(text)} digits)'
+        raise InvalidScenarioError(f'{name} must be a finite number{of}, got {shown}') from None
 
 
 def counted(count: int, noun: str) -> str:

@@ -13,7 +13,7 @@ segment to each zone, which the planner's constraints and the tests that check i
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 from typing import Union
 
@@ -25,21 +25,41 @@ from uav_comm_planner.errors import InvalidScenarioError
 
 #: Vertices a polygon zone may have at most (a fence vertex is one MAVLink item).
 MAX_POLYGON_VERTICES = 1000
+#: Keep-out zones a set of zones may hold at most, and polygon vertices in all (the area's
+#: included): the paths round them are built from every zone's corners.
+MAX_KEEP_OUT_ZONES = 200
+MAX_TOTAL_VERTICES = 4000
+#: A zone's coordinates and a circle's radius, metres from the planning frame's origin, at most
+#: (the scenario's own bound: beyond 10 000 km they leave the Earth).
+MAX_ZONE_EXTENT_M = 1.0e7
 
 
 def _finite_points(name: str, vertices: ArrayLike) -> np.ndarray:
     try:
         points = np.array(vertices, dtype=float)
+    except OverflowError:
+        raise InvalidScenarioError(f'{name} has a vertex beyond a double: '
+                                   f'{_short(vertices)}') from None
     except (TypeError, ValueError):
         raise InvalidScenarioError(f'{name} must be a list of (x, y) vertices in metres, '
-                                   f'got {vertices!r}') from None
+                                   f'got {_short(vertices)}') from None
     if points.ndim != 2 or points.shape[1] != 2 or not 3 <= len(points) <= MAX_POLYGON_VERTICES:
         raise InvalidScenarioError(
             f'{name} must have 3 to {MAX_POLYGON_VERTICES} (x, y) vertices, got shape '
             f'{points.shape}')
     if not np.isfinite(points).all():
         raise InvalidScenarioError(f'{name} has a vertex that is not finite')
+    if np.abs(points).max() > MAX_ZONE_EXTENT_M:
+        raise InvalidScenarioError(
+            f'{name} has a vertex {np.abs(points).max():g} m from the origin, farther than '
+            f'{MAX_ZONE_EXTENT_M:g} m: zones are metres from a local origin')
     return points
+
+
+def _short(value: object, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for a one-line error."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + '...'
 
 
 def _segments_cross(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> bool:
@@ -58,19 +78,62 @@ def _segments_cross(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) 
         (o3 == 0 and on(c, d, a)) or (o4 == 0 and on(c, d, b))
 
 
+#: Edge pairs the self-crossing check tests at once (bounds its work arrays' memory).
+CROSSING_CHUNK_PAIRS = 1_000_000
+
+
+def _first_crossing(points: np.ndarray) -> tuple[int, int] | None:
+    """The first pair of edges i < j (edge k from vertex k to k + 1, the last one closing
+    the polygon; in the order i, then j) that are not neighbours and share a point, as
+    :func:`_segments_cross` finds it; None for a simple polygon. Vectorised over the pairs,
+    in blocks of rows."""
+    count = len(points)
+    a, b = points, np.roll(points, -1, axis=0)
+    columns = np.arange(count)
+    rows_per_block = max(1, CROSSING_CHUNK_PAIRS // count)
+
+    def orient(p, q, r):
+        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) \
+            - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+
+    def on(p, q, r):  # r on segment pq, given collinear
+        return ((np.minimum(p[..., 0], q[..., 0]) <= r[..., 0])
+                & (r[..., 0] <= np.maximum(p[..., 0], q[..., 0]))
+                & (np.minimum(p[..., 1], q[..., 1]) <= r[..., 1])
+                & (r[..., 1] <= np.maximum(p[..., 1], q[..., 1])))
+    for first in range(0, count, rows_per_block):
+        rows = np.arange(first, min(first + rows_per_block, count))
+        i, j = rows[:, None], columns[None, :]
+        valid = (j >= i + 2) & ~((i == 0) & (j == count - 1))   # not neighbours
+        p, q, r, s = a[rows][:, None], b[rows][:, None], a[None], b[None]
+        # Only edge pairs whose bounding boxes meet can share a point.
+        valid &= ((np.minimum(p[..., 0], q[..., 0]) <= np.maximum(r[..., 0], s[..., 0]))
+                  & (np.minimum(r[..., 0], s[..., 0]) <= np.maximum(p[..., 0], q[..., 0]))
+                  & (np.minimum(p[..., 1], q[..., 1]) <= np.maximum(r[..., 1], s[..., 1]))
+                  & (np.minimum(r[..., 1], s[..., 1]) <= np.maximum(p[..., 1], q[..., 1])))
+        if not valid.any():
+            continue
+        ii, jj = np.nonzero(valid)
+        p, q, r, s = a[rows[ii]], b[rows[ii]], a[jj], b[jj]
+        o1, o2, o3, o4 = orient(p, q, r), orient(p, q, s), orient(r, s, p), orient(r, s, q)
+        meet = (((o1 * o2 < 0) & (o3 * o4 < 0)) | ((o1 == 0) & on(p, q, r))
+                | ((o2 == 0) & on(p, q, s)) | ((o3 == 0) & on(r, s, p))
+                | ((o4 == 0) & on(r, s, q)))
+        if meet.any():
+            at = int(np.argmax(meet))        # nonzero lists pairs in row-major order
+            return int(rows[ii[at]]), int(jj[at])
+    return None
+
+
 def _simple_polygon(name: str, vertices: ArrayLike) -> np.ndarray:
     """The vertices, counter-clockwise, of a simple polygon with a positive area."""
     points = _finite_points(name, vertices)
-    count = len(points)
-    for i in range(count):
-        for j in range(i + 2, count):
-            if i == 0 and j == count - 1:
-                continue  # neighbours through the closing edge
-            if _segments_cross(points[i], points[(i + 1) % count],
-                               points[j], points[(j + 1) % count]):
-                raise InvalidScenarioError(
-                    f'{name} crosses itself: edges {i + 1} and {j + 1} meet; give the '
-                    f'vertices in order around the boundary')
+    crossing = _first_crossing(points)
+    if crossing is not None:
+        i, j = crossing
+        raise InvalidScenarioError(
+            f'{name} crosses itself: edges {i + 1} and {j + 1} meet; give the '
+            f'vertices in order around the boundary')
     area = 0.5 * float(np.sum(points[:, 0] * np.roll(points[:, 1], -1)
                               - np.roll(points[:, 0], -1) * points[:, 1]))
     scale = float(np.ptp(points, axis=0).max())
@@ -147,6 +210,9 @@ class KeepOutCircle:
 
     center_m: tuple[float, float]
     radius_m: float
+    #: Where the zone came from, as its file gave it (a fence's latitude and longitude), so
+    #: that it is written back as it was read; not compared.
+    source: object = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         try:
@@ -155,11 +221,17 @@ class KeepOutCircle:
             center = np.array([math.nan])
         if center.shape != (2,) or not np.isfinite(center).all():
             raise InvalidScenarioError(f'a keep-out circle\'s centre must be a finite (x, y) '
-                                       f'in metres, got {self.center_m!r}')
+                                       f'in metres, got {_short(self.center_m)}')
         radius = real_number('a keep-out circle\'s radius', self.radius_m, 'metres')
         if not (math.isfinite(radius) and radius > 0):
             raise InvalidScenarioError(
-                f'a keep-out circle\'s radius must be positive and finite, got {self.radius_m!r}')
+                f'a keep-out circle\'s radius must be positive and finite, got '
+                f'{_short(self.radius_m)}')
+        if max(np.abs(center).max(), radius) > MAX_ZONE_EXTENT_M:
+            raise InvalidScenarioError(
+                f'a keep-out circle (centre ({center[0]:g}, {center[1]:g}) m, radius '
+                f'{radius:g} m) reaches beyond {MAX_ZONE_EXTENT_M:g} m from the origin: zones '
+                f'are metres from a local origin')
         object.__setattr__(self, 'center_m', (float(center[0]), float(center[1])))
         object.__setattr__(self, 'radius_m', radius)
 
@@ -178,7 +250,9 @@ class KeepOutCircle:
 class _Polygon:
     """What a polygon zone does with its vertices: validated as a simple polygon, stored
     counter-clockwise and read-only, compared and hashed by value (so that scenarios holding
-    zones compare and hash as dataclasses do). ``what`` names it in errors."""
+    zones compare and hash as dataclasses do). ``what`` names it in errors; ``source`` is
+    where it came from, as its file gave it (a fence's latitude and longitude), written back
+    as it was read and not compared."""
 
     what = 'a polygon'
     vertices_m: np.ndarray
@@ -205,6 +279,7 @@ class KeepOutPolygon(_Polygon):
 
     what = 'a keep-out polygon'
     vertices_m: np.ndarray
+    source: object = field(default=None, compare=False, repr=False)
 
     def convex_pieces(self) -> list[np.ndarray]:
         """Convex polygons (CCW vertices) whose union is this one: itself when convex, else its
@@ -227,6 +302,7 @@ class OperatingArea(_Polygon):
 
     what = 'the operating area'
     vertices_m: np.ndarray
+    source: object = field(default=None, compare=False, repr=False)
 
     def hull_and_pockets(self) -> tuple[np.ndarray, list[np.ndarray]]:
         """The area's convex hull (CCW vertices) and its pockets, the polygons between the hull
@@ -407,6 +483,16 @@ class Zones:
         if not (math.isfinite(margin) and margin >= 0):
             raise InvalidScenarioError(
                 f'the zone margin must be >= 0 and finite, got {self.margin_m!r} m')
+        if len(keep_out) > MAX_KEEP_OUT_ZONES:
+            raise InvalidScenarioError(
+                f'{len(keep_out)} keep-out zones given, more than {MAX_KEEP_OUT_ZONES}: merge '
+                f'neighbouring zones')
+        vertices = sum(len(zone.vertices_m) for zone in (self.area, *keep_out)
+                       if isinstance(zone, (OperatingArea, KeepOutPolygon)))
+        if vertices > MAX_TOTAL_VERTICES:
+            raise InvalidScenarioError(
+                f'the zones have {vertices} polygon vertices in all, more than '
+                f'{MAX_TOTAL_VERTICES}: simplify them')
         object.__setattr__(self, 'keep_out', keep_out)
         object.__setattr__(self, 'margin_m', margin)
 
@@ -448,10 +534,14 @@ class Zones:
         """The zones of :meth:`to_dict`'s form; InvalidScenarioError for anything else."""
         if not isinstance(data, dict) or not set(data) <= {'area', 'keep_out', 'margin_m'}:
             raise InvalidScenarioError(
-                f"zones must be a mapping of 'area', 'keep_out' and 'margin_m', got {data!r}")
+                f"zones must be a mapping of 'area', 'keep_out' and 'margin_m', got "
+                f'{_short(data)}')
         items = data.get('keep_out', [])
         if not isinstance(items, (list, tuple)):
-            raise InvalidScenarioError(f"zones' keep_out must be a list, got {items!r}")
+            raise InvalidScenarioError(f"zones' keep_out must be a list, got {_short(items)}")
+        if len(items) > MAX_KEEP_OUT_ZONES:
+            raise InvalidScenarioError(f"zones' keep_out holds {len(items)} zones, more than "
+                                       f'{MAX_KEEP_OUT_ZONES}')
         keep_out = []
         for item in items:
             if isinstance(item, dict) and set(item) == {'center_m', 'radius_m'}:
@@ -461,11 +551,12 @@ class Zones:
             else:
                 raise InvalidScenarioError(
                     f"a keep-out zone is {{'center_m', 'radius_m'}} or {{'vertices_m'}}, got "
-                    f'{item!r}')
+                    f'{_short(item)}')
         area = data.get('area')
         return cls(area=None if area is None else OperatingArea(area),
                    keep_out=tuple(keep_out), margin_m=data.get('margin_m', 5.0))
 
 
-__all__ = ['KeepOut', 'KeepOutCircle', 'KeepOutPolygon', 'MAX_POLYGON_VERTICES',
+__all__ = ['KeepOut', 'KeepOutCircle', 'KeepOutPolygon', 'MAX_KEEP_OUT_ZONES',
+           'MAX_POLYGON_VERTICES', 'MAX_TOTAL_VERTICES', 'MAX_ZONE_EXTENT_M',
            'OperatingArea', 'Zones']

@@ -357,7 +357,7 @@ def _sweep_budgets(args: argparse.Namespace) -> list[float]:
                         isinstance(v, (bool, str)) for v in recorded):
                     raise TypeError
                 return [float(v) for v in recorded]
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise PlannerError(f'budgets_w in {str(args.scenario)!r} must be a list of '
                                    f'numbers, at least one, got {_short(recorded)}') from None
     return list(SWEEP_BUDGETS_W)

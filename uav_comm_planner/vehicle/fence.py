@@ -36,7 +36,7 @@ from uav_comm_planner.core.zones import (KeepOutCircle, KeepOutPolygon, MAX_POLY
                                          OperatingArea, Zones)
 from uav_comm_planner.errors import FenceFileError, InvalidScenarioError
 from uav_comm_planner.files import read_json_file
-from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, geodetic_to_enu, Home
+from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, geodetic_to_plane, Home
 
 #: Sides of the polygon inscribed in an inclusion circle (its edges stay within
 #: r (1 - cos(pi / 64)), 0.12 % of the radius, of the circle).
@@ -50,9 +50,18 @@ DEGREE_DECIMALS = 8
 FENCE_PROPERTY = 'fence'
 RADIUS_PROPERTY = 'radius_m'
 GEOJSON_SUFFIXES = ('.geojson', '.json')
-#: Zones farther from home than this are refused: the planning frame is the tangent plane at
-#: home, about 0.8 km above the ground at 100 km, where a fence stops meaning the ground.
-MAX_FENCE_DISTANCE_M = 100e3
+#: Zones farther from home than this are refused (straight-line distance on the ground). The
+#: planning frame is the tangent plane at home, each place mapped along its ellipsoid normal:
+#: at a distance d its lengths differ from the ground's by up to (d / R)^2, 6.2e-5 at 50 km (3
+#: mm over a 50 m clearance, 12 cm over a 2 km leg), the plane lies d^2 / 2R (196 m) above the
+#: ground there and the normals tilt by d / R (0.45 degree). Beyond that the plane stops
+#: meaning the ground, and at the antipode every place maps to home.
+MAX_FENCE_DISTANCE_M = 50e3
+#: A fence edge is straight in latitude and longitude, as ArduPilot and PX4 draw it, which is
+#: curved in the planning frame (a parallel bends by tan(latitude) / R: 10.9 m off its chord
+#: over 23 km at latitude 47). Edges are cut at points along that line until each piece's chord
+#: is within this of it, so that the margin is kept from the edge the autopilot draws.
+EDGE_CHORD_TOLERANCE_M = 0.01
 
 
 @dataclass(frozen=True)
@@ -95,20 +104,24 @@ class GeoFence:
         area = None
         keep_out: list = []
         for index, polygon in enumerate(self.polygons):
-            vertices = _to_metres(np.array(polygon.vertices_deg), home)
             what = f'polygon {index + 1}'
+            vertices = _edges_as_drawn(what, polygon.vertices_deg, home)
+            kind = OperatingArea if polygon.inclusion else KeepOutPolygon
+            zone = _zone(what, kind, vertices, (home, polygon))
             if polygon.inclusion:
-                area = _zone(what, OperatingArea, vertices)
+                area = zone
             else:
-                keep_out.append(_zone(what, KeepOutPolygon, vertices))
+                keep_out.append(zone)
         for index, circle in enumerate(self.circles):
-            center = _to_metres(np.array([circle.center_deg]), home)[0]
             what = f'circle {index + 1}'
+            center = _to_metres(what, np.array([circle.center_deg]), home,
+                                reach_m=circle.radius_m)[0]
             if circle.inclusion:
                 area = _zone(what, OperatingArea,
-                             circle_ring(center, circle.radius_m, CIRCLE_SIDES))
+                             circle_ring(center, circle.radius_m, CIRCLE_SIDES), (home, circle))
             else:
-                keep_out.append(_zone(what, KeepOutCircle, tuple(center), circle.radius_m))
+                keep_out.append(_zone(what, KeepOutCircle, tuple(center), circle.radius_m,
+                                      (home, circle)))
         return Zones(area, tuple(keep_out), margin_m)
 
     def plan_section(self) -> dict:
@@ -151,14 +164,91 @@ def zone_outlines(zones: Zones) -> list[tuple[str, np.ndarray]]:
 
 def _zone(what: str, kind, *args):
     try:
-        return kind(*args)
+        with np.errstate(all='ignore'):
+            return kind(*args)
     except InvalidScenarioError as exc:
         raise InvalidScenarioError(f'fence {what}: {exc}') from None
 
 
-def _to_metres(degrees: np.ndarray, home: Home) -> np.ndarray:
-    east, north, _ = geodetic_to_enu(degrees[:, 0], degrees[:, 1], home.altitude_m, home)
+def _to_metres(what: str, degrees: np.ndarray, home: Home, *,
+               reach_m: float = 0.0) -> np.ndarray:
+    """Fence places (K, 2) latitude, longitude -> (K, 2) planning-frame metres, exactly as a
+    mission's waypoints go back (:func:`geodetic_to_plane`); InvalidScenarioError for a place
+    (plus ``reach_m``, a circle's radius) farther than :data:`MAX_FENCE_DISTANCE_M` from home."""
+    east, north, distance = geodetic_to_plane(degrees[:, 0], degrees[:, 1], home)
+    far = distance + reach_m
+    worst = int(np.argmax(far))
+    if not far[worst] <= MAX_FENCE_DISTANCE_M:
+        latitude, longitude = degrees[worst]
+        reach = f' with its radius of {reach_m:.6g} m' if reach_m else ''
+        raise InvalidScenarioError(
+            f'fence {what}: the point ({latitude:.8g}, {longitude:.8g}){reach} reaches '
+            f'{far[worst] / 1000:.6g} km from home ({home.latitude_deg:.8g}, '
+            f'{home.longitude_deg:.8g}), farther than the planning frame holds '
+            f'({MAX_FENCE_DISTANCE_M / 1000:g} km): move home or the zone')
     return np.column_stack([east, north])
+
+
+def _edges_as_drawn(what: str, vertices_deg: tuple[tuple[float, float], ...],
+                    home: Home) -> np.ndarray:
+    """A fence polygon's vertices in the planning frame (K, 2) metres, each edge, straight in
+    latitude and longitude as the autopilot draws it, cut into pieces whose chords are within
+    :data:`EDGE_CHORD_TOLERANCE_M` of it (the vertices given, then the cut points, in order)."""
+    degrees = np.array(vertices_deg, dtype=float)
+    corners = _to_metres(what, degrees, home)
+    # Longitudes relative to home's, so that an edge across the antimeridian is the short one.
+    relative = np.column_stack([degrees[:, 0],
+                                (degrees[:, 1] - home.longitude_deg + 180.0) % 360.0 - 180.0])
+    start, end = relative, np.roll(relative, -1, axis=0)
+    pieces = np.ones(len(degrees), dtype=int)
+    for _ in range(8):
+        deviation = _chord_deviation(start, end, pieces, home)
+        short = deviation > EDGE_CHORD_TOLERANCE_M
+        if not short.any():
+            break
+        # A parallel's offset from its chord grows with the square of the length.
+        pieces = np.where(short, np.maximum(
+            2 * pieces, np.ceil(pieces * np.sqrt(deviation / EDGE_CHORD_TOLERANCE_M) * 1.1)
+        ).astype(int), pieces)
+        if pieces.sum() > MAX_POLYGON_VERTICES:
+            raise InvalidScenarioError(
+                f'fence {what}: its edges, straight in latitude and longitude as the autopilot '
+                f'draws them, need more than {MAX_POLYGON_VERTICES} vertices in the planning '
+                f'frame to be kept within {EDGE_CHORD_TOLERANCE_M:g} m: give shorter edges')
+    rows = []
+    for index in range(len(degrees)):
+        rows.append(corners[index:index + 1])
+        if pieces[index] > 1:
+            t = np.arange(1, pieces[index])[:, None] / pieces[index]
+            cut = start[index] + t * (end[index] - start[index])
+            rows.append(_to_metres(what, _absolute(cut, home), home))
+    return np.vstack(rows)
+
+
+def _absolute(relative: np.ndarray, home: Home) -> np.ndarray:
+    longitude = (relative[:, 1] + home.longitude_deg + 180.0) % 360.0 - 180.0
+    return np.column_stack([relative[:, 0], longitude])
+
+
+def _chord_deviation(start: np.ndarray, end: np.ndarray, pieces: np.ndarray,
+                     home: Home) -> np.ndarray:
+    """The largest distance (m) of each edge start -> end (latitude, relative longitude), cut
+    into ``pieces`` equal pieces in degrees, from its pieces' chords in the planning frame,
+    sampled at 7 points a piece."""
+    worst = np.zeros(len(start))
+    samples = np.linspace(0.0, 1.0, 9)
+    for index in range(len(start)):
+        t = (np.arange(pieces[index])[:, None] + samples[None, :]) / pieces[index]
+        along = start[index] + t.reshape(-1, 1) * (end[index] - start[index])
+        east, north, _ = geodetic_to_plane(*_absolute(along, home).T, home)
+        points = np.column_stack([east, north]).reshape(pieces[index], len(samples), 2)
+        a, b = points[:, :1], points[:, -1:]
+        chord = b - a
+        length = np.linalg.norm(chord, axis=2)
+        cross = np.abs(chord[..., 0] * (points[..., 1] - a[..., 1])
+                       - chord[..., 1] * (points[..., 0] - a[..., 0]))
+        worst[index] = float(np.max(cross / np.where(length > 0, length, 1.0)))
+    return worst
 
 
 def _to_degrees(points_m: np.ndarray, home: Home) -> tuple[tuple[float, float], ...]:
@@ -172,20 +262,38 @@ def _to_degrees(points_m: np.ndarray, home: Home) -> tuple[tuple[float, float], 
                  for a, b in zip(np.atleast_1d(latitude), np.atleast_1d(longitude)))
 
 
+def _read_from(zone, home: Home):
+    """The fence zone ``zone`` was read from at ``home`` (None: made in metres, or read at
+    another home)."""
+    source = getattr(zone, 'source', None)
+    if isinstance(source, tuple) and len(source) == 2 and source[0] == home and isinstance(
+            source[1], (FencePolygon, FenceCircle)):
+        return source[1]
+    return None
+
+
 def fence_from_zones(zones: Zones, home: Home) -> GeoFence:
     """The geofence of ``zones`` anchored at ``home``: the operating area an inclusion polygon,
     the keep-out zones exclusion polygons and circles (the margin is the planner's own and
-    stays out of the fence)."""
-    polygons = []
-    if zones.area is not None:
-        polygons.append(FencePolygon(True, _to_degrees(np.asarray(zones.area.vertices_m), home)))
-    circles = []
-    for zone in zones.keep_out:
-        if isinstance(zone, KeepOutCircle):
+    stays out of the fence). A zone read from a fence file at ``home`` is written as it was
+    read (the same latitudes and longitudes, an inclusion circle a circle), not converted
+    back from the planning frame."""
+    polygons: list[FencePolygon] = []
+    circles: list[FenceCircle] = []
+    for zone, inclusion in ((zones.area, True), *((z, False) for z in zones.keep_out)):
+        if zone is None:
+            continue
+        read = _read_from(zone, home)
+        if isinstance(read, FencePolygon):
+            polygons.append(read)
+        elif isinstance(read, FenceCircle):
+            circles.append(read)
+        elif isinstance(zone, KeepOutCircle):
             center = _to_degrees(np.array([zone.center_m]), home)[0]
             circles.append(FenceCircle(False, center, zone.radius_m))
         else:
-            polygons.append(FencePolygon(False, _to_degrees(np.asarray(zone.vertices_m), home)))
+            polygons.append(FencePolygon(inclusion,
+                                         _to_degrees(np.asarray(zone.vertices_m), home)))
     return GeoFence(tuple(polygons), tuple(circles))
 
 

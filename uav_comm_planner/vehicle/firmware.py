@@ -9,7 +9,7 @@ the same table.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 from typing import Mapping
 
@@ -79,6 +79,10 @@ class Firmware:
     sitl_home: where its software-in-the-loop simulator starts (latitude deg, longitude deg,
     altitude m above mean sea level): the home a plan for it is anchored at when no home is
     given (:func:`~uav_comm_planner.vehicle.geodesy.default_home`).
+    parameter_floors: name -> the least value the firmware flies with, whatever the parameter
+    says (ArduCopter's S-curve takes max(ATC_INPUT_TC, 0.1): AC_WPNav's snap is
+    J pi / (2 max(ATC_INPUT_TC, 0.1)), halved, and SCurve's jerk time J pi / (2 snap), so
+    tj = 2 max(ATC_INPUT_TC, 0.1)); applied before the factor.
     """
 
     autopilot: int
@@ -90,6 +94,7 @@ class Firmware:
     default_limits: Mapping[str, float]
     stream_modes: StreamModes
     sitl_home: tuple[float, float, float]
+    parameter_floors: Mapping[str, float] = field(default_factory=dict)
 
 
 FIRMWARES = {
@@ -105,7 +110,8 @@ FIRMWARES = {
                                  resume='AUTO', hold='BRAKE', lead_s=0.0,
                                  amsl_targets=False),
         # ArduPilot SITL's default location, CMAC (Canberra Model Aircraft Club).
-        sitl_home=(-35.363262, 149.165237, 584.0)),
+        sitl_home=(-35.363262, 149.165237, 584.0),
+        parameter_floors={'ATC_INPUT_TC': 0.1}),
     'px4': Firmware(
         autopilot=MAV.MAV_AUTOPILOT_PX4, hold_resolution_s=0.01, max_hold_s=1e9,
         waypoint_yaw=math.nan,

@@ -143,6 +143,7 @@ def read_parameter_file(path: str | os.PathLike, *, firmware: str = 'ardupilot',
     uses, or sets none of them.
     """
     wanted = firmware_named(firmware).parameters
+    floors = firmware_named(firmware).parameter_floors
     text = read_text_file(path, max_bytes=MAX_PARAMETER_FILE_BYTES, what='parameter file',
                           error=InvalidScenarioError)
     values = {}
@@ -154,10 +155,14 @@ def read_parameter_file(path: str | os.PathLike, *, firmware: str = 'ardupilot',
             continue
         name, raw = fields[0], fields[1]
         try:
-            value = float(raw) * wanted[name][1]
+            given = float(raw)
         except ValueError:
-            raise InvalidScenarioError(f'{path}:{number}: {name} is {raw!r}, not a number') \
-                from None
+            raise InvalidScenarioError(f'{path}:{number}: {name} is {raw[:40]!r}, not a '
+                                       f'number') from None
+        if not math.isfinite(given):
+            raise InvalidScenarioError(f'{path}:{number}: {name} is {raw[:40]!r}, not a finite '
+                                       f'number')
+        value = max(given, floors.get(name, -math.inf)) * wanted[name][1]
         values[wanted[name][0]] = value
     if not values:
         raise InvalidScenarioError(f'{path} sets none of {", ".join(wanted)} ({firmware})')

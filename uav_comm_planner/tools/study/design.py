@@ -22,7 +22,7 @@ from typing import Mapping
 import numpy as np
 
 from uav_comm_planner.core.drops import AREAS, random_nodes, random_scenario
-from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.core.scenario import MAX_NODE_SLOTS, Scenario
 from uav_comm_planner.errors import InvalidScenarioError, PlannerError
 from uav_comm_planner.tools.study.methods import METHODS
 
@@ -30,8 +30,13 @@ from uav_comm_planner.tools.study.methods import METHODS
 TABLE_FORMAT = 'uav_comm_planner montecarlo 1'
 
 
-#: The most rows (cases x grid points) a study may have.
-MAX_ROWS = 10_000_000
+#: The most rows (cases x grid points) a study may have (a run lists the rows it lacks).
+MAX_ROWS = 1_000_000
+#: The most nodes N and slots M a study's scenario may have: a drop is made before the planner
+#: checks its compute budget (max_nodes, max_node_slots: such rows are then recorded as
+#: invalid), so the drop itself stays small.
+MAX_STUDY_NODES = 10_000
+MAX_STUDY_SLOTS = MAX_NODE_SLOTS
 
 
 class StudyError(PlannerError):
@@ -189,6 +194,11 @@ class StudyDesign:
             if value is not None:
                 draws[name] = value
         object.__setattr__(self, 'draws', draws)
+        for name, bound in (('nodes', MAX_STUDY_NODES), ('slots', MAX_STUDY_SLOTS)):
+            largest = _largest(draws.get(name))
+            if largest > bound:
+                raise InvalidScenarioError(f'{name} reach {largest:g}, more than {bound} a '
+                                           f'scenario may have')
         # Counted before the grid is crossed: the rows grow as the product of the grids.
         points = math.prod(len(d.grid) for d in draws.values() if not d.is_range)
         if self.cases * points > MAX_ROWS:
@@ -246,6 +256,13 @@ class StudyDesign:
             keys += [name for name in SETTINGS
                      if mine['draws'].get(name) != theirs['draws'].get(name)]
         return keys
+
+
+def _largest(draw: Draw | None) -> float:
+    """The largest value a draw gives (0 for an absent one)."""
+    if draw is None:
+        return 0.0
+    return max(draw.grid) if draw.grid else draw.high
 
 
 # ---------------------------------------------------------------------------------------------

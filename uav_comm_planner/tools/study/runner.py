@@ -206,6 +206,27 @@ class StudyRun:
         return self.cpu_s / (self.wall_s * self.workers) if self.wall_s > 0 else math.nan
 
 
+#: The schemes of a Dask scheduler's address a study connects to.
+SCHEDULER_SCHEMES = ('tcp', 'tls')
+
+
+def check_scheduler(address: str) -> None:
+    """Refuse (StudyError) a scheduler address that is not ``tcp://HOST:PORT`` or
+    ``tls://HOST:PORT``, before any table is opened or connection tried."""
+    from urllib.parse import urlsplit
+    text = str(address)
+    shown = text if len(text) <= 80 else text[:80] + '...'
+    try:
+        parts = urlsplit(text)
+        port = parts.port
+    except ValueError:
+        parts, port = None, None
+    if (parts is None or parts.scheme not in SCHEDULER_SCHEMES or not parts.hostname
+            or port is None or parts.path not in ('', '/') or parts.query or parts.fragment):
+        raise StudyError(f'--scheduler {shown!r} is not a Dask scheduler address: give '
+                         f'tcp://HOST:PORT (or tls://HOST:PORT)')
+
+
 def run_study(design: StudyDesign, out: str | os.PathLike, *, workers: int | None = None,
               scheduler: str | None = None, batch_size: int | None = None,
               limit: int | None = None, progress: TextIO | None = None) -> StudyRun:
@@ -217,6 +238,8 @@ def run_study(design: StudyDesign, out: str | os.PathLike, *, workers: int | Non
     written so far stay, and the next run goes on from there.
     """
     require_extra(parquet=Path(out).suffix.lower() == '.parquet')
+    if scheduler:
+        check_scheduler(scheduler)
     if workers is not None and workers < 1:
         raise StudyError(f'--workers must be >= 1, got {workers}')
     if batch_size is not None and not 1 <= batch_size <= 10 * MAX_BATCH:

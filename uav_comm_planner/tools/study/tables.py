@@ -248,14 +248,25 @@ class CsvTable(StudyTable):
             reader = csv.DictReader(table)
             if reader.fieldnames != list(kinds):
                 raise StudyError(f'{self.path} has other columns than this study')
-            return [{name: _from_text(text, kinds[name]) for name, text in row.items()}
-                    for row in reader]
+            return [{name: _from_text(text, kinds[name], self.path, line)
+                     for name, text in row.items()}
+                    for line, row in enumerate(reader, start=2)]
 
 
-def _from_text(text: str, kind: type) -> str | int | float | None:
-    if kind is str:
+def _from_text(text: str | None, kind: type, path: Path, line: int) -> str | int | float | None:
+    """A CSV field as its column's kind; a field that is not one (a table edited by hand) is a
+    StudyError naming the file, the line and the value."""
+    if kind is str and isinstance(text, str):
         return text
-    return None if text == '' else kind(text)
+    if text == '':
+        return None
+    try:
+        return kind(text)
+    except (TypeError, ValueError, OverflowError):
+        shown = repr(text) if text is None or len(text) <= 40 else repr(text[:40] + '...')
+        what = {int: 'an integer', float: 'a number'}.get(kind, kind.__name__)
+        raise StudyError(f'{path}:{line}: {shown} is not {what}; the table was changed by '
+                         f'hand: restore it or choose another --out') from None
 
 
 TABLES: dict[str, type[StudyTable]] = {'.parquet': ParquetTable, '.csv': CsvTable}

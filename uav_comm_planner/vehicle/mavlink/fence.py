@@ -16,7 +16,7 @@ from pymavlink import mavutil
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import VehicleLinkError
 from uav_comm_planner.vehicle.fence import FenceCircle, FencePolygon, GeoFence
-from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
+from uav_comm_planner.vehicle.geodesy import geodetic_to_plane, Home
 from uav_comm_planner.vehicle.mavlink.items import (FRAME_GLOBAL, MissionItem, NAV_LAND,
                                                     NAV_WAYPOINT, Q0_SEQ)
 
@@ -81,7 +81,7 @@ def mission_clearance(items: Sequence[MissionItem], home: Home, zones: Zones) ->
     if not points:
         return float('inf')
     latitude, longitude = np.array(points).T
-    east, north, _ = geodetic_to_enu(latitude, longitude, home.altitude_m, home)
+    east, north, _ = geodetic_to_plane(latitude, longitude, home)
     return zones.path_clearance(np.column_stack([east, north]))
 
 
