@@ -3,13 +3,19 @@ parameters over firmware defaults, late requests, unflyable winds."""
 
 from __future__ import annotations
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from helpers import HORIZON_S, NODES_B, SLOT_S
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
+from std_srvs.srv import Trigger
 
 from uav_comm_planner.errors import PlannerError
-from uav_comm_planner.ros.node import PlannerNode
+from uav_comm_planner.ros.messages import status_values
+from uav_comm_planner.ros.node import PlannerNode, TOPIC_GROUND_NODES
+from uav_comm_planner.ros.publishing import STATUS_QOS, TOPIC_STATUS
+from uav_comm_planner.ros.wind import REASON as WIND_REASON
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 
 
@@ -65,3 +71,70 @@ def test_an_override_equal_to_the_default_is_explicit(ros_context):
 def test_px4_without_an_explicit_speed_refuses_a_faster_plan():
     with pytest.raises(PlannerError, match='faster than the vehicle flies'):
         _node_from_command_line(['-p', 'mission_firmware:=px4'])
+
+
+def _statuses(h) -> list:
+    statuses: list[DiagnosticArray] = []
+    h.probe.create_subscription(DiagnosticArray, TOPIC_STATUS, statuses.append, STATUS_QOS)
+    h.spin_until(lambda: h.node.count_subscribers(TOPIC_STATUS) > 0, 'status subscriber')
+    return statuses
+
+
+def _refusals(statuses: list, request: str) -> list[str]:
+    return [s.status[0].message for s in statuses
+            if s.status[0].level == DiagnosticStatus.ERROR
+            and status_values(s).get('request') == request]
+
+
+def test_a_request_after_the_last_slot_has_begun_never_restarts_the_mission(harness):
+    h = harness()
+    statuses = _statuses(h)
+    h.published(1)
+    # The mission's clock started one slot less than its horizon ago: its last slot has begun.
+    h.node.flight.start_clock(h.node.clock_s() - HORIZON_S + SLOT_S / 2, 'test')
+    mission_id = h.node.progress.mission_id
+    requests = h.node.stats.requests_made
+    assert h.node.progress.over(h.node.clock_s())
+    h.send_nodes(NODES_B)
+    h.spin_until(lambda: _refusals(statuses, TOPIC_GROUND_NODES), 'refusal of the late nodes')
+    assert 'every slot of the mission in flight has begun' in \
+        _refusals(statuses, TOPIC_GROUND_NODES)[0]
+    h.node.vehicle.wind.add(h.node.clock_s(), -3.0, 0.0)
+    h.spin_until(lambda: _refusals(statuses, WIND_REASON), 'refusal of the late wind')
+    for _ in range(20):
+        h.executor.spin_once(timeout_sec=0.05)
+    # Nothing planned, the mission and its clock as they were.
+    assert h.node.stats.requests_made == requests
+    assert h.node.progress.mission_id == mission_id and h.node.progress.started
+    # Asked for explicitly, a new mission is planned from start_m.
+    assert h.call('replan', Trigger.Request()).success
+    h.published(2)
+    assert h.node.progress.mission_id != mission_id and not h.node.progress.started
+
+
+def test_a_wind_the_plan_cannot_fly_is_refused_once_not_replanned_at_every_interval(harness):
+    h = harness(vehicle_aware=True, max_speed_mps=10.0, horizon_s=400.0, num_slots=20,
+                replan_interval_s=10.0)
+    statuses = _statuses(h)
+    h.published(1)
+    h.node.flight.start_clock(h.node.clock_s(), 'test')
+    tracker = h.node.vehicle.wind
+    requests = h.node.stats.requests_made
+    # A gale at the vehicle's airspeed, reported at 10 Hz over 30 replan intervals.
+    airspeed = h.node.config.vehicle.airspeed_mps
+    for step in range(3000):
+        tracker.add(step * 0.1, -airspeed - 1.0, 0.0)
+    h.spin_until(lambda: _refusals(statuses, WIND_REASON), 'refusal of the gale')
+    for _ in range(20):
+        h.executor.spin_once(timeout_sec=0.05)
+    refusals = _refusals(statuses, WIND_REASON)
+    assert len(refusals) == 1 and 'cannot hold its position' in refusals[0], refusals
+    assert tracker.replans == 0 and h.node.stats.requests_made == requests
+    assert h.node.stats.plans_published == 1
+    # A wind that changes materially is answered again: one the vehicle flies (here a
+    # tailwind, once the smoothing has let the gale go) is planned for.
+    for step in range(3000, 4200):
+        tracker.add(step * 0.1, 3.0, 0.0)
+    h.spin_until(lambda: h.node.current_plan.request.scenario.wind_speed_mps > 1.0,
+                 'plan for the tailwind')
+    assert h.node.current_plan.request.reason == WIND_REASON and tracker.replans >= 1

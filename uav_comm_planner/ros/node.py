@@ -15,9 +15,10 @@ after its upload) or, without a link, as soon as it is published.
 
 Replanning:
 
-- before the mission clock runs (and after the mission's last slot), a ``ground_nodes``
-  message or an accepted parameter change plans the whole mission from ``start_m``;
-  ``~/replan`` always does, and ends the mission in flight. A ``ground_nodes`` message goes
+- before the mission clock runs, a ``ground_nodes`` message or an accepted parameter change
+  plans the whole mission from ``start_m``; once the mission's last slot has begun, they
+  (and the wind) are refused on ``planner_status`` and never restart the mission;
+  ``~/replan`` always plans from ``start_m``, and ends the mission in flight. A ``ground_nodes`` message goes
   through the ``ground_nodes`` parameter, so it is checked like any parameter change and the
   parameter always holds the node set in use;
 - a request that comes while a plan runs also asks the running plan to give up at its next
