@@ -44,7 +44,8 @@ from uav_comm_planner.vehicle.mavlink.telemetry import (Event, HomeReport, LinkE
                                                         MissionProgressReport, ModeReport,
                                                         Position, TELEMETRY_RATE_HZ,
                                                         VehicleBridge, Wind)
-from uav_comm_planner.vehicle.stream import resume_item, stream_reference, StreamReference
+from uav_comm_planner.vehicle.stream import (resume_item, STREAM_ACCEL_ALLOWANCE,
+                                             stream_reference, StreamReference)
 
 TOPIC_VEHICLE_POSE = 'vehicle_pose'
 #: The home parameters: set, they anchor the planning frame; else the vehicle's home does.
@@ -169,12 +170,19 @@ class VehicleAdapter(VehicleState):
         plan's clock starts); a plan that cannot be streamed is said once, and its uploaded
         mission is what the vehicle flies."""
         result = outcome.result
+        firmware = outcome.request.output.mission_firmware
         try:
-            reference = stream_reference(result, limits)
+            reference = stream_reference(result, limits,
+                                         accel_allowance=STREAM_ACCEL_ALLOWANCE[firmware])
         except PlannerError as exc:
             self._report(f'stream: this plan cannot be streamed, its mission is flown in AUTO: '
                          f'{exc}', True)
             return
+        if reference.accel_raised:
+            self._report(f'stream: the plan\'s points need more acceleration than the '
+                         f'vehicle\'s {limits.max_accel_mpss:g} m/s/s (vehicle_max_accel_mpss);'
+                         f' streamed with targets of up to {reference.bounds.accel_mpss:.3g} '
+                         f'm/s/s, which {firmware} follows in its stream mode', False)
         items = outcome.plan.items or ()
         home = outcome.request.output.home
         waypoints = [(seq, _enu(item, home)) for seq, item in enumerate(items)
