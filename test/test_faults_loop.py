@@ -138,3 +138,27 @@ def test_a_wind_the_plan_cannot_fly_is_refused_once_not_replanned_at_every_inter
     h.spin_until(lambda: h.node.current_plan.request.scenario.wind_speed_mps > 1.0,
                  'plan for the tailwind')
     assert h.node.current_plan.request.reason == WIND_REASON and tracker.replans >= 1
+
+
+def test_the_node_streams_a_px4_plan_at_10_mps_and_says_the_acceleration_it_asks():
+    from types import SimpleNamespace
+
+    from uav_comm_planner import paper_scenario
+    from uav_comm_planner.mission.request import vehicle_limits
+    from uav_comm_planner.ros.vehicle import _reference_for
+    from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+
+    scenario = paper_scenario('I', ground_nodes_m=((-150.0, 150.0), (150.0, 350.0)),
+                              start_m=(0.0, 10.0), goal_m=(0.0, 400.0), horizon_s=120.0,
+                              num_slots=30, altitude_m=30.0, max_speed_mps=10.0)
+    limits = vehicle_limits({'max_speed_mps': 10.0}, firmware='px4')
+    flown = plan_for_vehicle(scenario, limits, firmware='px4').flown
+
+    def outcome(firmware: str) -> SimpleNamespace:
+        output = SimpleNamespace(mission_firmware=firmware)
+        return SimpleNamespace(result=flown, request=SimpleNamespace(output=output))
+    reference, note = _reference_for(outcome('px4'), limits)
+    assert reference.accel_raised
+    assert f'up to {reference.bounds.accel_mpss:.3g} m/s/s' in note and 'px4' in note
+    with pytest.raises(PlannerError, match='acceleration 3 m/s/s'):
+        _reference_for(outcome('ardupilot'), limits)

@@ -65,6 +65,21 @@ Reporter = Callable[[str, bool], None]
 STREAM_TELEMETRY_RATE_HZ = 20.0
 
 
+def _reference_for(outcome: PlanOutcome, limits: VehicleLimits) -> tuple[StreamReference, str]:
+    """The streamed reference of ``outcome``'s plan for its firmware
+    (:data:`~uav_comm_planner.vehicle.stream.STREAM_ACCEL_ALLOWANCE`), and what to say of it
+    ('' when nothing). Raises PlannerError when the plan cannot be streamed."""
+    firmware = outcome.request.output.mission_firmware
+    reference = stream_reference(outcome.result, limits,
+                                 accel_allowance=STREAM_ACCEL_ALLOWANCE[firmware])
+    if not reference.accel_raised:
+        return reference, ''
+    return reference, (f'stream: the plan\'s points need more acceleration than the '
+                       f'vehicle\'s {limits.max_accel_mpss:g} m/s/s (vehicle_max_accel_mpss); '
+                       f'streamed with targets of up to {reference.bounds.accel_mpss:.3g} '
+                       f'm/s/s, which {firmware} follows in its stream mode')
+
+
 class VehicleAdapter(VehicleState):
     """The vehicle link of ``node``, (re)made by :meth:`connect` from the node settings.
 
@@ -170,19 +185,14 @@ class VehicleAdapter(VehicleState):
         plan's clock starts); a plan that cannot be streamed is said once, and its uploaded
         mission is what the vehicle flies."""
         result = outcome.result
-        firmware = outcome.request.output.mission_firmware
         try:
-            reference = stream_reference(result, limits,
-                                         accel_allowance=STREAM_ACCEL_ALLOWANCE[firmware])
+            reference, note = _reference_for(outcome, limits)
         except PlannerError as exc:
             self._report(f'stream: this plan cannot be streamed, its mission is flown in AUTO: '
                          f'{exc}', True)
             return
-        if reference.accel_raised:
-            self._report(f'stream: the plan\'s points need more acceleration than the '
-                         f'vehicle\'s {limits.max_accel_mpss:g} m/s/s (vehicle_max_accel_mpss);'
-                         f' streamed with targets of up to {reference.bounds.accel_mpss:.3g} '
-                         f'm/s/s, which {firmware} follows in its stream mode', False)
+        if note:
+            self._report(note, False)
         items = outcome.plan.items or ()
         home = outcome.request.output.home
         waypoints = [(seq, _enu(item, home)) for seq, item in enumerate(items)
