@@ -52,7 +52,8 @@ def test_a_speed_not_given_is_the_firmwares_default():
     node = _node_from_command_line(['-p', 'mission_firmware:=px4', '-p', 'max_speed_mps:=5.0',
                                     '-p', 'horizon_s:=600.0'])
     try:
-        assert node.config.vehicle.max_speed_mps == FIRMWARES['px4'].default_limits['max_speed_mps']
+        default = FIRMWARES['px4'].default_limits['max_speed_mps']
+        assert node.config.vehicle.max_speed_mps == default
         assert 'vehicle_max_speed_mps' not in node._binding.explicit
     finally:
         _close(node)
