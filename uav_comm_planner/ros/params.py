@@ -426,6 +426,7 @@ NOT_PARAMETERS = {
     (Scenario, 'max_airspeed_mps'): 'a vehicle-aware plan takes the airspeed from the vehicle '
                                     '(vehicle_airframe_speed_mps less vehicle_gust_margin_mps)',
     (Scenario, 'zones'): 'the zones come from fence_file, anchored at home',
+    (VehicleLimits, 'acceptance_radius_m'): "PX4's NAV_ACC_RAD comes from vehicle_params_file",
 }
 
 
