@@ -44,7 +44,7 @@ from pymavlink.dialects.v20 import ardupilotmega as MAV
 from uav_comm_planner.vehicle.mavlink.telemetry import LinkEvent
 
 BEHAVIOURS = ('good', 'mute', 'silent', 'loop', 'out_of_range', 'wrong_ack', 'wrong_count',
-              'wrong_item', 'slow', 'garbage')
+              'wrong_item', 'slow', 'garbage', 'impatient')
 HEARTBEAT_S = 0.1
 
 
@@ -95,6 +95,7 @@ class FakeVehicle:
         self.delay_s = delay_s
         self.random = random.Random(seed)
         self.stored: list = []
+        self._requested: int | None = None
         self.received = 0
         self._stop = threading.Event()
         self._server = socket.create_server(('127.0.0.1', 0))
@@ -229,6 +230,14 @@ class FakeVehicle:
         ]
         self._send(draw.choice(choices)())
 
+    def _request(self, seq: int) -> None:
+        """Ask for item ``seq``; an impatient vehicle (ArduPilot at a simulator's speed-up,
+        whose 1 s resend is 50 ms of wall clock at 20) asks twice before the answer comes, so
+        that the answer to its second request arrives as an item it did not ask for."""
+        self._requested = seq
+        for _ in range(2 if self.behaviour == 'impatient' else 1):
+            self._send(self._mav.mission_request_int_encode(255, 0, seq, 0))
+
     def _answer(self, message) -> None:
         kind = message.get_type()
         behaviour = self.behaviour
@@ -260,13 +269,17 @@ class FakeVehicle:
                 return
             self.stored = [None] * message.count
             first = message.count + 3 if behaviour == 'out_of_range' else 0
-            self._send(mav.mission_request_int_encode(255, 0, first, 0))
+            self._request(first)
         elif kind == 'MISSION_ITEM_INT':
+            if behaviour == 'impatient' and message.seq != self._requested:
+                # ArduPilot's answer to an item it did not ask for; the transfer goes on.
+                self._send(mav.mission_ack_encode(255, 0, MAV.MAV_MISSION_INVALID_SEQUENCE, 0))
+                return
             if 0 <= message.seq < len(self.stored):
                 self.stored[message.seq] = message
             following = 0 if behaviour == 'loop' else message.seq + 1
             if following < len(self.stored):
-                self._send(mav.mission_request_int_encode(255, 0, following, 0))
+                self._request(following)
             else:
                 self._send(mav.mission_ack_encode(255, 0, MAV.MAV_MISSION_ACCEPTED, 0))
         elif kind == 'MISSION_REQUEST_LIST':

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uav_comm_planner import paper_scenario, plan, SolverSettings
+from uav_comm_planner import paper_scenario, plan, PlanResult, SolverSettings
 from uav_comm_planner.core.receding import delivered_bits, replan
 from uav_comm_planner.mission.progress import (MissionProgress, off_plan, planned_position,
                                                PoseTrack, TRACK_GAP_S)
@@ -78,3 +78,54 @@ def test_replans_keep_the_slots_begun_and_count_them_once(mission_and_plan):
     np.testing.assert_allclose(later.positions_m[:6], [(1.0, 2.0)] * 6)
     np.testing.assert_array_equal(later.positions_m[6:], rest.result.trajectory[:5])
     assert np.all(delivered_bits(mission, later) > 0)
+
+
+def straight_plan(mission) -> PlanResult:
+    """``mission`` flown at constant speed along the line from q0 to qF."""
+    start, goal = np.asarray(mission.start_m), np.asarray(mission.goal_m)
+    shares = np.arange(1, mission.num_slots + 1) / (mission.num_slots + 1)
+    q = start + shares[:, None] * (goal - start)
+    power = np.full((len(mission.ground_nodes_m), mission.num_slots), 0.1)
+    return PlanResult(scenario=mission, trajectory=q, times=mission.times_s, power=power,
+                      rates=np.ones(len(mission.ground_nodes_m)), min_throughput=1.0,
+                      history=())
+
+
+def test_slots_in_a_telemetry_outage_count_where_the_vehicle_was_not_where_planned(
+        mission_and_plan):
+    mission, _ = mission_and_plan
+    result = straight_plan(mission)
+    progress = MissionProgress()
+    progress.begin(mission, result)
+    progress.start_clock(100.0)
+    slot_s = mission.slot_s
+
+    def on_plan(t):
+        return planned_position(result, t - 100.0)
+    # On the plan until 110 s; the link then cut for 20 s, the vehicle holding its last
+    # target (a stream cut off) at the plan's position at 110 s; heard again from 130 s.
+    held = on_plan(110.0)
+    track = PoseTrack()
+    for t in np.arange(100.0, 110.05, 0.1):
+        track.add(t, *on_plan(t))
+    for t in np.arange(130.0, 131.05, 0.1):
+        track.add(t, *held)
+    flown = progress.flown_slots(131.0, mission.ground_nodes_m, track)
+    times = 100.0 + slot_s * np.arange(1, flown.num_slots + 1)
+    outage = (times > 110.0 + TRACK_GAP_S) & (times < 130.0 - TRACK_GAP_S)
+    assert outage.sum() >= 5
+    # Every slot of the outage where the vehicle held, none where the plan had it.
+    np.testing.assert_allclose(flown.positions_m[outage], [held] * outage.sum(), atol=1e-6)
+    assert np.all(np.linalg.norm(flown.positions_m[outage] - result.trajectory[:len(times)][
+        outage], axis=1) > 1.0)
+    # A vehicle that flew its mission on through the same outage keeps the planned positions.
+    track = PoseTrack()
+    for t in np.concatenate([np.arange(100.0, 110.05, 0.1), np.arange(130.0, 131.05, 0.1)]):
+        track.add(t, *on_plan(t))
+    flown = progress.flown_slots(131.0, mission.ground_nodes_m, track)
+    np.testing.assert_allclose(flown.positions_m, result.trajectory[:flown.num_slots],
+                               atol=1e-6)
+    # After the latest sample nothing is known: the plan's positions.
+    later = progress.flown_slots(140.0, mission.ground_nodes_m, track)
+    np.testing.assert_allclose(later.positions_m[flown.num_slots + 1:],
+                               result.trajectory[flown.num_slots + 1:later.num_slots])

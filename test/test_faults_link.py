@@ -107,6 +107,19 @@ def test_a_vehicle_that_heartbeats_but_never_answers_is_still_a_refusal():
     assert not isinstance(raised.value, VehicleLinkLostError)
 
 
+def test_an_item_answered_twice_is_not_the_end_of_the_upload():
+    # ArduPilot at a simulator's speed-up asks for an item again before our answer arrives;
+    # the second answer meets it expecting the next item: INVALID_SEQUENCE, and it goes on.
+    with FakeVehicle('impatient') as vehicle:
+        link = connect(vehicle.url, timeout_s=5.0)
+        try:
+            upload_and_verify(link, ITEMS, LinkSettings(timeout_s=1.0, retries=2))
+        finally:
+            link.close()
+    assert [item.seq for item in vehicle.stored] == list(range(len(ITEMS)))
+    assert counts(vehicle, 'MISSION_ITEM_INT') > len(ITEMS)      # the duplicates answered
+
+
 # The bridge: a cut upload is said once and sent again once the link is back.
 
 def test_an_eof_while_the_current_item_is_set_is_a_loss_and_the_upload_is_sent_again():

@@ -15,6 +15,7 @@ import subprocess
 import sys
 import threading
 import time
+from typing import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from link_proxy import LinkProxy
@@ -32,6 +33,7 @@ from uav_comm_planner.ros.diagnostics import DIAGNOSTICS_QOS, TOPIC_DIAGNOSTICS,
 from uav_comm_planner.ros.flight import HOLD_SPEED_MPS, START_HEIGHT_M, START_RADIUS_M
 from uav_comm_planner.ros.node import PlannerNode
 from uav_comm_planner.ros.publishing import STATUS_QOS, TOPIC_STATUS
+from uav_comm_planner.vehicle.evaluation import REACH_RADIUS_M
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, geodetic_to_enu, Home
 from uav_comm_planner.vehicle.mavlink.files import export_mission
 from uav_comm_planner.vehicle.mavlink.link import download_mission
@@ -102,7 +104,7 @@ class Recorder:
 class Flight:
     """A SITL, the node linked to it (through ``url_of(port)``), an executor, the test's link."""
 
-    def __init__(self, ros_context, folder, *, proxy: bool = False) -> None:
+    def __init__(self, ros_context, folder, *, proxy: bool = False, **parameters) -> None:
         self.sitl = start_sitl(folder, HOME, instances=INSTANCES)
         self.node = self.executor = self.spinner = self.proxy = self.probe = None
         self.link = open_link(self.sitl)
@@ -115,7 +117,8 @@ class Flight:
             Parameter('max_speed_mps', value=SPEED_MPS),
             Parameter('horizon_s', value=HORIZON_S), Parameter('num_slots', value=SLOTS),
             Parameter('compute_baselines', value=False),
-            Parameter('mavlink_url', value=url)])
+            Parameter('mavlink_url', value=url),
+            *(Parameter(name, value=value) for name, value in parameters.items())])
         self.errors: list[str] = []
         report = self.node.report_error
         self.node.report_error = lambda message: (self.errors.append(message),
@@ -212,8 +215,9 @@ def flight(ros_context, tmp_path):
         each.close()
 
 
-def test_a_link_closed_for_20_s_mid_flight_is_said_once_and_the_flight_completes(flight):
-    f = flight(proxy=True)
+def cut_for_20_s(f: Flight) -> tuple[dict[str, float], Callable[[float, Recorder], None]]:
+    """What ``f.fly`` calls to cut the node's link CUT_AT_S into the mission for OUTAGE_S of
+    autopilot time, and what it notes of the cut (autopilot and wall times)."""
     vehicle = f.node.vehicle
     cut: dict[str, float] = {}
 
@@ -232,6 +236,13 @@ def test_a_link_closed_for_20_s_mid_flight_is_said_once_and_the_flight_completes
         elif 'restored' in cut and 'up_wall_s' not in cut and vehicle.link_up:
             cut['up_wall_s'] = time.monotonic() - f.proxy.restored_at
             cut['up_at'] = now
+    return cut, during
+
+
+def test_a_link_closed_for_20_s_mid_flight_is_said_once_and_the_flight_completes(flight):
+    f = flight(proxy=True)
+    vehicle = f.node.vehicle
+    cut, during = cut_for_20_s(f)
     recorder = f.fly(during)
     print(f'link cut at {cut["at"]:.1f} s for {cut["restored"] - cut["at"]:.1f} s (autopilot '
           f'time); detected {cut["detected_wall_s"]:.3f} s after the cut, link up again '
@@ -254,6 +265,54 @@ def test_a_link_closed_for_20_s_mid_flight_is_said_once_and_the_flight_completes
     assert abs(f.node.clock_s() - recorder.rows[-1][0]) < 2.0
     assert f.node.stats.requests_made == cut['requests'], 'the outage made the node replan'
     f.check_flight(recorder)
+
+
+def lateness_slots(progress, recorder: Recorder) -> tuple[np.ndarray, np.ndarray]:
+    """How late (or early) each point in force was reached, in slots: for every plan of the
+    mission, its slot points kept, |reached - planned| with reached any time the vehicle was
+    within REACH_RADIUS_M of the point (inf: never); and the points' planned times."""
+    rows = np.array(recorder.rows)
+    errors, times = [], []
+    for segment, count in progress.schedule()[1]:
+        slot_s = segment.result.scenario.slot_s
+        for point, when in zip(np.asarray(segment.result.trajectory)[:count],
+                               segment.slot_times_s(count)):
+            times.append(when)
+            near = np.hypot(rows[:, 1] - point[0], rows[:, 2] - point[1]) <= REACH_RADIUS_M
+            errors.append(np.abs(rows[near, 0] - when).min() / slot_s if near.any()
+                          else np.inf)
+    return np.array(errors), np.array(times)
+
+
+def test_a_link_cut_for_20_s_in_stream_mode_is_caught_up_and_the_promise_restated_honestly(
+        flight):
+    f = flight(proxy=True, flight_mode='stream')
+    cut, during = cut_for_20_s(f)
+    recorder = f.fly(during)
+    progress = f.node.progress
+    print(f'link cut at {cut["at"]:.1f} s for {cut["restored"] - cut["at"]:.1f} s, up again '
+          f'at {cut["up_at"]:.1f} s (autopilot time); {len(progress.segments)} plans flown')
+    mission = paper_scenario('I', max_speed_mps=SPEED_MPS, horizon_s=HORIZON_S,
+                             num_slots=SLOTS)
+    schedule, kept = progress.schedule()
+    times = np.concatenate([segment.slot_times_s(count) for segment, count in kept])
+    flown = mission_rates_flown(mission, schedule, recorder.at(times)[:, 1:3])
+    first = float(np.min(progress.segments[0].result.rates))
+    outcome = f.node.current_plan
+    stated = (outcome.receding.mission_rates if outcome.receding is not None
+              else np.asarray(outcome.result.rates))
+    late, when = lateness_slots(progress, recorder)
+    print(f'flown min throughput {flown.min():.6g} bit/s: {100 * flown.min() / first:.2f} % '
+          f'of the first promise {first:.6g}; the promise in force {stated.min():.6g} '
+          f'({100 * flown.min() / stated.min():.2f} % of it delivered)')
+    print('points in force late by (slots):', np.round(late, 2))
+    assert flown.min() >= 0.99 * first
+    # The promise in force is the flight's: the outage slots where the vehicle was.
+    assert abs(flown.min() / stated.min() - 1.0) <= 1e-3
+    # The points in force outside the outage, on time.
+    outside = (when < cut['at']) | (when > cut['up_at'])
+    print('outside the outage:', np.round(late[outside], 2))
+    assert np.all(late[outside] <= 1.0)
 
 
 def set_glitch(link, north_m: float) -> None:

@@ -148,3 +148,33 @@ def test_the_hold_starts_the_step_the_vehicle_enters_the_acceptance_radius(speed
     left = 180.0 - profile.distance(np.array([profile.hold_start_s]))[0]
     assert radius - speed * px4_timing.STEP_S - 1e-9 <= left <= radius
     assert px4_reach_time(line, speed, PX4) == profile.hold_start_s
+
+
+def test_px4s_acceptance_radius_is_read_from_its_parameter_file_and_times_its_legs(tmp_path):
+    from dataclasses import replace
+
+    from uav_comm_planner.errors import InvalidScenarioError
+    from uav_comm_planner.mission.request import vehicle_limits
+
+    params = tmp_path / 'px4.params'
+    # QGroundControl's export: SYSID COMPID NAME VALUE TYPE.
+    params.write_text('1\t1\tMPC_ACC_HOR\t3.0\t9\n1\t1\tNAV_ACC_RAD\t6.0\t9\n')
+    limits = vehicle_limits(parameter_file=params, firmware='px4')
+    assert limits.acceptance_radius_m == 6.0
+    assert vehicle_limits(firmware='px4').acceptance_radius_m is None    # PX4's 2 m
+    wide = replace(PX4, acceptance_radius_m=6.0)
+    # The hold starts on entering the radius it was given, not the default one.
+    line = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 80.0]])
+    for speed in (1.0, 5.0):
+        profile = px4_profile(line, speed, wide)
+        reach = 6.0 + px4_timing.BRAKING_LEAD_S2 * speed * speed
+        left = 180.0 - profile.distance(np.array([profile.hold_start_s]))[0]
+        assert reach - speed * px4_timing.STEP_S - 1e-9 <= left <= reach
+        assert px4_reach_time(line, speed, wide) < px4_reach_time(line, speed, PX4)
+    # A turn is flown faster through a wider radius (sqrt(P A R tan(alpha / 2))).
+    sharp = np.array([[0.0, 0.0], [200.0, 0.0], [200.0, 200.0]])
+    assert px4_profile(sharp, 5.0, wide).duration_s < px4_profile(sharp, 5.0, PX4).duration_s
+    assert corner_speed(math.pi / 2, 3.0, 6.0) == pytest.approx(
+        math.sqrt(0.5 * 3.0 * 6.0 * math.tan(math.pi / 4)))
+    with pytest.raises(InvalidScenarioError, match='NAV_ACC_RAD'):
+        replace(PX4, acceptance_radius_m=0.0)

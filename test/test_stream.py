@@ -11,12 +11,12 @@ import pytest
 
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.core.model import flown_path
-from uav_comm_planner.core.reference import MotionBounds, smooth_motion
+from uav_comm_planner.core.reference import least_acceleration, MotionBounds, smooth_motion
 from uav_comm_planner.errors import InfeasibleHorizonError
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.stream import (resume_item, stream_reference,
-                                             STREAM_SPEED_MARGIN)
+from uav_comm_planner.vehicle.stream import (resume_item, STREAM_ACCEL_ALLOWANCE,
+                                             stream_reference, STREAM_SPEED_MARGIN)
 
 #: Finite-difference step, seconds.
 STEP_S = 0.005
@@ -131,3 +131,57 @@ def test_the_stream_resumes_the_mission_at_the_next_waypoint_ahead(still_air):
     middle = resume_item(waypoints, reference, reference.duration_s / 2)
     assert 11 <= middle <= waypoints[-1][0]
     assert not math.isnan(middle)
+
+
+@pytest.fixture(scope='module')
+def px4_at_10():
+    """A PX4 plan at 10 m/s (MPC_XY_CRUISE 10, PX4's MPC_ACC_HOR 3 m/s/s) whose points no
+    motion within 3 m/s/s passes at their times."""
+    from uav_comm_planner.mission.request import vehicle_limits
+
+    scenario = paper_scenario('I', ground_nodes_m=((-150.0, 150.0), (150.0, 350.0)),
+                              start_m=(0.0, 10.0), goal_m=(0.0, 400.0), horizon_s=120.0,
+                              num_slots=30, altitude_m=30.0, max_speed_mps=10.0)
+    limits = vehicle_limits({'max_speed_mps': 10.0}, firmware='px4')
+    assert limits.max_accel_mpss == 3.0
+    return plan_for_vehicle(scenario, limits, firmware='px4')
+
+
+def test_a_px4_plan_needing_more_than_its_acceleration_streams_with_the_least_that_passes(
+        px4_at_10):
+    vehicle = px4_at_10
+    limits = vehicle.limits
+    with pytest.raises(InfeasibleHorizonError, match='acceleration 3 m/s/s'):
+        stream_reference(vehicle.flown, limits)         # ArduCopter's GUIDED: no more asked
+    reference = stream_reference(vehicle.flown, limits,
+                                 accel_allowance=STREAM_ACCEL_ALLOWANCE['px4'])
+    assert reference.accel_raised
+    raised = reference.bounds.accel_mpss
+    assert limits.max_accel_mpss < raised <= 2.0 * limits.max_accel_mpss
+    # The least: a little less (below the headroom) passes no motion.
+    points = flown_path(np.asarray(vehicle.flown.trajectory), vehicle.flown.scenario)
+    with pytest.raises(InfeasibleHorizonError):
+        smooth_motion(points, vehicle.flown.scenario.slot_s,
+                      MotionBounds(reference.bounds.speed_mps, raised / 1.03,
+                                   wind_mps=reference.bounds.wind_mps,
+                                   airspeed_mps=reference.bounds.airspeed_mps))
+    # It passes every point at its time and keeps the raised bound, by finite differences.
+    times = vehicle.flown.scenario.slot_s * np.arange(len(points))
+    np.testing.assert_allclose(reference.state(times)[0], points, atol=1e-9)
+    _, velocity, accel = differences(reference)
+    assert np.linalg.norm(accel, axis=1).max() <= raised * (1 + SLACK)
+    assert np.linalg.norm(velocity, axis=1).max() <= reference.bounds.speed_mps * (1 + SLACK)
+
+
+def test_a_stream_needing_more_than_the_allowance_is_refused_with_what_it_needs(px4_at_10):
+    # Rest to rest over 40 m in 4 s: the least peak acceleration of a cubic is 6 D / T^2,
+    # 15 m/s/s with one piece; free knots between lower it towards bang-bang's 4 D / T^2.
+    points = np.array([[0.0, 0.0], [40.0, 0.0]])
+    bounds = MotionBounds(speed_mps=100.0, accel_mpss=3.0)
+    assert least_acceleration(points, 4.0, bounds, pieces=1) == pytest.approx(15.0, rel=1e-4)
+    assert 10.0 <= least_acceleration(points, 4.0, bounds) < 15.0
+    with pytest.raises(InfeasibleHorizonError, match='no smooth motion'):
+        least_acceleration(points, 4.0, MotionBounds(speed_mps=9.0, accel_mpss=3.0))
+    with pytest.raises(InfeasibleHorizonError, match=r'the points need 3\.\d+ m/s/s, more '
+                                                     r'than the 3\.15 m/s/s'):
+        stream_reference(px4_at_10.flown, px4_at_10.limits, accel_allowance=1.05)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from types import SimpleNamespace
 
-from helpers import two_node_stream_reference
+from helpers import NODES_B, two_node_stream_reference
 import numpy as np
 from pymavlink import mavutil
 import pytest
@@ -270,8 +270,13 @@ def test_the_node_plans_for_the_wind_measured_publishes_it_and_keeps_its_paramet
     assert h.node.current_plan.request.reason == 'wind estimate'
     h.spin_until(lambda: winds and winds[-1].vector.x < -5.9, 'wind_estimate')
     assert winds[-1].header.frame_id == 'map' and abs(winds[-1].vector.y) < 1e-9
-    # A wind the vehicle cannot fly in is said, and the plan keeps the parameter's wind.
+    # A wind the vehicle cannot fly in is refused, once; the plan in force stays.
     tracker.add(1000.0, -150.0, 0.0)                    # (smoothed over 1000 s: all of it)
+    h.spin_until(lambda: any('wind estimate refused' in line for line in h.error_logs),
+                 'refusal of the wind')
+    assert h.node.stats.plans_published == 2 and tracker.replans == 1
+    # Another request meanwhile is planned, for the parameter's wind, and says so.
+    h.send_nodes(NODES_B)
     h.published(3)
     assert h.node.current_plan.request.scenario.wind_speed_mps == 0.0
     assert any('wind estimate: not planned for' in line for line in h.error_logs)

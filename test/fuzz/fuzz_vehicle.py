@@ -92,9 +92,9 @@ class Fuzzer(SeededFuzzer):
             self.fail('api', what, traceback.format_exc(limit=4))
             return
         self.counts[('api ' + behaviour, outcome)] += 1
-        if behaviour not in ('good', 'garbage') and outcome == 'uploaded':
+        if behaviour not in ('good', 'garbage', 'impatient') and outcome == 'uploaded':
             self.fail('api', what, 'a misbehaving vehicle took the mission')
-        if behaviour == 'good' and outcome != 'uploaded':
+        if behaviour in ('good', 'impatient') and outcome != 'uploaded':
             self.fail('api', what, f'a good vehicle was refused: {outcome}')
         self.within(began, CONNECT_TIMEOUT_S + SETTINGS.deadline_s, 'api', what)
 

@@ -102,18 +102,13 @@ def bound_excess(points: np.ndarray, velocities: np.ndarray, h: float,
     return excess
 
 
-def smooth_motion(points: np.ndarray, h: float, bounds: MotionBounds, *,
-                  pieces: int = PIECES_PER_SLOT) -> tuple[np.ndarray, np.ndarray]:
-    """Knot positions and velocities (K', 2) of the least-acceleration C1 cubic through
-    ``points`` (K, 2) (q0, q[1..M], qF) at times 0, h, ..., (K - 1) h, at rest at both ends,
-    within ``bounds``. Each slot is ``pieces`` cubics of h / pieces seconds: the knots at the
-    slot times are the plan's points, those between them are free, which lets the motion keep
-    its acceleration where one cubic per slot could not (a stop-and-go ramp). K' =
-    (K - 1) pieces + 1; knot j is at time j h / pieces.
-
-    Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when no such motion exists
-    (the points ask for more than the bounds allow), and SolverError when the solver fails.
-    """
+def _motion(points: np.ndarray, h: float, bounds: MotionBounds, pieces: int,
+            accel) -> tuple:
+    """The piecewise cubic of :func:`smooth_motion` as cvxpy expressions: knot positions p
+    (K', 2) (a numpy array when every knot is a plan point), the inner knot velocities (a
+    variable (K' - 2, 2)), the accelerations a0, a1 at both ends of every piece, and the
+    constraints of ``bounds`` with the acceleration bound ``accel`` (m/s/s: a number, or a
+    cvxpy variable to be minimised)."""
     points = np.asarray(points, dtype=float)
     if len(points) < 2:
         raise InfeasibleHorizonError('a reference needs at least q0 and qF')
@@ -136,8 +131,8 @@ def smooth_motion(points: np.ndarray, h: float, bounds: MotionBounds, *,
     d = p[1:] - p[:-1]
     a0 = (6 * d - step * (4 * v[:-1] + 2 * v[1:])) / step ** 2
     a1 = (-6 * d + step * (2 * v[:-1] + 4 * v[1:])) / step ** 2
-    constraints = [cp.norm(a0, 2, axis=1) <= bounds.accel_mpss,
-                   cp.norm(a1, 2, axis=1) <= bounds.accel_mpss,
+    constraints = [cp.norm(a0, 2, axis=1) <= accel,
+                   cp.norm(a1, 2, axis=1) <= accel,
                    cp.norm(inner, 2, axis=1) <= bounds.speed_mps]
     w = np.asarray(bounds.wind_mps, dtype=float)[None, :]
     for s in CONSTRAINED_S:
@@ -149,6 +144,47 @@ def smooth_motion(points: np.ndarray, h: float, bounds: MotionBounds, *,
         constraints.append(cp.norm(a1 - a0, 2, axis=1) <= bounds.jerk_mpsss * step)
     if bounds.airspeed_mps is not None:
         constraints.append(cp.norm(inner - w, 2, axis=1) <= bounds.airspeed_mps)
+    return p, inner, a0, a1, constraints
+
+
+def least_acceleration(points: np.ndarray, h: float, bounds: MotionBounds, *,
+                       pieces: int = PIECES_PER_SLOT) -> float:
+    """The least acceleration bound A (m/s/s) under which :func:`smooth_motion` finds a
+    motion through ``points`` at their slot times within the other ``bounds`` (speed,
+    airspeed; jerk not bounded): min A s.t. ||a|| <= A at both ends of every piece, one
+    second-order cone program. Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError`
+    when no acceleration is enough (the points ask for more speed than the bounds allow)."""
+    accel = cp.Variable(nonneg=True)
+    unjerked = MotionBounds(bounds.speed_mps, math.inf, math.inf, bounds.wind_mps,
+                            bounds.airspeed_mps)
+    *_, constraints = _motion(points, h, unjerked, pieces, accel)
+    problem = cp.Problem(cp.Minimize(accel), constraints)
+    try:
+        problem.solve(solver='CLARABEL')
+    except cp.error.SolverError as exc:
+        raise InfeasibleHorizonError(f'no acceleration found for the reference: {exc}') from exc
+    if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or accel.value is None:
+        raise InfeasibleHorizonError(_why_infeasible(np.asarray(points, dtype=float), h,
+                                                     unjerked))
+    return float(accel.value)
+
+
+def smooth_motion(points: np.ndarray, h: float, bounds: MotionBounds, *,
+                  pieces: int = PIECES_PER_SLOT) -> tuple[np.ndarray, np.ndarray]:
+    """Knot positions and velocities (K', 2) of the least-acceleration C1 cubic through
+    ``points`` (K, 2) (q0, q[1..M], qF) at times 0, h, ..., (K - 1) h, at rest at both ends,
+    within ``bounds``. Each slot is ``pieces`` cubics of h / pieces seconds: the knots at the
+    slot times are the plan's points, those between them are free, which lets the motion keep
+    its acceleration where one cubic per slot could not (a stop-and-go ramp). K' =
+    (K - 1) pieces + 1; knot j is at time j h / pieces.
+
+    Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when no such motion exists
+    (the points ask for more than the bounds allow), and SolverError when the solver fails.
+    """
+    points = np.asarray(points, dtype=float)
+    p, inner, a0, a1, constraints = _motion(points, h, bounds, pieces, bounds.accel_mpss)
+    step = h / pieces
+    zero = np.zeros((1, 2))
     # (||a0||^2 + a0.a1 + ||a1||^2) / 3 = (||a0 + a1 / 2||^2 + 3/4 ||a1||^2) / 3
     objective = cp.Minimize(step / 3 * (cp.sum_squares(a0 + a1 / 2)
                                         + 0.75 * cp.sum_squares(a1)))
@@ -204,4 +240,4 @@ def hermite_state(points: np.ndarray, velocities: np.ndarray, h: float,
 
 
 __all__ = ['BOUND_TOLERANCE', 'MotionBounds', 'bound_excess', 'hermite_ends', 'hermite_state',
-           'sampled_velocities', 'smooth_motion']
+           'least_acceleration', 'sampled_velocities', 'smooth_motion']

@@ -86,6 +86,22 @@ class PoseTrack:
         positions[:, 1] = np.interp(times_s, t, samples[:, 2])
         return positions, known
 
+    def around(self, times_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                   np.ndarray, np.ndarray]:
+        """For each of ``times_s`` (K,) inside the track (a sample at or before it and one
+        after it): the samples either side, as times (K,) and positions (K, 2), and (K,)
+        booleans, False outside the track (its values then meaningless)."""
+        times_s = np.asarray(times_s, dtype=float).reshape(-1)
+        samples = self.samples
+        if len(samples) < 2:
+            empty = np.zeros(len(times_s))
+            return empty, np.zeros((len(times_s), 2)), empty, np.zeros(
+                (len(times_s), 2)), np.zeros(len(times_s), dtype=bool)
+        t = samples[:, 0]
+        after = np.clip(np.searchsorted(t, times_s, side='right'), 1, len(t) - 1)
+        inside = (times_s >= t[0]) & (times_s < t[-1])
+        return (t[after - 1], samples[after - 1, 1:], t[after], samples[after, 1:], inside)
+
 
 @dataclass
 class Segment:
@@ -160,7 +176,8 @@ class MissionProgress:
 
     def flown_slots(self, now_s: float, nodes: tuple, track: PoseTrack | None) -> FlownSlots:
         """Every slot begun by ``now_s``, with its power mapped onto ``nodes`` and its position
-        from ``track`` where it covers the slot's time, else as planned."""
+        from ``track`` where it covers the slot's time, across a gap in it as
+        :func:`across_gaps` places it, else as planned."""
         power, positions = [], []
         for segment in self.segments:
             begun = segment.slots_begun(now_s) if segment is self.current else segment.num_slots
@@ -169,8 +186,10 @@ class MissionProgress:
             result = segment.result
             planned = np.asarray(result.trajectory[:begun], dtype=float)
             if track is not None:
-                tracked, known = track.at(segment.slot_times_s(begun))
-                planned = np.where(known[:, None], tracked, planned)
+                times = segment.slot_times_s(begun)
+                tracked, known = track.at(times)
+                planned = np.where(known[:, None], tracked,
+                                   across_gaps(result, segment.start_s, times, planned, track))
             power.append(power_for_nodes(result.scenario.ground_nodes_m,
                                          result.power[:, :begun], nodes))
             positions.append(planned)
@@ -252,9 +271,31 @@ class MissionProgress:
         return np.hstack(parts), kept
 
 
-def planned_position(result: PlanResult, elapsed_s: float) -> np.ndarray:
-    """Where the plan has the UAV ``elapsed_s`` after its start: (2,) metres, interpolated
-    along q0, q[1..M], qF (held at the ends)."""
+def across_gaps(result: PlanResult, start_s: float, times_s: np.ndarray, planned: np.ndarray,
+                track: PoseTrack) -> np.ndarray:
+    """Where the UAV was at ``times_s`` (K,) of a plan started at ``start_s``, for times the
+    track has no sample near (a telemetry outage): the ``planned`` positions (K, 2) moved by
+    the UAV's offset from the plan at the samples either side of the gap, interpolated in
+    time; the planned ones outside the track (after its latest sample).
+
+    A vehicle that flew its mission on through the outage is about where the plan puts it at
+    both ends, and keeps the planned positions; one that held its last target (a stream cut
+    off) is counted where it held, exactly so along a straight stretch of the plan: the
+    positions the flight had, not the ones it was promised."""
+    before_t, before_m, after_t, after_m, inside = track.around(times_s)
+    if not inside.any():
+        return planned
+    offset_before = before_m - planned_position(result, before_t - start_s).T
+    offset_after = after_m - planned_position(result, after_t - start_s).T
+    share = ((np.asarray(times_s, dtype=float) - before_t)
+             / np.maximum(after_t - before_t, 1e-9))[:, None]
+    moved = planned + offset_before + share * (offset_after - offset_before)
+    return np.where(inside[:, None], moved, planned)
+
+
+def planned_position(result: PlanResult, elapsed_s: float | np.ndarray) -> np.ndarray:
+    """Where the plan has the UAV ``elapsed_s`` after its start: (2,) metres ((2, K) for K
+    times), interpolated along q0, q[1..M], qF (held at the ends)."""
     points = flown_path(result.trajectory, result.scenario)
     times = result.scenario.path_times_s
     return np.array([np.interp(elapsed_s, times, points[:, 0]),
@@ -286,4 +327,5 @@ def off_plan(result: PlanResult, elapsed_s: float, position_m: tuple[float, floa
     return ''
 
 
-__all__ = ['MissionProgress', 'PoseTrack', 'Segment', 'off_plan', 'planned_position']
+__all__ = ['MissionProgress', 'PoseTrack', 'Segment', 'across_gaps', 'off_plan',
+           'planned_position']

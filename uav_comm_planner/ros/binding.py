@@ -13,6 +13,16 @@ from uav_comm_planner.ros.params import (coerced_value, config_from_parameters, 
                                          parameter_specs, PlannerConfig)
 
 
+def _overrides(node: Node) -> frozenset[str]:
+    """The names of the parameters given to ``node`` at start-up: ``--ros-args -p``, a
+    parameter file, or the constructor's ``parameter_overrides``.
+
+    rclpy keeps them in ``Node._parameter_overrides`` (it has no public accessor); they are
+    read from there rather than guessed from a value differing from its default.
+    """
+    return frozenset(getattr(node, '_parameter_overrides', {}))
+
+
 class ParameterBinding:
     """Keeps a node's :class:`PlannerConfig` in step with its ROS parameters.
 
@@ -43,9 +53,10 @@ class ParameterBinding:
         node.declare_parameters('', [(spec.name, spec.default, spec.descriptor())
                                      for spec in specs])
         self._names = tuple(spec.name for spec in specs)
-        # Set explicitly: given at start-up (a value other than the default) or set since.
-        self._explicit = {spec.name for spec in specs
-                          if node.get_parameter(spec.name).value != spec.default}
+        # Set explicitly: given at start-up (any value, the default's own included) or set
+        # since. A value equal to a default is no sign of being unset: ArduCopter's waypoint
+        # speed given for PX4 must win over PX4's default.
+        self._explicit = {spec.name for spec in specs if spec.name in _overrides(node)}
         self.config: PlannerConfig = config_from_parameters(self._values(), self._explicit,
                                                             fences=self._fences)
         node.add_on_set_parameters_callback(self._check)
@@ -53,7 +64,7 @@ class ParameterBinding:
 
     @property
     def explicit(self) -> frozenset[str]:
-        """The parameters set explicitly: given at start-up (other than the default) or set
+        """The parameters set explicitly: given at start-up (whatever the value) or set
         since."""
         return frozenset(self._explicit)
 

@@ -181,8 +181,15 @@ class MissionFlight:
                 and math.isclose(mission.slot_s, scenario.slot_s, rel_tol=1e-12))
 
     def request_update(self, reason: str) -> None:
-        """New inputs: replan the rest of the mission in flight, else the whole mission."""
+        """New inputs: replan the rest of the mission in flight, else the whole mission.
+
+        Once the mission's last slot has begun there is no rest to replan, and a new mission
+        from ``start_m`` would send the vehicle back from its way to qF: the request is
+        refused, with the reason (``~/replan`` plans a new mission)."""
         now = self._node.clock_s()
+        if self.progress.started and self.progress.over(now):
+            self._refuse_late(reason)
+            return
         if not self.running(now):
             self.request_plan(reason)
             return
@@ -194,6 +201,15 @@ class MissionFlight:
             elapsed = now - segment.start_s if segment.start_s is not None else 0.0
             position = tuple(planned_position(segment.result, elapsed))
         self._request_rest(reason, now, position)
+
+    def _refuse_late(self, reason: str) -> None:
+        mission = self.progress.mission
+        self._node.refuse(reason, f'{reason} refused: every slot of the mission in flight has '
+                                  f'begun ({mission.num_slots} of {mission.num_slots}), so '
+                                  f'there is nothing left to replan and the vehicle flies on to '
+                                  f'qF; the input applies to the next mission (~/replan plans '
+                                  f'one from start_m now)',
+                          nodes=nodes_text(mission.ground_nodes_m))
 
     def request_plan(self, reason: str) -> None:
         """Plan the whole mission from ``start_m`` with the current parameters; a mission in

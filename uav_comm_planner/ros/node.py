@@ -15,17 +15,19 @@ after its upload) or, without a link, as soon as it is published.
 
 Replanning:
 
-- before the mission clock runs (and after the mission's last slot), a ``ground_nodes``
-  message or an accepted parameter change plans the whole mission from ``start_m``;
-  ``~/replan`` always does, and ends the mission in flight. A ``ground_nodes`` message goes
-  through the ``ground_nodes`` parameter, so it is checked like any parameter change and the
-  parameter always holds the node set in use;
+- before the mission clock runs, a ``ground_nodes`` message or an accepted parameter change
+  plans the whole mission from ``start_m``; once the mission's last slot has begun, they
+  (and the wind) are refused on ``planner_status`` and never restart the mission;
+  ``~/replan`` always plans from ``start_m``, and ends the mission in flight. A
+  ``ground_nodes`` message goes through the ``ground_nodes`` parameter, so it is checked like
+  any parameter change and the parameter always holds the node set in use;
 - a request that comes while a plan runs also asks the running plan to give up at its next
   step (the core's ``plan(should_stop=...)``), so the newest request is planned at once;
 - while the clock runs, the same inputs replan the rest of the mission from the UAV's
   position by the receding horizon (:mod:`uav_comm_planner.core.receding`): the slots begun so
   far keep their power and the data they delivered (at the flown positions where a pose or
-  telemetry has them, else as planned), the rest gets what is left of the budget;
+  telemetry has them, across a telemetry outage as planned moved by the offset from the plan
+  at its ends, else as planned), the rest gets what is left of the budget;
 - a ``uav_pose`` (or the vehicle's telemetry) replans the same way, only when the UAV is off
   the plan by more than ``replan_distance_m`` or ``replan_delay_s``, at most once every
   ``replan_interval_s``, and not when less than ``replan_interval_s`` of the mission is left;

@@ -467,6 +467,7 @@ NOT_PARAMETERS = {
                             'field by field',
     (Scenario, 'energy_budget_wh'): 'planned with energy_budget_wh and battery_wh on the '
                                     'command line and in the Python API',
+    (VehicleLimits, 'acceptance_radius_m'): "PX4's NAV_ACC_RAD comes from vehicle_params_file",
 }
 
 

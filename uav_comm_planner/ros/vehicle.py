@@ -44,7 +44,8 @@ from uav_comm_planner.vehicle.mavlink.telemetry import (Event, HomeReport, LinkE
                                                         MissionProgressReport, ModeReport,
                                                         Position, TELEMETRY_RATE_HZ,
                                                         VehicleBridge, Wind)
-from uav_comm_planner.vehicle.stream import resume_item, stream_reference, StreamReference
+from uav_comm_planner.vehicle.stream import (resume_item, STREAM_ACCEL_ALLOWANCE,
+                                             stream_reference, StreamReference)
 
 TOPIC_VEHICLE_POSE = 'vehicle_pose'
 #: The home parameters: set, they anchor the planning frame; else the vehicle's home does.
@@ -62,6 +63,21 @@ PositionCallback = Callable[[float, float, float, float], bool]
 Reporter = Callable[[str, bool], None]
 #: Telemetry (and so target) rate with flight_mode stream, per second of autopilot time.
 STREAM_TELEMETRY_RATE_HZ = 20.0
+
+
+def _reference_for(outcome: PlanOutcome, limits: VehicleLimits) -> tuple[StreamReference, str]:
+    """The streamed reference of ``outcome``'s plan for its firmware
+    (:data:`~uav_comm_planner.vehicle.stream.STREAM_ACCEL_ALLOWANCE`), and what to say of it
+    ('' when nothing). Raises PlannerError when the plan cannot be streamed."""
+    firmware = outcome.request.output.mission_firmware
+    reference = stream_reference(outcome.result, limits,
+                                 accel_allowance=STREAM_ACCEL_ALLOWANCE[firmware])
+    if not reference.accel_raised:
+        return reference, ''
+    return reference, (f'stream: the plan\'s points need more acceleration than the '
+                       f'vehicle\'s {limits.max_accel_mpss:g} m/s/s (vehicle_max_accel_mpss); '
+                       f'streamed with targets of up to {reference.bounds.accel_mpss:.3g} '
+                       f'm/s/s, which {firmware} follows in its stream mode')
 
 
 class VehicleAdapter(VehicleState):
@@ -170,11 +186,13 @@ class VehicleAdapter(VehicleState):
         mission is what the vehicle flies."""
         result = outcome.result
         try:
-            reference = stream_reference(result, limits)
+            reference, note = _reference_for(outcome, limits)
         except PlannerError as exc:
             self._report(f'stream: this plan cannot be streamed, its mission is flown in AUTO: '
                          f'{exc}', True)
             return
+        if note:
+            self._report(note, False)
         items = outcome.plan.items or ()
         home = outcome.request.output.home
         waypoints = [(seq, _enu(item, home)) for seq, item in enumerate(items)

@@ -10,7 +10,10 @@ reports one. When the estimate moves farther than ``wind_replan_mps`` from the w
 in force, it asks the node for a replan of the rest of the mission in flight; before the
 mission's clock runs (nothing flies the plan yet, a replan costs nothing) already when it moves
 farther than :data:`PREFLIGHT_RESOLUTION_MPS`, so that the plan the mission starts with is made
-for the wind as measured; at most once every ``replan_interval_s`` of autopilot time.
+for the wind as measured; at most once every ``replan_interval_s`` of autopilot time. A wind is
+answered once: one the plan cannot fly (at or above the airspeed) is refused on
+``planner_status`` and ``/diagnostics``, the plan in force kept, and neither it nor a wind
+replanned for is asked for again until the estimate moves by the same threshold.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import math
 from typing import Protocol
 
 from geometry_msgs.msg import Vector3Stamped
+import numpy as np
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from uav_comm_planner.errors import InvalidScenarioError
@@ -50,6 +54,8 @@ class WindHost(Protocol):
 
     def create_publisher(self, *args, **kwargs): ...
 
+    def refuse(self, request: str, message: str, *, nodes: str | None = None) -> None: ...
+
 
 class WindTracker:
     """The node's wind estimate (module docstring)."""
@@ -59,19 +65,26 @@ class WindTracker:
         self.estimate = WindEstimate(node.config.node.wind_time_constant_s)
         self._publisher = node.create_publisher(Vector3Stamped, TOPIC_WIND, WIND_QOS)
         self._last_replan_s = -math.inf
+        #: The smoothed wind (m/s, east and north) last answered: replanned for or refused.
+        self._answered: np.ndarray | None = None
         #: Replans the wind asked for.
         self.replans = 0
+
+    def _windy(self, config: PlannerConfig) -> PlannerConfig:
+        """``config`` with the measured wind in its scenario; raises InvalidScenarioError
+        when the scenario cannot take it (a wind at or above the airspeed)."""
+        scenario = self.estimate.for_scenario(config.scenario)
+        if self.estimate.known and config.node.vehicle_aware:
+            # A plan for the vehicle in wind keeps the vehicle's airspeed.
+            scenario = scenario.replace(max_airspeed_mps=config.vehicle.airspeed_for_wind_mps(
+                scenario.wind_speed_mps))
+        return replace(config, scenario=scenario)
 
     def config(self, config: PlannerConfig) -> PlannerConfig:
         """``config`` with the measured wind in its scenario (as it is before any
         measurement, and when the scenario cannot take the wind measured: said on the log)."""
         try:
-            scenario = self.estimate.for_scenario(config.scenario)
-            if self.estimate.known and config.node.vehicle_aware:
-                # A plan for the vehicle in wind keeps the vehicle's airspeed.
-                scenario = scenario.replace(max_airspeed_mps=config.vehicle.airspeed_for_wind_mps(
-                    scenario.wind_speed_mps))
-            return replace(config, scenario=scenario)
+            return self._windy(config)
         except InvalidScenarioError as exc:
             self._node.get_logger().error(f'{REASON}: not planned for, the plan keeps '
                                           f'wind_speed_mps and wind_from_deg: {exc}')
@@ -96,15 +109,31 @@ class WindTracker:
             return
         threshold = (output.wind_replan_mps if self._node.progress.started
                      else min(output.wind_replan_mps, PREFLIGHT_RESOLUTION_MPS))
-        if self.estimate.differs_from(plan.request.scenario, threshold):
-            self._last_replan_s = time_s
-            self.replans += 1
-            self._node.get_logger().info(
-                f'{REASON}: {self.estimate.speed_mps:.1f} m/s from '
-                f'{self.estimate.from_deg:.0f} degrees, the plan in force was made for '
-                f'{plan.request.scenario.wind_speed_mps:g} m/s from '
-                f'{plan.request.scenario.wind_from_deg:g} degrees; replanning')
-            self._node.flight.request_update(REASON)
+        if not self.estimate.differs_from(plan.request.scenario, threshold):
+            return
+        # A wind answered already (planned for, refused, or its plan failed) is not asked
+        # again until the estimate moves on by the threshold: a gale the plan cannot fly
+        # would otherwise be asked for at every replan_interval_s, for ever.
+        if (self._answered is not None
+                and float(math.hypot(*(velocity - self._answered))) <= threshold):
+            return
+        self._answered = velocity.copy()
+        self._last_replan_s = time_s
+        try:
+            self._windy(self._node.config)
+        except InvalidScenarioError as exc:
+            self._node.refuse(REASON, f'{REASON} refused: {exc}; the plan in force stays '
+                                      f'(made for {plan.request.scenario.wind_speed_mps:g} '
+                                      f'm/s), asked again when the estimate moves by more '
+                                      f'than {threshold:g} m/s')
+            return
+        self.replans += 1
+        self._node.get_logger().info(
+            f'{REASON}: {self.estimate.speed_mps:.1f} m/s from '
+            f'{self.estimate.from_deg:.0f} degrees, the plan in force was made for '
+            f'{plan.request.scenario.wind_speed_mps:g} m/s from '
+            f'{plan.request.scenario.wind_from_deg:g} degrees; replanning')
+        self._node.flight.request_update(REASON)
 
 
 __all__ = ['PREFLIGHT_RESOLUTION_MPS', 'TOPIC_WIND', 'WIND_QOS', 'WindTracker']

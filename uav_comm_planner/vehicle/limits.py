@@ -46,7 +46,10 @@ class VehicleLimits:
     jerk_time_s: how long ArduCopter takes to build up the jerk, tj = 2 max(ATC_INPUT_TC, 0.1)
     (0.3 s by default): the jerk rises and falls as a raised cosine over tj;
     gust_margin_mps: the airspeed kept in reserve for gusts when the plan is made for a wind
-    (:attr:`airspeed_mps`).
+    (:attr:`airspeed_mps`);
+    acceptance_radius_m: PX4's waypoint acceptance radius (NAV_ACC_RAD, metres), as the
+    vehicle's parameter file gives it; None: PX4's default (2 m). ArduCopter's legs are timed
+    to rest and do not use it.
     """
 
     max_speed_mps: float = 10.0
@@ -55,6 +58,7 @@ class VehicleLimits:
     airframe_speed_mps: float = math.inf
     jerk_time_s: float = 0.3
     gust_margin_mps: float = 1.0
+    acceptance_radius_m: float | None = None
 
     def __post_init__(self) -> None:
         for name in ('max_speed_mps', 'max_accel_mpss', 'max_jerk_mpsss'):
@@ -83,6 +87,11 @@ class VehicleLimits:
             raise InvalidScenarioError(
                 f'vehicle gust_margin_mps must be >= 0 and below the airframe\'s speed, got '
                 f'{margin!r}')
+        radius = self.acceptance_radius_m
+        if radius is not None and (isinstance(radius, bool) or not isinstance(radius, (int, float))
+                                   or not 0.05 <= radius <= 200.0):
+            raise InvalidScenarioError(f'vehicle acceptance_radius_m (NAV_ACC_RAD) must be in '
+                                       f'[0.05, 200] m, got {radius!r}')
         ramp_s = self.ramp_s
         if ramp_s > MAX_RAMP_S:
             raise InvalidScenarioError(

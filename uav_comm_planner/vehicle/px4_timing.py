@@ -49,7 +49,8 @@ import numpy as np
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.timing import slowest_speed_for
 
-#: NAV_ACC_RAD, metres: PX4's acceptance radius for multicopters (a waypoint's param2 = 0).
+#: NAV_ACC_RAD, metres: PX4's default acceptance radius for multicopters (a waypoint's param2
+#: = 0), where the vehicle's limits do not give theirs (a parameter file's NAV_ACC_RAD).
 ACCEPTANCE_RADIUS_M = 2.0
 #: MPC_XY_TRAJ_P: the share of MPC_ACC_HOR a fly-through turn is flown with.
 TRAJECTORY_GAIN = 0.5
@@ -152,36 +153,40 @@ class SampledProfile:
 
 def px4_profile(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -> SampledProfile:
     """PX4's flight along ``vertices`` (V, 2) from rest to rest at cruise ``speed_mps``, fly-
-    through waypoints at the inner vertices (module docstring)."""
+    through waypoints at the inner vertices (module docstring), with the vehicle's acceptance
+    radius (``limits.acceptance_radius_m``, else :data:`ACCEPTANCE_RADIUS_M`)."""
     return _simulate(*_key(vertices, speed_mps, limits))
 
 
 def _key(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -> tuple:
     """A leg's simulation by what it depends on (cached)."""
     vertices = np.asarray(vertices, dtype=float)
+    radius = (ACCEPTANCE_RADIUS_M if limits.acceptance_radius_m is None
+              else float(limits.acceptance_radius_m))
     return (vertices.round(6).tobytes(), len(vertices), round(float(speed_mps), 6),
-            float(limits.max_accel_mpss), float(limits.max_jerk_mpsss))
+            float(limits.max_accel_mpss), float(limits.max_jerk_mpsss), radius)
 
 
 @lru_cache(maxsize=4096)
 def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
-              jerk: float) -> SampledProfile:
-    return _flown(vertex_bytes, count, speed, accel, jerk)
+              jerk: float, radius: float) -> SampledProfile:
+    return _flown(vertex_bytes, count, speed, accel, jerk, radius)
 
 
 @lru_cache(maxsize=4096)
 def _reach_time(vertex_bytes: bytes, count: int, speed: float, accel: float,
-                jerk: float) -> float:
+                jerk: float, radius: float) -> float:
     """:attr:`SampledProfile.hold_start_s` of the leg, its simulation ended there (the
     vehicle's last metres to rest, a slow exponential approach, are most of a leg's steps and
     do not move it)."""
-    return _flown(vertex_bytes, count, speed, accel, jerk, until_reached=True)
+    return _flown(vertex_bytes, count, speed, accel, jerk, radius, until_reached=True)
 
 
 def _flown(vertex_bytes: bytes, count: int, speed: float, accel: float, jerk: float,
-           until_reached: bool = False) -> SampledProfile | float:
-    """The simulation of :func:`px4_profile`; with ``until_reached`` only up to the entry
-    into the last vertex's acceptance radius, and only that time."""
+           radius: float, until_reached: bool = False) -> SampledProfile | float:
+    """The simulation of :func:`px4_profile` with acceptance radius ``radius`` (m); with
+    ``until_reached`` only up to the entry into the last vertex's acceptance radius, and only
+    that time."""
     vertices = np.frombuffer(vertex_bytes).reshape(count, 2)
     steps = np.diff(vertices, axis=0)
     lengths = np.linalg.norm(steps, axis=1)
@@ -201,8 +206,8 @@ def _flown(vertex_bytes: bytes, count: int, speed: float, accel: float, jerk: fl
     for k in range(len(lengths) - 1):
         interior = math.acos(float(np.clip(-units[k] @ units[k + 1], -1.0, 1.0)))
         after = stopping_speed(float(lengths[k + 1]), 0.0, accel, jerk)
-        if lengths[k + 1] > ACCEPTANCE_RADIUS_M:
-            ends[k] = min(corner_speed(interior, accel), after, speed)
+        if lengths[k + 1] > radius:
+            ends[k] = min(corner_speed(interior, accel, radius), after, speed)
     # The segment braked for from segment k on: the first turn PX4 cannot fly at the cruise,
     # or the last segment (the stop).
     last = len(lengths) - 1
@@ -218,7 +223,7 @@ def _flown(vertex_bytes: bytes, count: int, speed: float, accel: float, jerk: fl
     k = 0                             # flying towards vertex k + 1
     hold_start = None
     dt = STEP_S
-    reach = ACCEPTANCE_RADIUS_M + BRAKING_LEAD_S2 * speed * speed
+    reach = radius + BRAKING_LEAD_S2 * speed * speed
     while True:
         while k < last and arc[k + 1] - x <= reach:
             k += 1

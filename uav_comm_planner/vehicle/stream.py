@@ -8,13 +8,16 @@ its stated throughput is computed at) exactly at their slot times, and between t
 least-acceleration C1 piecewise cubic within the vehicle's speed, acceleration and jerk (and,
 in wind, the plan's airspeed): :mod:`uav_comm_planner.core.reference`. When the jerk bound
 cannot be kept with the points given, the reference keeps the others and says so
-(``jerk_limited`` False). Times are seconds from the start of the plan's clock (the vehicle
-at q0).
+(``jerk_limited`` False). When the points need more acceleration than the vehicle's waypoint
+acceleration, a firmware whose streamed targets are followed beyond it (PX4's OFFBOARD) gets the
+least acceleration that passes them, up to :data:`STREAM_ACCEL_ALLOWANCE` times the vehicle's,
+and the reference says so (``accel_raised``). Times are seconds from the start of the plan's
+clock (the vehicle at q0).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from typing import Sequence
 
@@ -22,8 +25,8 @@ import numpy as np
 
 from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.optimizer import PlanResult
-from uav_comm_planner.core.reference import (hermite_state, MotionBounds, PIECES_PER_SLOT,
-                                             smooth_motion)
+from uav_comm_planner.core.reference import (hermite_state, least_acceleration, MotionBounds,
+                                             PIECES_PER_SLOT, smooth_motion)
 from uav_comm_planner.errors import InfeasibleHorizonError
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
@@ -33,13 +36,23 @@ TRACK_RATE_HZ = 10.0
 #: smooth curve through points that the cruise speed joins along a polyline is a little longer
 #: than the polyline (measured: 0.5 % over the cruise on the letter's case I at 10 m/s).
 STREAM_SPEED_MARGIN = 0.05
+#: How many times the vehicle's waypoint acceleration (``vehicle_max_accel_mpss``) a streamed
+#: reference may ask for, by firmware. PX4's OFFBOARD follows position, velocity and
+#: acceleration targets with its position controller alone: MPC_ACC_HOR shapes only the
+#: trajectories PX4 makes itself (AUTO), the tilt limit MPC_TILTMAX_AIR (45 degrees by
+#: default, about 9.8 m/s/s) bounds what it follows; twice MPC_ACC_HOR stays well inside it.
+#: ArduCopter's GUIDED shapes the targets it is given within WPNAV_ACCEL again: nothing more.
+STREAM_ACCEL_ALLOWANCE = {'ardupilot': 1.0, 'px4': 2.0}
+#: The raised acceleration is the least one found times this: the conic solver's accuracy.
+RAISED_ACCEL_HEADROOM = 1.02
 
 
 @dataclass(frozen=True)
 class StreamReference:
     """A timed reference: knot ``positions`` and ``velocities`` (K', 2) every ``knot_s``
     seconds, of which every ``pieces``-th is a plan point (slot ``slot_s``); ``bounds`` it
-    keeps; ``jerk_limited`` whether the jerk bound is among them."""
+    keeps; ``jerk_limited`` whether the jerk bound is among them; ``accel_raised`` whether its
+    acceleration bound is above the vehicle's (module docstring)."""
 
     positions: np.ndarray
     velocities: np.ndarray
@@ -47,6 +60,7 @@ class StreamReference:
     pieces: int
     bounds: MotionBounds
     jerk_limited: bool
+    accel_raised: bool = False
 
     @property
     def knot_s(self) -> float:
@@ -89,11 +103,14 @@ def stream_bounds(result: PlanResult, limits: VehicleLimits, *,
                         airspeed_mps=airspeed)
 
 
-def stream_reference(result: PlanResult, limits: VehicleLimits = VehicleLimits()
-                     ) -> StreamReference:
-    """The reference that flies ``result`` (module docstring). Raises
-    :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when no motion within the
-    vehicle's speed and acceleration passes the plan's points at their times."""
+def stream_reference(result: PlanResult, limits: VehicleLimits = VehicleLimits(), *,
+                     accel_allowance: float = 1.0) -> StreamReference:
+    """The reference that flies ``result`` (module docstring): within the vehicle's
+    acceleration, else (``accel_allowance`` > 1, :data:`STREAM_ACCEL_ALLOWANCE`) within the
+    least acceleration that passes the points, at most ``accel_allowance`` times the
+    vehicle's. Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when no motion
+    within the vehicle's speed and that acceleration passes the plan's points at their
+    times."""
     scenario = result.scenario
     points = flown_path(np.asarray(result.trajectory, dtype=float), scenario)
     try:
@@ -101,9 +118,30 @@ def stream_reference(result: PlanResult, limits: VehicleLimits = VehicleLimits()
         positions, velocities = smooth_motion(points, scenario.slot_s, bounds)
     except InfeasibleHorizonError:
         bounds = stream_bounds(result, limits, jerk=False)
-        positions, velocities = smooth_motion(points, scenario.slot_s, bounds)
+        try:
+            positions, velocities = smooth_motion(points, scenario.slot_s, bounds)
+        except InfeasibleHorizonError as exc:
+            if accel_allowance <= 1.0:
+                raise
+            bounds = _raised_accel(points, scenario.slot_s, bounds, accel_allowance, exc)
+            positions, velocities = smooth_motion(points, scenario.slot_s, bounds)
     return StreamReference(positions, velocities, scenario.slot_s, PIECES_PER_SLOT, bounds,
-                           math.isfinite(bounds.jerk_mpsss))
+                           math.isfinite(bounds.jerk_mpsss),
+                           bounds.accel_mpss > limits.max_accel_mpss)
+
+
+def _raised_accel(points: np.ndarray, slot_s: float, bounds: MotionBounds, allowance: float,
+                  refusal: InfeasibleHorizonError) -> MotionBounds:
+    """``bounds`` with the least acceleration that passes ``points`` (with headroom), or the
+    ``refusal`` said again with what it would take when that is more than ``allowance``
+    times the vehicle's."""
+    allowed = bounds.accel_mpss * allowance
+    needed = least_acceleration(points, slot_s, bounds) * RAISED_ACCEL_HEADROOM
+    if needed > allowed:
+        raise InfeasibleHorizonError(
+            f'{refusal}; the points need {needed:.3g} m/s/s, more than the {allowed:.3g} '
+            f'm/s/s ({allowance:g} times the vehicle\'s) a stream may ask of this firmware')
+    return replace(bounds, accel_mpss=needed)
 
 
 def resume_item(waypoints: Sequence[tuple[int, np.ndarray]], reference: StreamReference,
@@ -124,5 +162,6 @@ def resume_item(waypoints: Sequence[tuple[int, np.ndarray]], reference: StreamRe
     return waypoints[-1][0]
 
 
-__all__ = ['STREAM_SPEED_MARGIN', 'StreamReference', 'TRACK_RATE_HZ', 'resume_item',
+__all__ = ['RAISED_ACCEL_HEADROOM', 'STREAM_ACCEL_ALLOWANCE', 'STREAM_SPEED_MARGIN',
+           'StreamReference', 'TRACK_RATE_HZ', 'resume_item',
            'stream_bounds', 'stream_reference']

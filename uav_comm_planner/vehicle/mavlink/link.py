@@ -310,7 +310,7 @@ def _upload_once(link, items: Sequence[MissionItem], settings: LinkSettings,
     silent = 0
     # Each item may be asked for again when our answer was lost, up to `retries` times.
     most_requests = len(items) * (settings.retries + 1)
-    requests = 0
+    requests = out_of_sequence = 0
     kind = _kind(mission_type)
     _send(link, count)
     while True:
@@ -327,6 +327,13 @@ def _upload_once(link, items: Sequence[MissionItem], settings: LinkSettings,
             continue
         silent = 0
         if message.get_type() == 'MISSION_ACK':
+            if (message.type == MAV.MAV_MISSION_INVALID_SEQUENCE and requested is not None
+                    and out_of_sequence < most_requests):
+                # An item the vehicle did not ask for: the answer to a request it had sent
+                # again before our first answer came (ArduPilot resends after 1 s, 50 ms of
+                # wall clock in a simulator at speed-up 20). It drops that item and goes on.
+                out_of_sequence += 1
+                continue
             return message.type, requested
         requested = message.seq
         if not 0 <= requested < len(items):
