@@ -209,3 +209,25 @@ def test_the_battery_pays_takeoff_and_landing_before_the_horizon():
                 dict(usable_wh=math.inf)):
         with pytest.raises(InvalidScenarioError, match='battery'):
             Battery(**bad)
+
+
+def test_the_node_s_parameters_name_the_airframe_and_cap_the_horizon():
+    """airframe, energy_budget_wh and battery_wh (0: none) through the node's one conversion
+    of parameters into settings."""
+    from uav_comm_planner.ros.params import config_from_parameters
+
+    base = {'max_speed_mps': 30.0, 'horizon_s': 200.0, 'num_slots': 50,
+            'vehicle_aware': False}
+    plain = config_from_parameters({**base, 'airframe': 'none'})
+    assert plain.scenario.airframe is None and plain.scenario.energy_budget_wh is None
+    capped = config_from_parameters({**base, 'airframe': 'zeng2019', 'energy_budget_wh': 12.0,
+                                     'battery_wh': 30.0})
+    allowance = horizon_allowance_wh(Battery(30.0), ZENG2019, 100.0)
+    assert capped.scenario.airframe == ZENG2019
+    assert capped.scenario.energy_budget_wh == pytest.approx(min(12.0, allowance))
+    with pytest.raises(InvalidScenarioError, match='needs an airframe'):
+        config_from_parameters({**base, 'airframe': 'none', 'battery_wh': 30.0})
+    with pytest.raises(InfeasibleHorizonError, match='the battery cannot fly this mission'):
+        config_from_parameters({**base, 'airframe': 'zeng2019', 'battery_wh': 12.0})
+    with pytest.raises(InvalidScenarioError, match='battery_reserve'):
+        config_from_parameters({**base, 'airframe': 'zeng2019', 'battery_reserve': 1.0})

@@ -83,7 +83,7 @@ def test_a_battery_that_cannot_fly_is_refused_with_the_energy_needed_and_availab
     assert status == 2 and out == '' and err.count('\n') == 1
     assert 'the battery cannot fly this mission: it needs at least 12.76 Wh' in err
     assert '9.6 Wh are available (12 Wh less the 20% reserve)' in err
-    assert '--battery-wh' in err
+    assert 'a larger battery (--battery-wh' in err
 
 
 def test_the_battery_s_allowance_caps_the_horizon(tmp_path, capsys):

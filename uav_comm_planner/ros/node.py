@@ -62,7 +62,8 @@ from uav_comm_planner.ros.binding import ParameterBinding
 from uav_comm_planner.ros.diagnostics import NodeDiagnostics
 from uav_comm_planner.ros.flight import MissionFlight, SOURCE_TELEMETRY
 from uav_comm_planner.ros.messages import ground_nodes_of, nodes_text
-from uav_comm_planner.ros.params import flat_pairs, NodeSettings, OUTPUT_ONLY, PlannerConfig
+from uav_comm_planner.ros.params import (flat_pairs, node_battery, NodeSettings, OUTPUT_ONLY,
+                                         PlannerConfig)
 from uav_comm_planner.ros.planning import (open_mission_folder, PlanningWorker, PlanOutcome,
                                            PlanRequest, write_mission)
 from uav_comm_planner.ros.publishing import PlanPublisher, summary_line
@@ -279,7 +280,7 @@ class PlannerNode(Node):
 
     def _publish(self, outcome: PlanOutcome) -> None:
         self.current_plan = outcome
-        line = summary_line(outcome.result)
+        line = summary_line(outcome.result, node_battery(outcome.request.output))
         if outcome.receding is not None:
             line += (f'; rest of the mission after {outcome.receding.flown.num_slots} '
                      f'slots, whole mission min throughput {outcome.min_throughput:.4g} '

@@ -25,9 +25,11 @@ from typing import Any, Collection, Mapping, Sequence
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
+from uav_comm_planner.core.energy import Battery, DEFAULT_RESERVE
 from uav_comm_planner.core.scenario import paper_scenario, Point, Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import FenceFileError, InvalidScenarioError
+from uav_comm_planner.mission.energy import with_named_airframe
 from uav_comm_planner.mission.request import check_goal_in_time, vehicle_limits
 from uav_comm_planner.vehicle.fence import read_zones
 from uav_comm_planner.vehicle.firmware import FIRMWARES
@@ -99,13 +101,17 @@ class NodeSettings:
     home_distance_limit_m: float = 1000.0
     fence_file: str = ''
     fence_margin_m: float = Zones.margin_m
+    airframe: str = ''
+    energy_budget_wh: float = 0.0
+    battery_wh: float = 0.0
+    battery_reserve: float = DEFAULT_RESERVE
 
     def __post_init__(self) -> None:
         if not isinstance(self.vehicle_aware, bool):
             raise InvalidScenarioError(f'vehicle_aware must be true or false, got '
                                        f'{self.vehicle_aware!r}')
         for name in ('frame_id', 'mission_dir', 'mission_file', 'vehicle_params_file',
-                     'mavlink_url', 'fence_file', *CHOICES):
+                     'mavlink_url', 'fence_file', 'airframe', *CHOICES):
             if not isinstance(getattr(self, name), str):
                 raise InvalidScenarioError(f'{name} must be a string, got '
                                            f'{getattr(self, name)!r}')
@@ -118,6 +124,13 @@ class NodeSettings:
                     or not math.isfinite(value) or value <= 0):
                 raise InvalidScenarioError(
                     f'{name} must be a positive finite number, got {value!r}')
+        for name in ('energy_budget_wh', 'battery_wh'):
+            value = getattr(self, name)
+            if (isinstance(value, bool) or not isinstance(value, (int, float))
+                    or not math.isfinite(value) or value < 0):
+                raise InvalidScenarioError(f'{name} must be a finite number >= 0 (0: none), '
+                                           f'got {value!r}')
+        Battery(1.0, self.battery_reserve)      # the reserve checked as a battery does
         margin = self.fence_margin_m
         if (isinstance(margin, bool) or not isinstance(margin, (int, float))
                 or not math.isfinite(margin) or margin < 0):
@@ -261,6 +274,14 @@ DESCRIPTIONS = {
                   'read when the node starts and again when home or fence_margin_m changes '
                   '(read-only); empty: none',
     'fence_margin_m': 'clearance every plan keeps from the fence\'s edges (m)',
+    'airframe': "propulsion model of the vehicle (docs/energy.md): a name (zeng2019, "
+                "arducopter-sitl-quad) or a YAML file; empty: the firmware's default "
+                '(ArduPilot: arducopter-sitl-quad); none: no energy model',
+    'energy_budget_wh': "cap on the horizon's propulsion energy q0 -> qF (Wh); 0: none",
+    'battery_wh': 'usable battery energy (Wh): the horizon gets what remains after the '
+                  'reserve, takeoff and landing; 0: not stated (the energy is still reported, '
+                  "against ArduCopter's default battery)",
+    'battery_reserve': 'share of the battery kept at landing',
     'vehicle_max_speed_mps': 'waypoint speed of the vehicle (WPNAV_SPEED / 100, MPC_XY_CRUISE; '
                              'm/s); a vehicle_* limit not set explicitly comes from '
                              'vehicle_params_file, else the firmware\'s default (PX4: 5 m/s, '
@@ -315,6 +336,9 @@ RANGES = {
     'wind_replan_mps': (0.0, 100.0),
     'home_distance_limit_m': (0.0, 1.0e7),
     'fence_margin_m': (0.0, 1.0e5),
+    'energy_budget_wh': (0.0, 1.0e6),
+    'battery_wh': (0.0, 1.0e6),
+    'battery_reserve': (0.0, 0.99),
 }
 #: Fields whose value must be above the low limit of :data:`RANGES`, not at it (0 is refused):
 #: a descriptor's range is inclusive, so theirs is stated in words instead.
@@ -463,10 +487,8 @@ NOT_PARAMETERS = {
     (Scenario, 'max_airspeed_mps'): 'a vehicle-aware plan takes the airspeed from the vehicle '
                                     '(vehicle_airframe_speed_mps less vehicle_gust_margin_mps)',
     (Scenario, 'zones'): 'the zones come from fence_file, anchored at home',
-    (Scenario, 'airframe'): 'an airframe is named by airframe (a name or a file), not given '
-                            'field by field',
-    (Scenario, 'energy_budget_wh'): 'planned with energy_budget_wh and battery_wh on the '
-                                    'command line and in the Python API',
+    (Scenario, 'airframe'): 'named by the airframe parameter (a name or a file)',
+    (Scenario, 'energy_budget_wh'): 'set from energy_budget_wh and battery_wh (the smaller)',
     (VehicleLimits, 'acceptance_radius_m'): "PX4's NAV_ACC_RAD comes from vehicle_params_file",
 }
 
@@ -522,12 +544,20 @@ def config_from_parameters(values: Mapping[str, Any],
         # A plan for the vehicle in wind keeps the vehicle's airspeed.
         chosen[Scenario]['max_airspeed_mps'] = vehicle.airspeed_for_wind_mps(
             chosen[Scenario]['wind_speed_mps'])
-    scenario = Scenario(**chosen[Scenario], zones=(fences or FenceReader())(node))
+    scenario = with_named_airframe(
+        Scenario(**chosen[Scenario], zones=(fences or FenceReader())(node)), node.airframe,
+        firmware=node.mission_firmware, budget_wh=node.energy_budget_wh or None,
+        battery=node_battery(node))
     settings.check(scenario)
     if node.vehicle_aware:
         check_speed(scenario, vehicle)
         check_goal_in_time(scenario, vehicle, node.mission_firmware)
     return PlannerConfig(scenario, settings, node, vehicle)
+
+
+def node_battery(node: NodeSettings) -> Battery | None:
+    """The battery the node's parameters state (None: not stated)."""
+    return Battery(node.battery_wh, node.battery_reserve) if node.battery_wh else None
 
 
 class FenceReader:

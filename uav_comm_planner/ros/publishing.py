@@ -20,9 +20,12 @@ from std_msgs.msg import Float64, Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
+from uav_comm_planner.core.energy import Battery, JOULES_PER_WH
 from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.mission.energy import energy_figures, energy_lines
 from uav_comm_planner.ros.messages import (marker_array, nodes_text, path_message, power_message,
                                            power_plan_message, status_message, zone_markers)
+from uav_comm_planner.ros.params import node_battery
 from uav_comm_planner.ros.planning import PlanOutcome
 
 TOPIC_PATH = 'planned_path'
@@ -71,7 +74,8 @@ class PlanPublisher:
         self._zones.publish(zone_markers(result.scenario.zones, frame_id, stamp,
                                          altitude_m=result.scenario.altitude_m))
         self._status.publish(status_message(
-            stamp, request=request.reason, planned=True, message=summary_line(result),
+            stamp, request=request.reason, planned=True,
+            message=summary_line(result, node_battery(request.output)),
             values=plan_values(outcome), hardware_id=self._hardware_id))
 
     def refused(self, stamp_ns: int, request: str, reason: str, *,
@@ -96,6 +100,11 @@ def plan_values(outcome: PlanOutcome) -> dict[str, object]:
         'slots': result.scenario.num_slots,
         'power_sum_w': repr(float(result.power.sum())),
     }
+    if result.scenario.airframe is not None:
+        figures = energy_figures(result)
+        values.update({'propulsion_energy_wh': repr(figures.horizon_j / JOULES_PER_WH),
+                       'mission_energy_wh': repr(figures.mission_j / JOULES_PER_WH),
+                       'airframe': result.scenario.airframe.name})
     if outcome.receding is not None:
         receding = outcome.receding
         values.update({'elapsed_slots': receding.flown.num_slots,
@@ -105,10 +114,12 @@ def plan_values(outcome: PlanOutcome) -> dict[str, object]:
     return values
 
 
-def summary_line(result: PlanResult) -> str:
-    """The one log line per plan: objective, both baselines, size and plan time. A plan below
-    the static point is said not to be worse than it: the static point hovers over the nodes
-    for the whole horizon, so it ignores the flight from launch and to landing."""
+def summary_line(result: PlanResult, battery: Battery | None = None) -> str:
+    """The one log line per plan: objective, both baselines, size and plan time, and with an
+    airframe its propulsion energy and whether ``battery`` (None: ArduCopter's default) flies
+    it. A plan below the static point is said not to be worse than it: the static point hovers
+    over the nodes for the whole horizon, so it ignores the flight from launch and to
+    landing."""
     scenario = result.scenario
     baselines = result.baselines
     if baselines:
@@ -120,6 +131,9 @@ def summary_line(result: PlanResult) -> str:
     else:
         compared = 'baselines off'
     nodes = f'{scenario.num_nodes} node' + ('' if scenario.num_nodes == 1 else 's')
-    return (f'plan: min throughput {result.min_throughput:.4g} bit/s ({compared}); {nodes}, '
+    line = (f'plan: min throughput {result.min_throughput:.4g} bit/s ({compared}); {nodes}, '
             f'{scenario.num_slots} slots of {scenario.slot_s:g} s, {result.status}, '
             f'planned in {result.solve_time_s:.2f} s')
+    if scenario.airframe is not None:
+        line += '; ' + '; '.join(energy_lines(result, battery))
+    return line

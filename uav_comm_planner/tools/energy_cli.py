@@ -7,19 +7,15 @@ import argparse
 from dataclasses import dataclass
 import functools
 
-from uav_comm_planner.core.energy import (Battery, DEFAULT_RESERVE, horizon_allowance_wh,
-                                          JOULES_PER_WH, leg_powers, least_horizon_energy_j,
-                                          takeoff_landing_j)
+from uav_comm_planner.core.energy import Battery, DEFAULT_RESERVE
 from uav_comm_planner.core.least_energy import least_energy_plan
 from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.propulsion import Airframe
 from uav_comm_planner.core.scenario import Scenario
-from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.mission.energy import energy_lines, with_energy
+from uav_comm_planner.mission.energy import energy_record as mission_energy_record
 from uav_comm_planner.vehicle.airframe import airframe_named, airframe_names
-
-#: ArduCopter's default battery: BATT_CAPACITY 3300 mAh at SITL's 12.6 V.
-DEFAULT_BATTERY_WH = 3.3 * 12.6
-
 
 def add_energy_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group(
@@ -67,25 +63,10 @@ def energy_request(args: argparse.Namespace, scenario: Scenario
     airframe = airframe_named(args.airframe)
     battery = None if args.battery_wh is None else Battery(args.battery_wh,
                                                            args.battery_reserve)
-    scenario = scenario.replace(airframe=airframe)
-    caps = [value for value in (args.energy_budget_wh,) if value is not None]
-    if battery is not None:
-        allowance = horizon_allowance_wh(battery, airframe, scenario.altitude_m)
-        least = least_horizon_energy_j(scenario, airframe) / JOULES_PER_WH
-        if allowance <= least:
-            up, down = takeoff_landing_j(airframe, scenario.altitude_m)
-            raise InfeasibleHorizonError(
-                f'the battery cannot fly this mission: it needs at least '
-                f'{least + (up + down) / JOULES_PER_WH:.4g} Wh (takeoff {up / JOULES_PER_WH:.3g}, '
-                f'the horizon at least {least:.4g}, landing {down / JOULES_PER_WH:.3g}) and '
-                f'{battery.available_wh:.4g} Wh are available ({battery.usable_wh:g} Wh less '
-                f'the {battery.reserve:.0%} reserve); give a larger --battery-wh, a shorter '
-                f'--horizon or a lower --altitude')
-        caps.append(allowance)
-    budget = min(caps) if caps else None
-    if budget is not None:
-        scenario = scenario.replace(energy_budget_wh=budget)
-    return scenario, EnergyRequest(airframe, battery, budget, args.min_throughput)
+    scenario = with_energy(scenario, airframe, budget_wh=args.energy_budget_wh,
+                           battery=battery)
+    return scenario, EnergyRequest(airframe, battery, scenario.energy_budget_wh,
+                                   args.min_throughput)
 
 
 def planner_for(request: EnergyRequest | None):
@@ -96,67 +77,21 @@ def planner_for(request: EnergyRequest | None):
     return functools.partial(least_energy_plan, target_bps=request.target_bps)
 
 
-@dataclass(frozen=True)
-class EnergyFigures:
-    """A plan's propulsion energy: per leg (W), the horizon's, takeoff and landing (J)."""
-
-    leg_powers_w: list[float]
-    horizon_j: float
-    takeoff_j: float
-    landing_j: float
-
-    @property
-    def mission_j(self) -> float:
-        return self.takeoff_j + self.horizon_j + self.landing_j
-
-
-def energy_figures(result: PlanResult, airframe: Airframe) -> EnergyFigures:
-    scenario = result.scenario
-    powers = leg_powers(result.trajectory, scenario, airframe)
-    up, down = takeoff_landing_j(airframe, scenario.altitude_m)
-    return EnergyFigures(powers.tolist(), float(powers.sum() * scenario.slot_s), up, down)
-
-
 def format_energy(result: PlanResult, request: EnergyRequest) -> str:
-    """The energy lines under the plan's table: the plan's energy, and whether the battery
-    (the one given, else ArduCopter's default) flies it."""
-    figures = energy_figures(result, request.airframe)
-    scenario = result.scenario
-    duration = (scenario.num_slots + 1) * scenario.slot_s
-    lines = [f'propulsion ({request.airframe.name}): horizon {figures.horizon_j / 3600:.2f} Wh, '
-             f'mean {figures.horizon_j / duration:.1f} W over {duration:g} s; takeoff '
-             f'{figures.takeoff_j / 3600:.2f} Wh, landing {figures.landing_j / 3600:.2f} Wh; '
-             f'mission {figures.mission_j / 3600:.2f} Wh'
-             + (f' (horizon budget {request.budget_wh:.2f} Wh)'
-                if request.budget_wh is not None else '')]
-    battery = request.battery or Battery(DEFAULT_BATTERY_WH)
-    name = ('battery' if request.battery is not None
-            else "ArduCopter's default battery (3300 mAh at 12.6 V)")
-    spare = battery.available_wh - figures.mission_j / 3600
-    verdict = (f'flies it with {spare:.2f} Wh to spare' if spare >= 0
-               else f'does not fly it: {-spare:.2f} Wh short')
-    lines.append(f'{name}: {battery.usable_wh:.2f} Wh, {battery.available_wh:.2f} Wh available '
-                 f'with the {battery.reserve:.0%} reserve: {verdict}')
-    return '\n'.join(lines)
+    """The energy lines under the plan's table (:func:`~uav_comm_planner.mission.energy.
+    energy_lines`)."""
+    return '\n'.join(energy_lines(result, request.battery))
 
 
 def energy_record(result: PlanResult, request: EnergyRequest | None) -> dict:
-    """The JSON result's energy keys (none without an airframe)."""
+    """The JSON result's energy keys (none without an airframe), with the target if any."""
     if request is None:
         return {}
-    figures = energy_figures(result, request.airframe)
-    record = {'propulsion_energy_j': figures.horizon_j,
-              'propulsion_power_w': figures.leg_powers_w,
-              'takeoff_energy_j': figures.takeoff_j, 'landing_energy_j': figures.landing_j,
-              'mission_energy_j': figures.mission_j}
-    if request.battery is not None:
-        record['battery'] = {'usable_wh': request.battery.usable_wh,
-                             'reserve': request.battery.reserve,
-                             'available_wh': request.battery.available_wh}
+    record = mission_energy_record(result, request.battery)
     if request.target_bps is not None:
         record['min_throughput_target'] = request.target_bps
     return record
 
 
-__all__ = ['add_energy_arguments', 'DEFAULT_BATTERY_WH', 'energy_figures', 'energy_record',
-           'energy_request', 'EnergyRequest', 'format_energy', 'planner_for']
+__all__ = ['add_energy_arguments', 'energy_record', 'energy_request', 'EnergyRequest',
+           'format_energy', 'planner_for']

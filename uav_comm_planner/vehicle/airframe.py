@@ -107,6 +107,14 @@ def airframe_named(name_or_path: str | os.PathLike) -> Airframe:
                                f'give the path of a YAML file')
 
 
+def default_airframe(firmware: str) -> Airframe | None:
+    """The airframe a mission for ``firmware`` is planned with when none is named: ArduCopter
+    SITL's quad for ArduPilot (once its measured file ships with the package), none for PX4."""
+    if firmware == 'ardupilot' and DEFAULT_ARDUPILOT_AIRFRAME in packaged_airframes():
+        return airframe_named(DEFAULT_ARDUPILOT_AIRFRAME)
+    return None
+
+
 def airframe_yaml(airframe: Airframe, source: str = '') -> str:
     """The YAML text of an airframe file (:func:`load_airframe` reads it back)."""
     data = dataclasses.asdict(airframe)
@@ -116,5 +124,5 @@ def airframe_yaml(airframe: Airframe, source: str = '') -> str:
 
 
 __all__ = ['airframe_from_mapping', 'airframe_named', 'airframe_names', 'airframe_yaml',
-           'DEFAULT_ARDUPILOT_AIRFRAME', 'load_airframe', 'MAX_AIRFRAME_BYTES',
+           'DEFAULT_ARDUPILOT_AIRFRAME', 'default_airframe', 'load_airframe', 'MAX_AIRFRAME_BYTES',
            'packaged_airframes']
