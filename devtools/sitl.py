@@ -209,7 +209,10 @@ class FlightRecord:
     ArduCopter announced it reached it ("Reached command #N"); ``modes`` are the flight modes
     its heartbeats reported after the switch to AUTO (an RTL or LAND there is a fence
     breach's action), and ``fence_breaches`` the largest FENCE_STATUS breach count seen
-    (None: no FENCE_STATUS came, the fence being off).
+    (None: no FENCE_STATUS came, the fence being off). ``battery_times_s`` and
+    ``battery_energy_j``: BATTERY_STATUS's energy_consumed (J; BATT_MONITOR 4 reads the
+    simulated battery, copter.parm's setting), each at the autopilot time of the last position
+    before it.
     """
 
     times_s: np.ndarray
@@ -218,6 +221,16 @@ class FlightRecord:
     reached: dict[int, float] = field(default_factory=dict)
     modes: frozenset[int] = frozenset()
     fence_breaches: int | None = None
+    battery_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    battery_energy_j: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def energy_between_j(self, start_s: float, end_s: float) -> float:
+        """The battery's energy used from ``start_s`` to ``end_s`` (autopilot s), J, from the
+        readings nearest those times."""
+        if not len(self.battery_times_s):
+            raise ValueError('no BATTERY_STATUS was recorded')
+        at = [int(np.argmin(np.abs(self.battery_times_s - t))) for t in (start_s, end_s)]
+        return float(self.battery_energy_j[at[1]] - self.battery_energy_j[at[0]])
 
 
 def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRecord:
@@ -229,16 +242,21 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
     link.mav.command_long_send(link.target_system, link.target_component,
                                MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
                                MAV.MAVLINK_MSG_ID_FENCE_STATUS, 1e6, 0, 0, 0, 0, 0)
+    link.mav.command_long_send(link.target_system, link.target_component,
+                               MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                               MAV.MAVLINK_MSG_ID_BATTERY_STATUS, 1e5, 0, 0, 0, 0, 0)
     set_mode(link, 'AUTO')
     times, latitudes_e7, longitudes_e7, altitudes_mm = [], [], [], []
     reached: dict[int, float] = {}
     modes: set[int] = set()
     breaches: int | None = None
+    battery_times, battery_energy = [], []
     clock_s = None
     started_s = None
     while True:
         message = link.recv_match(type=['GLOBAL_POSITION_INT', 'STATUSTEXT', 'HEARTBEAT',
-                                        'FENCE_STATUS'], blocking=True, timeout=10.0)
+                                        'FENCE_STATUS', 'BATTERY_STATUS'], blocking=True,
+                                  timeout=10.0)
         if message is None:
             raise VehicleLinkError('the vehicle went silent during the flight')
         if message.get_type() == 'HEARTBEAT':
@@ -248,6 +266,11 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
             continue
         if message.get_type() == 'FENCE_STATUS':
             breaches = max(breaches or 0, message.breach_count)
+            continue
+        if message.get_type() == 'BATTERY_STATUS':
+            if clock_s is not None and message.id == 0 and message.energy_consumed >= 0:
+                battery_times.append(clock_s)
+                battery_energy.append(message.energy_consumed * 100.0)   # hJ
             continue
         if message.get_type() == 'STATUSTEXT':
             text = message.text
@@ -266,7 +289,8 @@ def fly_auto(link, home: Home, *, last_item: int, timeout_s: float) -> FlightRec
         altitudes_mm.append(message.relative_alt)
     east, north, up = global_position_enu(latitudes_e7, longitudes_e7, altitudes_mm, home)
     return FlightRecord(np.array(times), np.column_stack([east, north]), up, reached,
-                        frozenset(modes), breaches)
+                        frozenset(modes), breaches, np.array(battery_times),
+                        np.array(battery_energy))
 
 
 #: ArduCopter refuses a mission right after connecting: the upload is tried this many times.
