@@ -27,7 +27,8 @@ def zeng_power(speed: float) -> float:
     """Eq. (12) of Zeng, Xu and Zhang (2019) as printed, with Table I's numbers."""
     p0, pi, u_tip, v0, d0, rho, s, a = 79.86, 88.63, 120.0, 4.03, 0.6, 1.225, 0.05, 0.503
     return (p0 * (1 + 3 * speed ** 2 / u_tip ** 2)
-            + pi * math.sqrt(math.sqrt(1 + speed ** 4 / (4 * v0 ** 4)) - speed ** 2 / (2 * v0 ** 2))
+            + pi * math.sqrt(math.sqrt(1 + speed ** 4 / (4 * v0 ** 4))
+                             - speed ** 2 / (2 * v0 ** 2))
             + 0.5 * d0 * rho * s * a * speed ** 3)
 
 

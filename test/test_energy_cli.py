@@ -28,7 +28,8 @@ def eq12(speed: float, airframe: dict) -> float:
     drag = 0.5 * (airframe['fuselage_drag_ratio'] * airframe['air_density_kg_per_m3']
                   * airframe['rotor_solidity'] * airframe['rotor_disc_area_m2'])
     return (p0 * (1 + 3 * speed ** 2 / u_tip ** 2)
-            + pi * math.sqrt(math.sqrt(1 + speed ** 4 / (4 * v0 ** 4)) - speed ** 2 / (2 * v0 ** 2))
+            + pi * math.sqrt(math.sqrt(1 + speed ** 4 / (4 * v0 ** 4))
+                             - speed ** 2 / (2 * v0 ** 2))
             + drag * speed ** 3)
 
 

@@ -9,15 +9,15 @@ import pytest
 from scipy import sparse
 
 from uav_comm_planner import paper_scenario, plan, Scenario, SolverError, SolverSettings
+from uav_comm_planner.core.initial import straight_line
+from uav_comm_planner.core.model import leg_lengths, snr_per_watt
+from uav_comm_planner.core.power import waterfilling_power
 from uav_comm_planner.core.sca.block import Expansion, Frame
 from uav_comm_planner.core.sca.fast import (clarabel_settings, ClarabelTrajectoryStep,
                                             LOOSE_TOLERANCE, SolverCache, SOLVERS,
                                             trajectory_step_clarabel)
 from uav_comm_planner.core.sca.program import cone_program, step_blocks
 from uav_comm_planner.core.sca.reference import certify
-from uav_comm_planner.core.initial import straight_line
-from uav_comm_planner.core.model import leg_lengths, snr_per_watt
-from uav_comm_planner.core.power import waterfilling_power
 from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 from uav_comm_planner.core.sca.surrogate import (kilometre_rows, KM, path_length_km,
                                                  sca_lower_bound, surrogate_coefficients)
@@ -131,7 +131,6 @@ def test_the_certificate_with_the_path_budget_bounds_the_optimum():
     blocks = step_blocks(frame, keep_path_length=True)
     assert [type(b).__name__ for b in blocks] == ['NodeRates', 'LegLimits', 'PathBudget']
     data = [block.at(Expansion(q_k, p)) for block in blocks]
-    w = frame.nodes
     rng = np.random.default_rng(3)
     discs = len(blocks[1].discs)
     for _ in range(30):

@@ -52,7 +52,6 @@ def least_horizon_energy_j(scenario: Scenario, airframe: Airframe) -> float:
     return (scenario.num_slots + 1) * scenario.slot_s * airframe.least_power()[1]
 
 
-
 @dataclass(frozen=True)
 class VerticalProfile:
     """How the autopilot climbs to the mission's altitude and lands: ArduCopter's defaults

@@ -24,6 +24,7 @@ from scipy import optimize
 
 from uav_comm_planner.errors import InvalidScenarioError
 
+
 @dataclass(frozen=True)
 class Airframe:
     """A rotary-wing airframe's propulsion power (module docstring), SI units in the names.

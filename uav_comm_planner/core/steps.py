@@ -12,12 +12,12 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from uav_comm_planner.core.power import conic_power, PowerAllocation, waterfilling_power
 from uav_comm_planner.core.sca.block import BlockFactory
 from uav_comm_planner.core.sca.fast import ClarabelTrajectoryStep, trajectory_step_clarabel
-from uav_comm_planner.core.power import conic_power, PowerAllocation, waterfilling_power
-from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 from uav_comm_planner.core.sca.surrogate import TrajectoryStep
+from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import InvalidScenarioError
 
 PowerSolver = Callable[[np.ndarray, float], PowerAllocation]

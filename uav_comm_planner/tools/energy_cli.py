@@ -17,6 +17,7 @@ from uav_comm_planner.mission.energy import energy_lines, with_energy
 from uav_comm_planner.mission.energy import energy_record as mission_energy_record
 from uav_comm_planner.vehicle.airframe import airframe_named, airframe_names
 
+
 def add_energy_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group(
         'energy', "the vehicle's propulsion energy (Zeng 2019's rotary-wing model, "

@@ -4,7 +4,6 @@ the trade-off Zeng, Xu and Zhang (2019) study, as a table, a JSON file and a fig
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 from typing import Sequence
 

@@ -30,8 +30,8 @@ from typing import Any, Callable, Sequence
 import cvxpy as cp
 import numpy as np
 
-from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.sca.surrogate import KM
+from uav_comm_planner.core.scenario import Scenario
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,6 @@ import cvxpy as cp
 import numpy as np
 
 from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
-from uav_comm_planner.core.feasibility import LEG_SLACK
 from uav_comm_planner.core.propulsion import Airframe
 from uav_comm_planner.core.sca.block import (Block, Columns, DualBound, Entries, Expansion,
                                              Frame, Variables)

@@ -20,10 +20,10 @@ from typing import Sequence
 import clarabel
 import numpy as np
 
-from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.sca.block import BlockFactory, Expansion, Frame
 from uav_comm_planner.core.sca.program import cone_program, step_blocks
 from uav_comm_planner.core.sca.surrogate import KM, TrajectoryStep
+from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import SolverError
 
 

@@ -3,10 +3,11 @@
 With ``keep_path_length`` (:class:`~uav_comm_planner.core.scenario.SolverSettings`) the path
 q0, z[1..M], qF is at most L^k long, the length of the path at q^k: sum_l ||leg_l|| <= L^k.
 In the cone program: one non-negative row L^k - sum_l s_l, whose b changes at every step, on
-the legs' lengths s_l that the leg block shares (:class:`~uav_comm_planner.core.sca.legs.
-LegLimits` with ``lengths``, which :func:`~uav_comm_planner.core.sca.program.step_blocks`
-sets with the budget). A solver meets the budget only to its tolerance: :meth:`PathBudget.repair` blends
-the answer back within it (:func:`within_path_budget`).
+the legs' lengths s_l that the leg block shares
+(:class:`~uav_comm_planner.core.sca.legs.LegLimits` with ``lengths``, which
+:func:`~uav_comm_planner.core.sca.program.step_blocks` sets with the budget). A solver meets
+the budget only to its tolerance: :meth:`PathBudget.repair` blends the answer back within it
+(:func:`within_path_budget`).
 
 Dual certificate: kappa >= 0 adds kappa (L - sum_l ||leg_l||) <= kappa (L - sum_l v_l . leg_l)
 for any ||v_l|| <= 1, a linear term in z; slot m (between legs m - 1 and m) gets
@@ -25,11 +26,11 @@ import cvxpy as cp
 import numpy as np
 
 from uav_comm_planner.core.feasibility import LEG_SLACK
-from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.sca.block import (Block, Columns, DualBound, Entries, Expansion,
                                              Frame, Variables)
 from uav_comm_planner.core.sca.legs import leg_units
 from uav_comm_planner.core.sca.surrogate import path_length_km
+from uav_comm_planner.core.scenario import Scenario
 
 #: Bisections of :func:`within_path_budget`: lam to 1e-12, a fraction of a millimetre on any path.
 BUDGET_BISECTIONS = 40

@@ -19,13 +19,13 @@ from scipy import sparse
 
 from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
-from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.sca.block import Block, BlockFactory, Columns, Frame
 from uav_comm_planner.core.sca.energy import EnergyBudget
 from uav_comm_planner.core.sca.legs import LegLimits
 from uav_comm_planner.core.sca.path_budget import PathBudget
 from uav_comm_planner.core.sca.rates import NodeRates
 from uav_comm_planner.core.sca.zones import ZoneHalfPlanes
+from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.zone_rows import zone_model
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 
@@ -132,7 +132,6 @@ class ConeProgram:
                      (self.num_rows, self.num_columns))
         p = CscLists([], [], [0] * (self.num_columns + 1), (self.num_columns, self.num_columns))
         return p, a
-
 
 
 _PROGRAMS: dict[tuple, ConeProgram] = {}

@@ -19,11 +19,11 @@ import cvxpy as cp
 import numpy as np
 
 from uav_comm_planner.core.conic import Certificate, solve_checked
-from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.sca.block import (Block, BlockFactory, DualBound, Expansion, Frame,
                                              Variables)
 from uav_comm_planner.core.sca.program import step_blocks
 from uav_comm_planner.core.sca.surrogate import TrajectoryStep
+from uav_comm_planner.core.scenario import Scenario
 
 #: A cvxpy trajectory step is accepted when its duality gap is at most this share of
 #: max(1, value); the alternating loop then also keeps it only if the true minimum rate does
