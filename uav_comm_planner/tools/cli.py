@@ -26,6 +26,7 @@ from uav_comm_planner.tools.plots import check_figure_path, make_folder, METHOD_
 from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
                                               scenario_from_dict, scenario_to_dict,
                                               settings_from_dict)
+from uav_comm_planner.tools import fit_airframe
 from uav_comm_planner.tools.study import command as montecarlo
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
@@ -495,6 +496,11 @@ def build_parser() -> argparse.ArgumentParser:
                                        description=montecarlo.DESCRIPTION)
     montecarlo.add_arguments(study_parser)
     study_parser.set_defaults(handler=montecarlo.command)
+
+    fit_parser = commands.add_parser('fit-airframe', help=fit_airframe.DESCRIPTION,
+                                     description=fit_airframe.DESCRIPTION)
+    fit_airframe.add_arguments(fit_parser)
+    fit_parser.set_defaults(handler=fit_airframe.command)
     return parser
 
 
