@@ -22,13 +22,16 @@ from pymavlink import mavutil
 import pytest
 import yaml
 
+from devtools import measure_airframe
+from devtools.measure_airframe import CHECKOUT_SITL
+from devtools.sitl import sitl_binary, why_not_runnable
 from uav_comm_planner.core.propulsion import Airframe, ZENG2019
 from uav_comm_planner.core.propulsion_fit import fit_airframe
 from uav_comm_planner.errors import InvalidScenarioError, MissionFileError
 from uav_comm_planner.tools.cli import main
 from uav_comm_planner.vehicle.airframe import airframe_named, airframe_names, load_airframe
 from uav_comm_planner.vehicle.airframe_fit import (fit_flight_log, read_samples_csv, read_tlog,
-                                                    steady_samples)
+                                                    steady_mask, steady_samples)
 
 MAV = mavutil.mavlink
 AIRFRAMES = Path(__file__).resolve().parents[1] / 'uav_comm_planner' / 'vehicle' / 'airframes'
@@ -273,3 +276,42 @@ def test_a_bad_top_airspeed_exits_2(tmp_path, capsys):
 def test_read_tlog_errors_are_typed(tmp_path):
     with pytest.raises(MissionFileError, match='no such file'):
         read_tlog(tmp_path / 'absent.tlog')
+
+
+@pytest.mark.sitl
+@pytest.mark.skipif(bool(why_not_runnable(sitl_binary() or CHECKOUT_SITL)),
+                    reason=why_not_runnable(sitl_binary() or CHECKOUT_SITL))
+def test_a_fresh_sitl_flight_draws_the_shipped_airframes_power(tmp_path, capsys):
+    """A short flight on SITL now (takeoff to 100 m, hover, legs at 5 and 10 m/s): each steady
+    stretch's mean power is the shipped airframe's within 2 W, and fit-airframe fits its tlog."""
+    def short_flight(recorder):
+        measure_airframe.climb_to(recorder)
+        recorder.phase = 'hover'
+        recorder.wait(20.0)
+        measure_airframe.fly_leg(recorder, 5.0, 90.0)
+        measure_airframe.fly_leg(recorder, 10.0, 270.0)
+
+    tlog = tmp_path / 'short.tlog'
+    rows = measure_airframe.session(tmp_path, short_flight, tlog=tlog,
+                                    binary=sitl_binary() or CHECKOUT_SITL)
+    flying = [row for row in rows if row.phase and row.altitude_m >= 2.0]
+    samples = measure_airframe.to_samples(flying)
+    steady = steady_mask(samples)
+    quad = airframe_named('arducopter-sitl-quad')
+    groups, lines = {}, []
+    for sample, row, keep in zip(samples, flying, steady):
+        if keep:
+            groups.setdefault(row.phase, []).append(sample)
+    assert set(groups) == {'takeoff', 'hover', 'leg 5 90', 'leg 10 270'}
+    for phase, chosen in groups.items():
+        measured = np.mean([s.power_w for s in chosen])
+        model = np.mean(quad.power_w([s.airspeed_mps for s in chosen],
+                                     [s.climb_mps for s in chosen]))
+        lines.append(f'{phase}: {measured:.1f} W measured, {model:.1f} W by the airframe')
+        assert abs(measured - model) < 2.0, lines[-1]
+    assert main(['fit-airframe', str(tlog), '--name', 'fresh', '--output',
+                 str(tmp_path / 'fresh.yaml')]) == 0
+    printed = capsys.readouterr().out
+    assert 'fresh' in printed
+    with capsys.disabled():
+        print('\n' + '\n'.join(lines + [printed.strip()]))
