@@ -141,11 +141,14 @@ def flight_profile(top_mps: float) -> list[tuple[float, float]]:
 
 
 def write_tlog(path: Path, airframe: Airframe, *, power_message: str = 'SYS_STATUS',
-               speed_message: str = 'GLOBAL_POSITION_INT', armed: bool = True) -> None:
+               speed_message: str = 'GLOBAL_POSITION_INT', armed: bool = True,
+               speedup: float = 1.0) -> None:
+    """The log's stamps are wall-clock time of a simulator at ``speedup``."""
     mav = MAV.MAVLink(None, srcSystem=1, srcComponent=1)
     with open(path, 'wb') as handle:
         def put(message, time_s: float) -> None:
-            handle.write(struct.pack('>Q', int((1.7e9 + time_s) * 1e6)) + message.pack(mav))
+            handle.write(struct.pack('>Q', int((1.7e9 + time_s / speedup) * 1e6))
+                         + message.pack(mav))
 
         for k, (speed, climb) in enumerate(flight_profile(airframe.top_airspeed_mps)):
             time_s = 100.0 + 0.5 * k
@@ -170,11 +173,16 @@ def write_tlog(path: Path, airframe: Airframe, *, power_message: str = 'SYS_STAT
                                               current_ca, -1, -1, 90), time_s)
 
 
-def test_a_synthetic_tlog_with_sys_status_and_positions_recovers_its_airframe(tmp_path):
+@pytest.mark.parametrize('power_message, speed_message', [
+    ('SYS_STATUS', 'GLOBAL_POSITION_INT'), ('BATTERY_STATUS', 'VFR_HUD')])
+def test_a_synthetic_tlog_recovers_its_airframe(power_message, speed_message, tmp_path):
+    """Both sources of power and of speed, timed by the autopilot's clock (the log's stamps
+    are those of a simulator at 20x: the steady windows would find nothing by them)."""
     airframe = dataclasses.replace(ZENG2019, top_airspeed_mps=20.0, climb_w_per_mps=15.0,
                                    descent_w_per_mps=-8.0)
     log = tmp_path / 'flight.tlog'
-    write_tlog(log, airframe)
+    write_tlog(log, airframe, power_message=power_message, speed_message=speed_message,
+               speedup=20.0)
     samples = read_tlog(log)
     steady = steady_samples(samples)
     assert 0 < len(steady) < len(samples)      # the ramps are left out

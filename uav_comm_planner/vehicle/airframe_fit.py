@@ -48,7 +48,8 @@ MIN_HEIGHT_M = 2.0
 #: Fewest steady samples a log must give.
 MIN_STEADY_SAMPLES = 20
 _UNKNOWN_MV = 65535
-_TYPES = ['BATTERY_STATUS', 'SYS_STATUS', 'VFR_HUD', 'GLOBAL_POSITION_INT', 'HEARTBEAT']
+_TYPES = ['BATTERY_STATUS', 'SYS_STATUS', 'VFR_HUD', 'GLOBAL_POSITION_INT', 'HEARTBEAT',
+          'SYSTEM_TIME', 'ATTITUDE']     # the last two for the autopilot's clock
 
 
 @dataclass(frozen=True)
@@ -93,7 +94,7 @@ def read_tlog(path: str | os.PathLike) -> list[PowerSample]:
         raise MissionFileError(f'flight log {path}: cannot be read ({exc})') from None
     rows = {'BATTERY_STATUS': [], 'SYS_STATUS': []}
     clock_s = None
-    speeds: tuple[float, float, float] | None = None    # time, airspeed, climb
+    speeds: tuple | None = None    # (autopilot time, log stamp), airspeed, climb
     hud_seen = False
     height_m = math.nan
     armed = False
@@ -108,7 +109,7 @@ def read_tlog(path: str | os.PathLike) -> list[PowerSample]:
             boot_ms = getattr(message, 'time_boot_ms', None)
             if boot_ms is not None:
                 clock_s = boot_ms / 1000.0
-            now = clock_s if clock_s is not None else getattr(message, '_timestamp', None)
+            now = (clock_s, getattr(message, '_timestamp', None))
             kind = message.get_type()
             if kind == 'HEARTBEAT':
                 if message.get_srcComponent() == MAV.MAV_COMP_ID_AUTOPILOT1:
@@ -121,7 +122,7 @@ def read_tlog(path: str | os.PathLike) -> list[PowerSample]:
                 if not hud_seen:
                     speeds = (now, math.hypot(message.vx, message.vy) / 100.0,
                               -message.vz / 100.0)
-            else:
+            elif kind in rows:
                 power = _battery_power(message)
                 if power is not None:
                     rows[kind].append((now, power, speeds, armed, height_m))
@@ -134,12 +135,17 @@ def read_tlog(path: str | os.PathLike) -> list[PowerSample]:
     if not any(row[2] is not None for row in power_rows):
         raise MissionFileError(f'flight log {path}: no speeds (VFR_HUD or '
                                f'GLOBAL_POSITION_INT)')
+    # the autopilot's clock when the log has it (rows before its first message left out),
+    # else the log's stamps
+    clock = 0 if any(row[0][0] is not None for row in power_rows) else 1
     samples = []
     for now, power, speed, armed, height in power_rows:
-        if (speed is None or now is None or now - speed[0] > MAX_SPEED_AGE_S or not armed
-                or power <= 0 or height < MIN_HEIGHT_M):
+        if speed is None or now[clock] is None or speed[0][clock] is None:
             continue
-        samples.append(PowerSample(now, speed[1], speed[2], power, height))
+        if (now[clock] - speed[0][clock] > MAX_SPEED_AGE_S or not armed or power <= 0
+                or height < MIN_HEIGHT_M):
+            continue
+        samples.append(PowerSample(now[clock], speed[1], speed[2], power, height))
     return samples
 
 
