@@ -321,5 +321,4 @@ def test_a_fresh_sitl_flight_draws_the_shipped_airframes_power(tmp_path, capsys)
                  str(tmp_path / 'fresh.yaml')]) == 0
     printed = capsys.readouterr().out
     assert 'fresh' in printed
-    with capsys.disabled():
-        print('\n' + '\n'.join(lines + [printed.strip()]))
+    print('\n' + '\n'.join(lines + [printed.strip()]))    # for the record (pytest -s)

@@ -22,11 +22,11 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
+from uav_comm_planner.tools import fit_airframe
 from uav_comm_planner.tools.plots import check_figure_path, make_folder, METHOD_LABELS
 from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
                                               scenario_from_dict, scenario_to_dict,
                                               settings_from_dict)
-from uav_comm_planner.tools import fit_airframe
 from uav_comm_planner.tools.study import command as montecarlo
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home
