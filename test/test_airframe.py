@@ -275,10 +275,21 @@ def test_bad_logs_exit_2_with_one_line_and_keep_the_output(case, tmp_path, capsy
     assert output.read_text() == 'earlier\n'
 
 
-def test_a_bad_top_airspeed_exits_2(tmp_path, capsys):
-    assert main(['fit-airframe', str(SITL_TLOG), '--name', 'x', '--output',
-                 str(tmp_path / 'x.yaml'), '--top-airspeed', '-1']) == 2
-    assert 'top-airspeed' in capsys.readouterr().err
+@pytest.mark.parametrize('arguments, reason', [
+    (['--name', 'x', '--top-airspeed', '-1'], 'top-airspeed'),
+    (['--name', ' '], '--name must not be empty'),
+    (['--name', 'x', '--output', 'absent/x.yaml'], 'does not exist'),
+])
+def test_bad_arguments_exit_2_before_the_log_is_read(arguments, reason, tmp_path, capsys,
+                                                     monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    if '--output' not in arguments:
+        arguments = arguments + ['--output', 'x.yaml']
+    monkeypatch.setattr('uav_comm_planner.tools.fit_airframe.fit_flight_log', None)
+    assert main(['fit-airframe', str(SITL_TLOG), *arguments]) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and reason in err
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_read_tlog_errors_are_typed(tmp_path):

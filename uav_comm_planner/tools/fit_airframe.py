@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from uav_comm_planner.errors import InvalidScenarioError
-from uav_comm_planner.files import write_text_atomic
+from uav_comm_planner.files import check_output_path, write_text_atomic
 from uav_comm_planner.vehicle.airframe import airframe_yaml
 from uav_comm_planner.vehicle.airframe_fit import fit_flight_log, STEADY_WINDOW_S
 
@@ -31,7 +31,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def command(args: argparse.Namespace) -> int:
-    """Fit, write the file, print a summary; errors are typed (one line, exit 2)."""
+    """Fit, write the file, print a summary; errors are typed (one line, exit 2), and every
+    argument is checked before the log is read."""
+    check_output_path(args.output)
+    if not args.name.strip():
+        raise InvalidScenarioError('--name must not be empty')
     top = args.top_airspeed
     if top is not None and not (math.isfinite(top) and top > 0):
         raise InvalidScenarioError(f'--top-airspeed must be a positive number of m/s, got {top:g}')
