@@ -24,7 +24,7 @@ SOURCES := setup.py setup.cfg package.xml $(CONSTRAINTS) $(wildcard config/*.yam
 comma := ,
 ROS_ENV := ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST AMENT_PREFIX_PATH=$(abspath $(VENV))
 
-.PHONY: install dev run test test-latest lock fuzz bench figures docs clean
+.PHONY: install dev run test test-latest lock fuzz bench figures docs airframe clean
 
 install: $(STAMP)
 
@@ -119,6 +119,12 @@ figures: $(STAMP)
 # (devtools/docgen.py, not installed).
 docs: $(STAMP)
 	$(BIN)/python -m devtools.docgen docs/node.md
+
+# ArduCopter SITL's default quad measured (about 2 minutes at its speed-up): flies it, writes
+# the samples' CSV, the fitted airframe (vehicle/airframes/arducopter_sitl_quad.*) and the
+# fit-airframe tests' tlog (test/data/), and prints the measured table.
+airframe: $(STAMP)
+	$(BIN)/python -m devtools.measure_airframe $(if $(SITL),--sitl $(SITL)) $(ARGS)
 
 clean:
 	rm -rf $(VENV) $(LATEST_VENV) build *.egg-info

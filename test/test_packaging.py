@@ -286,7 +286,8 @@ def development_tools_among(paths: list[str]) -> list[str]:
 
 def test_the_wheel_holds_the_package_and_no_development_tools(tmp_path):
     """The wheel pip installs from the checkout (setup.py's packages) has every module of the
-    package and nothing of devtools/, although a copy of the checkout holds devtools/."""
+    package and its airframe files, and nothing of devtools/, although a copy of the checkout
+    holds devtools/."""
     import zipfile
 
     source = tmp_path / 'src'
@@ -301,7 +302,12 @@ def test_the_wheel_holds_the_package_and_no_development_tools(tmp_path):
     (wheel,) = (tmp_path / 'wheel').glob(f'{PACKAGE}-*.whl')
     names = zipfile.ZipFile(wheel).namelist()
     modules = sorted(str(path.relative_to(ROOT)) for path in (ROOT / PACKAGE).rglob('*.py'))
-    assert sorted(name for name in names if name.startswith(f'{PACKAGE}/')) == modules
+    # and its package data: the airframe files (not the samples they were fitted to)
+    airframes = [str(path.relative_to(ROOT))
+                 for path in (ROOT / PACKAGE / 'vehicle' / 'airframes').glob('*.yaml')]
+    assert airframes
+    assert sorted(name for name in names if name.startswith(f'{PACKAGE}/')) == sorted(
+        modules + airframes)
     version = wheel.name.split('-')[1]
     assert {name.split('/')[0] for name in names} == {
         PACKAGE, f'{PACKAGE}-{version}.data', f'{PACKAGE}-{version}.dist-info'}

@@ -23,7 +23,7 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
-from uav_comm_planner.tools import energy_sweep
+from uav_comm_planner.tools import energy_sweep, fit_airframe
 from uav_comm_planner.tools.energy_cli import (add_energy_arguments, energy_record,
                                                energy_request, format_energy, planner_for)
 from uav_comm_planner.tools.plots import check_figure_path, make_folder, METHOD_LABELS
@@ -525,6 +525,11 @@ def build_parser() -> argparse.ArgumentParser:
                                        description=montecarlo.DESCRIPTION)
     montecarlo.add_arguments(study_parser)
     study_parser.set_defaults(handler=montecarlo.command)
+
+    fit_parser = commands.add_parser('fit-airframe', help=fit_airframe.DESCRIPTION,
+                                     description=fit_airframe.DESCRIPTION)
+    fit_airframe.add_arguments(fit_parser)
+    fit_parser.set_defaults(handler=fit_airframe.command)
     return parser
 
 
