@@ -179,13 +179,15 @@ def _requirement_names() -> list[str]:
 
 def test_every_runtime_requirement_is_installed_by_rosdep(rosdep):
     """Each of setup.py's install_requires is installed on the colcon route: by pip under its
-    own name or by apt as ``python3-<name>``; Clarabel is a dependency of cvxpy and comes with
-    it."""
+    own name or by apt as ``python3-<name>`` (PyYAML as python3-yaml, the name of its import);
+    Clarabel is a dependency of cvxpy and comes with it."""
     installs = simulated_install(rosdep)
     provided = {name.lower() for name in installs['pip']}
     provided.update(name.removeprefix('python3-') for name in installs['apt'])
     if 'cvxpy' in provided:
         provided.add('clarabel')
+    if 'yaml' in provided:
+        provided.add('pyyaml')
     assert [name for name in _requirement_names() if name not in provided] == []
 
 

@@ -311,7 +311,8 @@ def _command_plan(args: argparse.Namespace) -> int:
     if args.fence is not None:
         from uav_comm_planner.vehicle.fence import read_zones
         zones = read_zones(args.fence, home, margin_m=args.fence_margin)
-    scenario, energy = energy_request(args, _scenario(args, limits if vehicle_aware else None))
+    scenario, energy = energy_request(args, _scenario(args, limits if vehicle_aware else None),
+                                      firmware=args.firmware if vehicle_aware else None)
     request = MissionRequest(
         scenario, _settings(args), limits,
         vehicle_aware=vehicle_aware, firmware=args.firmware, end=args.mission_end,

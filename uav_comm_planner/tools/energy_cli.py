@@ -15,7 +15,7 @@ from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.mission.energy import energy_lines, with_energy
 from uav_comm_planner.mission.energy import energy_record as mission_energy_record
-from uav_comm_planner.vehicle.airframe import airframe_named, airframe_names
+from uav_comm_planner.vehicle.airframe import airframe_named, airframe_names, default_airframe
 
 
 def add_energy_arguments(parser: argparse.ArgumentParser) -> None:
@@ -48,20 +48,25 @@ class EnergyRequest:
     target_bps: float | None
 
 
-def energy_request(args: argparse.Namespace, scenario: Scenario
+def energy_request(args: argparse.Namespace, scenario: Scenario, *, firmware: str | None = None
                    ) -> tuple[Scenario, EnergyRequest | None]:
     """The scenario with the airframe and the energy cap the options ask for, and the request;
-    refuses (typed error, before any planning) a battery that cannot fly the horizon."""
+    refuses (typed error, before any planning) a battery that cannot fly the horizon. Without
+    ``--airframe``, a mission for ``firmware`` (None: not a mission) is planned with that
+    firmware's default airframe, if it has one."""
     asked = [flag for flag, value in (('--energy-budget-wh', args.energy_budget_wh),
                                       ('--battery-wh', args.battery_wh),
                                       ('--min-throughput', args.min_throughput))
              if value is not None]
-    if args.airframe is None:
-        if asked:
-            raise InvalidScenarioError(f'{asked[0]} needs --airframe (the propulsion model): '
-                                       f'one of {", ".join(airframe_names())} or a YAML file')
-        return scenario, None
-    airframe = airframe_named(args.airframe)
+    if args.airframe is not None:
+        airframe = airframe_named(args.airframe)
+    elif asked:
+        raise InvalidScenarioError(f'{asked[0]} needs --airframe (the propulsion model): '
+                                   f'one of {", ".join(airframe_names())} or a YAML file')
+    else:
+        airframe = None if firmware is None else default_airframe(firmware)
+        if airframe is None:
+            return scenario, None
     battery = None if args.battery_wh is None else Battery(args.battery_wh,
                                                            args.battery_reserve)
     scenario = with_energy(scenario, airframe, budget_wh=args.energy_budget_wh,
