@@ -272,8 +272,11 @@ class FakeVehicle:
             self._request(first)
         elif kind == 'MISSION_ITEM_INT':
             if behaviour == 'impatient' and message.seq != self._requested:
-                # ArduPilot's answer to an item it did not ask for; the transfer goes on.
-                self._send(mav.mission_ack_encode(255, 0, MAV.MAV_MISSION_INVALID_SEQUENCE, 0))
+                # ArduPilot's answer to an item it did not ask for: in a transfer, which goes
+                # on, INVALID_SEQUENCE; after it, MAV_MISSION_ERROR.
+                self._send(mav.mission_ack_encode(
+                    255, 0, MAV.MAV_MISSION_ERROR if self._requested is None
+                    else MAV.MAV_MISSION_INVALID_SEQUENCE, 0))
                 return
             if 0 <= message.seq < len(self.stored):
                 self.stored[message.seq] = message
@@ -281,6 +284,7 @@ class FakeVehicle:
             if following < len(self.stored):
                 self._request(following)
             else:
+                self._requested = None
                 self._send(mav.mission_ack_encode(255, 0, MAV.MAV_MISSION_ACCEPTED, 0))
         elif kind == 'MISSION_REQUEST_LIST':
             extra = 1 if behaviour == 'wrong_count' else 0

@@ -213,3 +213,38 @@ def test_a_node_stopped_mid_stream_leaves_px4_held_in_loiter_and_says_so(ros_con
     print(f'at most {farthest:.2f} m from where it was when the node stopped (the plan: '
           f'{planned:.1f} m on in 15 s); held within {spread:.2f} m from 10 s to 15 s after')
     assert planned >= 20.0 and farthest <= 8.0 and spread <= 1.0
+
+
+def test_a_px4_plan_at_10_mps_streams_with_the_acceleration_it_needs(ros_context, tmp_path):
+    # At 10 m/s the plan's points need about 3.5 m/s/s, more than MPC_ACC_HOR's 3: streamed
+    # with it (OFFBOARD follows it), not refused and flown as a mission.
+    flight = started_flight(ros_context, tmp_path, max_speed_mps=10.0,
+                            vehicle_max_speed_mps=10.0)
+    try:
+        node = flight.node
+        segment = node.progress.segments[0]
+        result = segment.result
+        scenario = result.scenario
+        end_s = segment.start_s + (scenario.num_slots + 1) * scenario.slot_s
+        flight.wait(lambda: any('stopped' in line for line in node.vehicle.stream_events),
+                    'end of the stream')
+        flight.wait(lambda: flight.now_s > end_s + 2.0, 'the end of the plan')
+        events = list(node.vehicle.stream_events)
+        reference = node.vehicle.stream_reference
+        errors = node.stats.last_error
+    finally:
+        flight.close()
+    print('\nstream events:', events)
+    assert reference is not None and reference.accel_raised, errors
+    assert 3.0 < reference.bounds.accel_mpss <= 6.0
+    started = [line for line in events if line.startswith('streaming')]
+    stopped = [line for line in events if 'stopped' in line]
+    assert len(started) == 1 and 'OFFBOARD' in started[0]
+    assert len(stopped) == 1 and 'reached qF' in stopped[0]
+    times, positions, _ = flight.track()
+    report = evaluate_flight(result, reference.track(), times, positions, segment.start_s)
+    print(f'stream on PX4 at 10 m/s, targets up to {reference.bounds.accel_mpss:.2f} m/s/s: '
+          f'{report.summary()}')
+    print('reach errors (slots):', np.round(report.reach_errors_s / scenario.slot_s, 2))
+    assert report.flown_to_stated >= 0.99
+    assert report.worst_reach_slots <= 1.0

@@ -386,17 +386,24 @@ def _ask(link, request, types: Sequence[str], settings: LinkSettings, what: str,
     for _ in range(settings.retries + 1):
         _send(link, request)
         deadline = time.monotonic() + settings.timeout_s
+        refused: int | None = None
         while (left := deadline - time.monotonic()) > 0:
             message = _receive(link, (*types, 'MISSION_ACK'), left, total, mission_type)
             if message is None:
                 break
             if message.get_type() == 'MISSION_ACK':
-                if message.type == MAV.MAV_MISSION_ACCEPTED:
-                    continue         # a late copy of the upload's acceptance (PX4 repeats it)
-                raise VehicleLinkError(f'the vehicle refused to send {what}: '
-                                       f'{result_name(message.type)}')
+                # A late copy of the upload's acceptance (PX4 repeats it), or a refusal: this
+                # request's, or the late answer to an item the upload just before sent twice
+                # (ArduPilot acks one that comes after the transfer MAV_MISSION_ERROR). The
+                # request's own answer may still come; a refusal stands if it does not.
+                if message.type != MAV.MAV_MISSION_ACCEPTED:
+                    refused = message.type
+                continue
             if seq is None or message.seq == seq:
                 return message
+        if refused is not None:
+            raise VehicleLinkError(f'the vehicle refused to send {what}: '
+                                   f'{result_name(refused)}')
     raise VehicleLinkError(f'no answer for {what} after {settings.retries} retries of '
                            f'{settings.timeout_s:g} s')
 
