@@ -11,7 +11,7 @@ import pytest
 
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.core.model import flown_path
-from uav_comm_planner.core.reference import least_acceleration, MotionBounds, smooth_motion
+from uav_comm_planner.core.smooth_motion import least_acceleration, MotionBounds, smooth_motion
 from uav_comm_planner.errors import InfeasibleHorizonError
 from uav_comm_planner.vehicle.flyable import plan_for_vehicle
 from uav_comm_planner.vehicle.limits import VehicleLimits

@@ -6,7 +6,7 @@ so it keeps the plan's time by construction while the airframe can fly it. The r
 passes through the plan's slot points (q0, q[1..M], qF; for a vehicle-aware plan the points
 its stated throughput is computed at) exactly at their slot times, and between them is the
 least-acceleration C1 piecewise cubic within the vehicle's speed, acceleration and jerk (and,
-in wind, the plan's airspeed): :mod:`uav_comm_planner.core.reference`. When the jerk bound
+in wind, the plan's airspeed): :mod:`uav_comm_planner.core.smooth_motion`. When the jerk bound
 cannot be kept with the points given, the reference keeps the others and says so
 (``jerk_limited`` False). When the points need more acceleration than the vehicle's waypoint
 acceleration, a firmware whose streamed targets are followed beyond it (PX4's OFFBOARD) gets the
@@ -25,8 +25,8 @@ import numpy as np
 
 from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.optimizer import PlanResult
-from uav_comm_planner.core.reference import (hermite_state, least_acceleration, MotionBounds,
-                                             PIECES_PER_SLOT, smooth_motion)
+from uav_comm_planner.core.smooth_motion import (hermite_state, least_acceleration, MotionBounds,
+                                                 PIECES_PER_SLOT, smooth_motion)
 from uav_comm_planner.errors import InfeasibleHorizonError
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
