@@ -232,3 +232,33 @@ def test_the_node_s_parameters_name_the_airframe_and_cap_the_horizon():
         config_from_parameters({**base, 'airframe': 'zeng2019', 'battery_wh': 12.0})
     with pytest.raises(InvalidScenarioError, match='battery_reserve'):
         config_from_parameters({**base, 'airframe': 'zeng2019', 'battery_reserve': 1.0})
+
+
+def test_a_replan_keeps_the_energy_left_after_the_slots_flown():
+    """The rest of a mission with an energy budget gets the budget less the flown legs'
+    energy (each flown slot a leg from the position before it, at its airspeed), and a rest
+    the energy left cannot fly is refused."""
+    from uav_comm_planner.core.receding import FlownSlots, rest_of_mission
+
+    mission = windy(energy_budget_wh=12.0)
+    line = straight_line(mission)
+    k = 20
+    flown = FlownSlots(np.zeros((3, k)), line[:k])
+    rest = rest_of_mission(mission, line[k - 1], flown)
+    path = [mission.start_m, *map(tuple, line[:k])]
+    towards = math.radians(60.0 + 180.0)
+    wind = 4.0 * np.array([math.sin(towards), math.cos(towards)])
+    used_j = sum(zeng_power(float(np.linalg.norm((np.subtract(b, a)) / 4.0 - wind))) * 4.0
+                 for a, b in zip(path, path[1:]))
+    assert rest.num_slots == mission.num_slots - k
+    assert rest.energy_budget_wh == pytest.approx(12.0 - used_j / 3600.0, rel=1e-12)
+    zigzag = FlownSlots(np.zeros((3, k)), line[:k] + np.array([0.0, 300.0]) * (
+        np.arange(k)[:, None] % 2))
+    with pytest.raises(InfeasibleHorizonError, match='the energy budget is spent'):
+        rest_of_mission(mission.replace(energy_budget_wh=9.0), line[k - 1], zigzag)
+    # 7.2 Wh flies the whole horizon at the least power (7.14 Wh), but after the 20 slots
+    # flown less is left than the other 31 slots' 32 legs take at it.
+    least_rest_wh = 32 * 4.0 * ZENG2019.least_power()[1] / 3600.0
+    assert 7.2 - used_j / 3600.0 < least_rest_wh
+    with pytest.raises(InfeasibleHorizonError, match='energy budget left is too little'):
+        rest_of_mission(mission.replace(energy_budget_wh=7.2), line[k - 1], flown)

@@ -34,6 +34,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from uav_comm_planner.core import detour
+from uav_comm_planner.core.energy import JOULES_PER_WH
 from uav_comm_planner.core.feasibility import retimed, within_speed_limit
 from uav_comm_planner.core.model import snr_per_watt, spectral_efficiencies
 from uav_comm_planner.core.optimizer import plan, plan_along, PlanResult, ZoneKeeper
@@ -125,7 +126,8 @@ def delivered_bits(mission: Scenario, flown: FlownSlots) -> np.ndarray:
 def rest_of_mission(mission: Scenario, position_m: Sequence[float],
                     flown: FlownSlots) -> Scenario:
     """The remaining M - k slots from ``position_m`` (:func:`clear_start`) to qF, same
-    delta, with the budget left.
+    delta, with the budget left, and the energy budget left (:func:`flown_energy_wh`) when the
+    mission has one.
 
     Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when no slot remains or
     qF is out of reach, :class:`~uav_comm_planner.errors.InvalidScenarioError` when the
@@ -143,8 +145,34 @@ def rest_of_mission(mission: Scenario, position_m: Sequence[float],
             f'{mission.power_budget_w:g} W in {flown.num_slots} slots): start a new mission')
     if remaining == mission.num_slots and tuple(position_m) == tuple(mission.start_m):
         return mission
-    return mission.replace(start_m=clear_start(mission, position_m), num_slots=remaining,
-                           horizon_s=remaining * mission.slot_s, power_budget_w=budget_left)
+    changes = dict(start_m=clear_start(mission, position_m), num_slots=remaining,
+                   horizon_s=remaining * mission.slot_s, power_budget_w=budget_left)
+    if mission.energy_budget_wh is None:
+        return mission.replace(**changes)
+    used_wh = flown_energy_wh(mission, flown)
+    if not used_wh < mission.energy_budget_wh:
+        raise InfeasibleHorizonError(
+            f'the energy budget is spent: {used_wh:.4g} of {mission.energy_budget_wh:.4g} Wh '
+            f'used in {flown.num_slots} slots; land, or start a new mission')
+    try:
+        return mission.replace(**changes, energy_budget_wh=mission.energy_budget_wh - used_wh)
+    except InfeasibleHorizonError as exc:
+        raise InfeasibleHorizonError(
+            f'the energy budget left is too little for the rest: {used_wh:.4g} of '
+            f'{mission.energy_budget_wh:.4g} Wh used in {flown.num_slots} slots; {exc}') \
+            from None
+
+
+def flown_energy_wh(mission: Scenario, flown: FlownSlots) -> float:
+    """The propulsion energy of the k flown legs q0 -> p_1 -> ... -> p_k (the slots'
+    positions), each over one slot at its airspeed in the mission's wind, by the mission's
+    airframe (:mod:`uav_comm_planner.core.energy`), Wh; 0 before the first slot."""
+    if flown.num_slots == 0:
+        return 0.0
+    path = np.vstack([np.reshape(mission.start_m, (1, 2)), flown.positions_m])
+    airspeed = np.linalg.norm(np.diff(path, axis=0) / mission.slot_s - mission.wind_mps, axis=1)
+    return float(mission.airframe.level_power_w(airspeed).sum() * mission.slot_s
+                 / JOULES_PER_WH)
 
 
 #: The farthest :func:`clear_start` moves a replan's start: the node's radius for holding q0
@@ -405,4 +433,5 @@ def mission_rates_flown(mission: Scenario, power_w: np.ndarray,
 __all__ = ['CLEAR_START_MAX_M', 'PREVIOUS_PLAN_START', 'WARM_STARTS', 'FlownSlots', 'RecedingPlan',
            'RecedingProblem',
            'delivered_bits', 'lengthened', 'mission_rates_flown', 'power_for_nodes',
-           'clear_start', 'receding_problem', 'rejoined', 'replan', 'rest_of_mission']
+           'clear_start', 'flown_energy_wh', 'receding_problem', 'rejoined', 'replan',
+           'rest_of_mission']
