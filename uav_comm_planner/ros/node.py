@@ -48,6 +48,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -329,11 +330,21 @@ class PlannerNode(Node):
         super().destroy_node()
 
 
+#: What rclpy raises when its arguments cannot be parsed (rclpy exports no name for it).
+RCLError = rclpy_implementation.RCLError
+
+
 def main(args: list[str] | None = None) -> int:
     """Run the node until Ctrl-C or shutdown; returns the exit status (0, or 2 for invalid
     parameters). Once it is stopping, further Ctrl-C are ignored so that the shutdown (the
     running plan gives up at its next step) is never cut short by a traceback."""
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except RCLError as exc:
+        # The ROS arguments themselves: a params file that cannot be read or parsed, a
+        # malformed -p or remapping.
+        print(f'{NODE_NAME}: invalid ROS arguments: {exc}', file=sys.stderr)
+        return 2
     node = None
     status = 0
     try:
