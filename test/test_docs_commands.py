@@ -7,7 +7,7 @@ here, and run in a temporary folder with only mechanical changes: `.venv/bin/` a
 `run` target runs (`.venv/bin/planner ARGS` with the ROS environment), and a file of the
 checkout a command names by a relative path (`config/planner.yaml`,
 `docs/fence_example.geojson`) is copied into the folder first. Where a page quotes what a
-command prints (a plain fenced block right after its ```sh block, or right after the
+command prints (a plain or ```text block right after its ```sh block, or right after the
 paragraph naming it and ending in a colon; a sentence "`command` prints 11.5713 ..."), the
 output is checked against the quote. A command that needs a vehicle, a running node, a ROS 2
 installation or a long run is left out by :data:`NOT_RUN`, each with the reason.
@@ -151,6 +151,8 @@ def _commands_of_line(page: str, line: int, text: str) -> list[Command]:
 #: An inline command: the command line's (the bare name, or with a subcommand only and no
 #: .venv/bin/, names it: not a command), or `make run` with or without ARGS.
 INLINE = re.compile(r'`((?:\.venv/bin/)?uav-comm-planner [^`]+|make run(?: [^`]*)?)`')
+#: The languages of a fenced block that quotes what a command printed.
+OUTPUT_BLOCKS = ('', 'text')
 FENCE = re.compile(r'^```(\w*)\n(.*?)^```', re.S | re.M)
 
 
@@ -170,7 +172,7 @@ def examples() -> list[Example]:
                 example = Example(page, first - 1, commands)
                 found.append(example)
                 events.append((block.start(), block.end(), example, block))
-            elif block.group(1) == '':
+            elif block.group(1) in OUTPUT_BLOCKS:
                 events.append((block.start(), block.end(), None, block))
         inside = [(block.start(), block.end()) for block in blocks]
         for match in INLINE.finditer(text):
