@@ -5,7 +5,10 @@ rclpy."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+import subprocess
+import sys
 
 import pytest
 from rcl_interfaces.msg import ParameterType
@@ -105,10 +108,6 @@ def test_coerced_value_converts_only_the_habitual_slips():
 def test_the_node_binary_says_what_is_wrong_with_its_arguments(tmp_path, arguments, said):
     """`planner --ros-args -p num_slots:=12.5`, or a params file that is not there: one line
     and exit status 2, no traceback."""
-    import os
-    import subprocess
-    import sys
-
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     done = subprocess.run([str(Path(sys.executable).with_name('planner')), '--ros-args',
                            *arguments], capture_output=True, text=True, timeout=60,
