@@ -34,7 +34,7 @@ from uav_comm_planner.ros.flight import HOLD_SPEED_MPS, START_HEIGHT_M, START_RA
 from uav_comm_planner.ros.node import PlannerNode
 from uav_comm_planner.ros.publishing import STATUS_QOS, TOPIC_STATUS
 from uav_comm_planner.vehicle.evaluation import REACH_RADIUS_M
-from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, geodetic_to_enu, Home
+from uav_comm_planner.vehicle.geodesy import default_home, geodetic_to_enu, Home
 from uav_comm_planner.vehicle.mavlink.files import export_mission
 from uav_comm_planner.vehicle.mavlink.link import download_mission
 
@@ -379,7 +379,7 @@ def test_a_mission_for_another_home_is_refused_before_upload(ros_context, tmp_pa
         url = f'tcp:127.0.0.1:{5762 + 10 * sitl.instance}'
         scenario = paper_scenario('I', max_speed_mps=SPEED_MPS, horizon_s=HORIZON_S,
                                   num_slots=SLOTS)
-        zurich = Home(*DEFAULT_HOME)
+        zurich = default_home('px4')      # PX4 SITL's home, not ArduCopter SITL's
         mission = export_mission(plan(scenario, SolverSettings(compute_baselines=False)),
                                  tmp_path / 'zurich.waypoints', zurich)
         done = subprocess.run(CLI + ['upload', str(mission), '--connect', url],

@@ -5,7 +5,10 @@ rclpy."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+import subprocess
+import sys
 
 import pytest
 from rcl_interfaces.msg import ParameterType
@@ -98,16 +101,18 @@ def test_coerced_value_converts_only_the_habitual_slips():
         assert coerced_value(value, kind) is value, (value, kind)
 
 
-def test_the_node_binary_says_which_parameter_has_the_wrong_type(tmp_path):
-    """`planner --ros-args -p num_slots:=12.5`: one line and exit status 2, no traceback."""
-    import os
-    import subprocess
-    import sys
-
+@pytest.mark.parametrize('arguments, said', [
+    (['-p', 'num_slots:=12.5'], 'num_slots'),
+    (['--params-file', 'missing.yaml'], "Couldn't parse params file"),
+])
+def test_the_node_binary_says_what_is_wrong_with_its_arguments(tmp_path, arguments, said):
+    """`planner --ros-args -p num_slots:=12.5`, or a params file that is not there: one line
+    and exit status 2, no traceback."""
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
-    done = subprocess.run([str(Path(sys.executable).with_name('planner')), '--ros-args', '-p',
-                           'num_slots:=12.5'], capture_output=True, text=True, timeout=60,
+    done = subprocess.run([str(Path(sys.executable).with_name('planner')), '--ros-args',
+                           *arguments], capture_output=True, text=True, timeout=60,
                           cwd=tmp_path, env=env)
     assert done.returncode == 2, done.stderr
-    assert done.stderr.count('\n') == 1 and 'num_slots' in done.stderr
+    (line,) = [line for line in done.stderr.splitlines() if 'uav_comm_planner:' in line]
+    assert line.startswith('uav_comm_planner: invalid ') and said in line
     assert 'Traceback' not in done.stderr

@@ -140,9 +140,9 @@ class MissionRequest:
     optimiser's plan as is); firmware, end, home: how its mission items are built
     (``items=False`` builds none; home None: the firmware's simulator home,
     :func:`~uav_comm_planner.vehicle.geodesy.default_home`); in_flight: replan the rest of a
-    mission in flight instead of the whole mission from the scenario's start; zones: where the vehicle may fly (for
-    example read from a fence file), which replace the scenario's own when given
-    (:attr:`planned_scenario`).
+    mission in flight instead of the whole mission from the scenario's start; zones: where the
+    vehicle may fly (for example read from a fence file), which replace the scenario's own when
+    given (:attr:`planned_scenario`).
     """
 
     scenario: Scenario

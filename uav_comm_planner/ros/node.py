@@ -50,6 +50,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -65,7 +66,7 @@ from uav_comm_planner.ros.messages import ground_nodes_of, nodes_text
 from uav_comm_planner.ros.params import (flat_pairs, node_battery, NodeSettings, OUTPUT_ONLY,
                                          PlannerConfig)
 from uav_comm_planner.ros.planning import (open_mission_folder, PlanningWorker, PlanOutcome,
-                                           PlanRequest, write_mission)
+                                           PlanRequest)
 from uav_comm_planner.ros.publishing import PlanPublisher, summary_line
 from uav_comm_planner.ros.services import PlannerServices
 from uav_comm_planner.ros.vehicle import HOME_PARAMETERS, VehicleAdapter
@@ -211,25 +212,12 @@ class PlannerNode(Node):
         if not planning:
             self.get_logger().info(
                 f'parameters {", ".join(names)} set; they apply to the next plan (no replan)')
-            if MISSION_OUTPUT & set(names):
-                self._rewrite_mission()
+            if MISSION_OUTPUT & set(names) and self.config.node.mission_file:
+                self._trigger_services.export_mission()     # at once, not at the next plan
             return
         reason = (TOPIC_GROUND_NODES if self._refusing_nodes is not None
                   else 'parameters ' + ', '.join(planning))
         self.flight.request_update(reason)
-
-    def _rewrite_mission(self) -> None:
-        """The plan in force written at once as the mission file the parameters now name (a
-        new mission_file, or another end, firmware or home for it), not at the next plan."""
-        output = self.config.node
-        if not output.mission_file or self.current_plan is None:
-            return
-        try:
-            written = write_mission(self.current_plan, output, self.mission_folder)
-        except PlannerError as exc:
-            self.report_error(f'mission export failed: {exc}')
-        else:
-            self.get_logger().info(f'mission of the plan in force written to {written}')
 
     def _on_uav_pose(self, message: PoseStamped) -> None:
         if self._frame_accepted(message.header.frame_id, TOPIC_UAV_POSE):
@@ -332,11 +320,21 @@ class PlannerNode(Node):
         super().destroy_node()
 
 
+#: What rclpy raises when its arguments cannot be parsed (rclpy exports no name for it).
+RCLError = rclpy_implementation.RCLError
+
+
 def main(args: list[str] | None = None) -> int:
     """Run the node until Ctrl-C or shutdown; returns the exit status (0, or 2 for invalid
     parameters). Once it is stopping, further Ctrl-C are ignored so that the shutdown (the
     running plan gives up at its next step) is never cut short by a traceback."""
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except RCLError as exc:
+        # The ROS arguments themselves: a params file that cannot be read or parsed, a
+        # malformed -p or remapping.
+        print(f'{NODE_NAME}: invalid ROS arguments: {exc}', file=sys.stderr)
+        return 2
     node = None
     status = 0
     try:

@@ -78,25 +78,26 @@ class PlannerServices:
             response.message = 'mission clock started: the plan in force is flown from now'
         return response
 
+    def export_mission(self) -> tuple[bool, str]:
+        """Write the plan in force as ``mission_file`` now (``~/export_mission``, and the node
+        when the file's name, end, firmware or home changes): (whether written, what
+        happened, also on the node's log: a failed write as its error)."""
+        node = self._node
+        if not node.config.node.mission_file:
+            return False, 'parameter mission_file is empty: set a .waypoints or .plan file name'
+        if node.current_plan is None:
+            return False, 'no plan yet'
+        try:
+            written = write_mission(node.current_plan, node.config.node, node.mission_folder)
+        except PlannerError as exc:
+            node.report_error(f'mission export failed: {exc}')
+            return False, str(exc)
+        node.get_logger().info(f'the plan in force: mission written to {written}')
+        return True, f'mission written to {written}'
+
     def _on_export_mission(self, _request: Trigger.Request,
                            response: Trigger.Response) -> Trigger.Response:
-        node = self._node
-        response.success = False
-        if not node.config.node.mission_file:
-            response.message = ('parameter mission_file is empty: set a .waypoints or .plan '
-                                'file name')
-        elif node.current_plan is None:
-            response.message = 'no plan yet'
-        else:
-            try:
-                written = write_mission(node.current_plan, node.config.node,
-                                        node.mission_folder)
-            except PlannerError as exc:
-                node.report_error(f'mission export failed: {exc}')
-                response.message = str(exc)
-            else:
-                response.success = True
-                response.message = f'mission written to {written}'
+        response.success, response.message = self.export_mission()
         return response
 
 

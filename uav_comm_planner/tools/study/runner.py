@@ -314,7 +314,8 @@ def format_run(run: StudyRun) -> str:
     if run.planned == 0:
         return f'nothing to plan: {run.in_table} of {run.total} rows are in the table'
     return (f'planned {run.planned} scenarios ({run.failed} failed) in {run.wall_s:.1f} s on '
-            f'{counted(run.workers, "worker")}: {run.rate:.2f} scenarios/s, batches of {run.batch_size}, '
+            f'{counted(run.workers, "worker")}: {run.rate:.2f} scenarios/s, batches of '
+            f'{run.batch_size}, '
             f'workers on a core {100 * run.cpu_share:.0f} % of the time; cluster start '
             f'{run.startup_s:.1f} s; '
             f'{run.in_table} of {run.total} rows in the table')
@@ -333,9 +334,9 @@ def measure_scaling(design: StudyDesign, worker_counts: Sequence[int], repeats: 
                 target = Path(folder) / f'run-{repeat}-{count}.parquet'
                 run = run_study(design, target, workers=count, batch_size=batch_size)
                 runs[count].append(run)
-                print(f'round {repeat + 1}, {counted(count, "worker")}: {run.rate:.2f} scenarios/s '
-                      f'({run.planned} in {run.wall_s:.2f} s, workers on a core '
-                      f'{100 * run.cpu_share:.0f} % of the time, this process '
+                print(f'round {repeat + 1}, {counted(count, "worker")}: '
+                      f'{run.rate:.2f} scenarios/s ({run.planned} in {run.wall_s:.2f} s, '
+                      f'workers on a core {100 * run.cpu_share:.0f} % of the time, this process '
                       f'{100 * run.coordinator_cpu_s / run.wall_s:.0f} % of a core, cluster '
                       f'start {run.startup_s:.1f} s)', file=out, flush=True)
     medians = {k: statistics.median(r.rate for r in v) for k, v in runs.items()}
