@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import fields
 import math
 from pathlib import Path
+import re
 import threading
 
 import numpy as np
@@ -20,6 +21,7 @@ from uav_comm_planner.ros.messages import (ground_nodes_of, headings, marker_arr
 from uav_comm_planner.ros.params import (config_from_parameters, NodeSettings, NOT_PARAMETERS,
                                          PARAMETER_NAMES, parameter_specs)
 from uav_comm_planner.ros.publishing import summary_line
+from uav_comm_planner.vehicle.airframe import airframe_named
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
@@ -41,8 +43,10 @@ def test_every_settings_field_is_a_parameter():
 
 def test_defaults_are_the_letters_case_one_flown_by_a_multirotor():
     config = config_from_parameters({})
+    # ArduPilot's default airframe (the measured SITL quad) states the energy.
     assert config.scenario == paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0,
-                                             num_slots=100)
+                                             num_slots=100,
+                                             airframe=airframe_named('arducopter-sitl-quad'))
     assert config.vehicle == VehicleLimits() and config.node.vehicle_aware
     assert config.settings == SolverSettings()
     assert config.node == NodeSettings()
@@ -65,12 +69,32 @@ def test_descriptors_carry_units_and_ranges():
     assert 'land' in specs['mission_end'].descriptor().additional_constraints
 
 
+#: Left to the firmware when not given, so commented out in the shipped file: a parameters file
+#: makes every value it holds explicit (given at start-up), which would fix them for PX4 too.
+FIRMWARE_DEFAULTED = {'home_latitude_deg', 'home_longitude_deg', 'home_altitude_m',
+                      'vehicle_max_speed_mps', 'vehicle_max_accel_mpss', 'vehicle_max_jerk_mpsss'}
+
+
 def test_shipped_config_lists_every_parameter_with_its_default():
-    shipped = yaml.safe_load(CONFIG.read_text())['uav_comm_planner']['ros__parameters']
+    text = CONFIG.read_text()
+    shipped = yaml.safe_load(text)['uav_comm_planner']['ros__parameters']
     defaults = {spec.name: spec.default for spec in parameter_specs()}
-    assert shipped == defaults
+    assert shipped == {name: value for name, value in defaults.items()
+                       if name not in FIRMWARE_DEFAULTED}
     for spec in parameter_specs():
-        assert type(shipped[spec.name]) is type(spec.default), spec.name
+        if spec.name in FIRMWARE_DEFAULTED:
+            commented = re.search(rf'^    # {spec.name}: (.*)$', text, re.M)
+            assert commented and yaml.safe_load(commented.group(1)) == spec.default, spec.name
+        else:
+            assert type(shipped[spec.name]) is type(spec.default), spec.name
+
+
+def test_the_shipped_config_leaves_px4_its_own_home_and_limits():
+    shipped = yaml.safe_load(CONFIG.read_text())['uav_comm_planner']['ros__parameters']
+    px4 = {**shipped, 'mission_firmware': 'px4', 'max_speed_mps': 5.0, 'horizon_s': 500.0}
+    config = config_from_parameters(px4, explicit=set(px4))
+    assert config.node.home == Home(47.397742, 8.545594, 489.0)
+    assert config.vehicle.max_speed_mps == 5.0 and config.vehicle.max_accel_mpss == 3.0
 
 
 def test_the_default_home_is_the_mission_firmware_s_simulator_home():

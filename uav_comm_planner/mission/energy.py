@@ -48,18 +48,29 @@ def with_energy(scenario: Scenario, airframe: Airframe, *, budget_wh: float | No
     return scenario.replace(energy_budget_wh=min(caps)) if caps else scenario
 
 
-def with_named_airframe(scenario: Scenario, name: str, *, firmware: str,
+def mission_airframe(scenario: Scenario, firmware: str | None) -> Airframe | None:
+    """The airframe a mission for ``firmware`` (None: not a mission) is planned with when none
+    is named: the firmware's default
+    (:func:`~uav_comm_planner.vehicle.airframe.default_airframe`), for a mission it flies (a
+    speed within its top airspeed; a faster vehicle is another airframe, and gets none)."""
+    airframe = None if firmware is None else default_airframe(firmware)
+    if airframe is None or scenario.max_speed_mps > airframe.top_airspeed_mps:
+        return None
+    return airframe
+
+
+def with_named_airframe(scenario: Scenario, name: str, *, firmware: str | None,
                         budget_wh: float | None = None,
                         battery: Battery | None = None) -> Scenario:
-    """:func:`with_energy` for an airframe by ``name`` (a name or a file; empty: the
-    ``firmware``'s default, :func:`~uav_comm_planner.vehicle.airframe.default_airframe`;
-    ``none``: none, and then no budget or battery may be given)."""
+    """:func:`with_energy` for an airframe by ``name`` (a name or a file; empty: the default
+    of a mission for ``firmware``, :func:`mission_airframe`; ``none``: none, and then no
+    budget or battery may be given)."""
     if name == 'none':
         airframe = None
     elif name:
         airframe = airframe_named(name)
     else:
-        airframe = default_airframe(firmware)
+        airframe = mission_airframe(scenario, firmware)
     if airframe is None:
         if budget_wh or battery is not None:
             raise InvalidScenarioError('an energy budget or a battery needs an airframe (its '
@@ -135,4 +146,5 @@ def energy_record(result: PlanResult, battery: Battery | None = None) -> dict:
 
 
 __all__ = ['battery_verdict', 'DEFAULT_BATTERY_WH', 'energy_figures', 'energy_lines',
-           'energy_record', 'EnergyFigures', 'with_energy', 'with_named_airframe']
+           'energy_record', 'EnergyFigures', 'mission_airframe', 'with_energy',
+           'with_named_airframe']

@@ -275,8 +275,9 @@ DESCRIPTIONS = {
                   '(read-only); empty: none',
     'fence_margin_m': 'clearance every plan keeps from the fence\'s edges (m)',
     'airframe': "propulsion model of the vehicle (docs/energy.md): a name (zeng2019, "
-                "arducopter-sitl-quad) or a YAML file; empty: the firmware's default "
-                '(ArduPilot: arducopter-sitl-quad); none: no energy model',
+                "arducopter-sitl-quad) or a YAML file; empty: for a vehicle_aware plan the "
+                "firmware's default (ArduPilot: arducopter-sitl-quad, for speeds it flies); "
+                'none: no energy model',
     'energy_budget_wh': "cap on the horizon's propulsion energy q0 -> qF (Wh); 0: none",
     'battery_wh': 'usable battery energy (Wh): the horizon gets what remains after the '
                   'reserve, takeoff and landing; 0: not stated (the energy is still reported, '
@@ -546,7 +547,8 @@ def config_from_parameters(values: Mapping[str, Any],
             chosen[Scenario]['wind_speed_mps'])
     scenario = with_named_airframe(
         Scenario(**chosen[Scenario], zones=(fences or FenceReader())(node)), node.airframe,
-        firmware=node.mission_firmware, budget_wh=node.energy_budget_wh or None,
+        firmware=node.mission_firmware if node.vehicle_aware else None,
+        budget_wh=node.energy_budget_wh or None,
         battery=node_battery(node))
     settings.check(scenario)
     if node.vehicle_aware:

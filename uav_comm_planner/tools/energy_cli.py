@@ -13,9 +13,9 @@ from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.propulsion import Airframe
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import InvalidScenarioError
-from uav_comm_planner.mission.energy import energy_lines, with_energy
+from uav_comm_planner.mission.energy import energy_lines, mission_airframe, with_energy
 from uav_comm_planner.mission.energy import energy_record as mission_energy_record
-from uav_comm_planner.vehicle.airframe import airframe_named, airframe_names, default_airframe
+from uav_comm_planner.vehicle.airframe import airframe_named, airframe_names
 
 
 def add_energy_arguments(parser: argparse.ArgumentParser) -> None:
@@ -64,7 +64,7 @@ def energy_request(args: argparse.Namespace, scenario: Scenario, *, firmware: st
         raise InvalidScenarioError(f'{asked[0]} needs --airframe (the propulsion model): '
                                    f'one of {", ".join(airframe_names())} or a YAML file')
     else:
-        airframe = None if firmware is None else default_airframe(firmware)
+        airframe = mission_airframe(scenario, firmware)
         if airframe is None:
             return scenario, None
     battery = None if args.battery_wh is None else Battery(args.battery_wh,
