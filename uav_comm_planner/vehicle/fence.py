@@ -234,20 +234,22 @@ def _chord_deviation(start: np.ndarray, end: np.ndarray, pieces: np.ndarray,
                      home: Home) -> np.ndarray:
     """The largest distance (m) of each edge start -> end (latitude, relative longitude), cut
     into ``pieces`` equal pieces in degrees, from its pieces' chords in the planning frame,
-    sampled at 7 points a piece."""
-    worst = np.zeros(len(start))
+    sampled at 7 points a piece (every edge in one conversion)."""
     samples = np.linspace(0.0, 1.0, 9)
-    for index in range(len(start)):
-        t = (np.arange(pieces[index])[:, None] + samples[None, :]) / pieces[index]
-        along = start[index] + t.reshape(-1, 1) * (end[index] - start[index])
-        east, north, _ = geodetic_to_plane(*_absolute(along, home).T, home)
-        points = np.column_stack([east, north]).reshape(pieces[index], len(samples), 2)
-        a, b = points[:, :1], points[:, -1:]
-        chord = b - a
-        length = np.linalg.norm(chord, axis=2)
-        cross = np.abs(chord[..., 0] * (points[..., 1] - a[..., 1])
-                       - chord[..., 1] * (points[..., 0] - a[..., 0]))
-        worst[index] = float(np.max(cross / np.where(length > 0, length, 1.0)))
+    edge = np.repeat(np.arange(len(start)), pieces)                  # each piece's edge
+    piece = np.arange(len(edge)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    t = (piece[:, None] + samples[None, :]) / pieces[edge][:, None]  # (P, 9)
+    along = start[edge][:, None] + t[..., None] * (end[edge] - start[edge])[:, None]
+    east, north, _ = geodetic_to_plane(*_absolute(along.reshape(-1, 2), home).T, home)
+    points = np.column_stack([east, north]).reshape(len(edge), len(samples), 2)
+    a, b = points[:, :1], points[:, -1:]
+    chord = b - a
+    length = np.linalg.norm(chord, axis=2)
+    cross = np.abs(chord[..., 0] * (points[..., 1] - a[..., 1])
+                   - chord[..., 1] * (points[..., 0] - a[..., 0]))
+    offset = (cross / np.where(length > 0, length, 1.0)).max(axis=1)
+    worst = np.zeros(len(start))
+    np.maximum.at(worst, edge, offset)
     return worst
 
 
