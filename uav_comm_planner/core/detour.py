@@ -170,8 +170,8 @@ def tangent_pairs(corners: np.ndarray, back: np.ndarray, ahead: np.ndarray,
                   alone: np.ndarray, rows: slice) -> tuple[np.ndarray, np.ndarray]:
     """The corner pairs (i, j), i in ``rows`` and j > i, whose line is tangent at both corners
     to the polygon of corners round each one's zone: its neighbours there (``back``,
-    ``ahead``: unit directions) lie on one side of the line, or on it (within 1e-9 of its
-    length). A shortest path round the zones bends only where it wraps round a zone, and there
+    ``ahead``: unit directions) lie on one side of the line, or within
+    :data:`TANGENT_SLACK` of it. A shortest path round the zones bends only where it wraps round a zone, and there
     both its segments are tangent (Lee's reduced visibility graph): the other pairs need no
     visibility test. A corner not ``alone`` (another zone near it) is taken as tangent to
     every line."""
