@@ -133,7 +133,8 @@ def test_a_fence_is_written_back_exactly_as_it_was_read(tmp_path, geojson):
             {'type': 'Feature', 'properties': {'fence': 'exclusion', 'radius_m': FAR_DISC[1]},
              'geometry': {'type': 'Point', 'coordinates': FAR_DISC[0][::-1]}}]}))
     else:
-        source = plan_fence_file(tmp_path / 'fence.plan', [(True, FIELD), (False, FAR_BLOCK)],
+        # The inclusion polygon second: the file's order is kept too.
+        source = plan_fence_file(tmp_path / 'fence.plan', [(False, FAR_BLOCK), (True, FIELD)],
                                  [(False, *FAR_DISC)])
     mission = tmp_path / 'mission.plan'
     done = run('plan', '--case', 'I', '--speed', '10', '--horizon', '400', '--slots', '40',
@@ -142,7 +143,8 @@ def test_a_fence_is_written_back_exactly_as_it_was_read(tmp_path, geojson):
     assert done.returncode == 0, done.stderr
     written, read = read_fence(mission), read_fence(source)
     assert written == read
-    assert written.polygons[0].vertices_deg[0] == tuple(FIELD[0])   # all 12 decimals
+    field = [p for p in written.polygons if p.inclusion][0]
+    assert field.vertices_deg[0] == tuple(FIELD[0])   # all 12 decimals
     # And read again, the same zones in the planning frame.
     again = read_zones(mission, ZURICH)
     first = read_zones(source, ZURICH)

@@ -170,3 +170,23 @@ def test_a_tampered_study_table_is_one_line_on_resume(tmp_path, capsys):
     argv[2] = '2'
     err = one_line_refusal(capsys, argv)
     assert "study.csv:2: 'zero' is not an integer; the table was changed by hand" in err
+
+
+def test_a_short_seeded_run_of_the_zone_and_fence_fuzzer_finds_nothing(capsys):
+    import importlib.util
+    import sys
+
+    folder = Path(__file__).resolve().parent / 'fuzz'
+    sys.path.insert(0, str(folder))
+    try:
+        spec = importlib.util.spec_from_file_location('fuzz_zones', folder / 'fuzz_zones.py')
+        fuzzer = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(fuzzer)
+        status = fuzzer.main(['--cases', '80', '--seed', '7'])
+    finally:
+        sys.path.remove(str(folder))
+    out = capsys.readouterr().out
+    assert status == 0, out
+    assert '0 failures' in out
+    accepted = re.search(r'fence +ok +(\d+)', out)
+    assert accepted and int(accepted.group(1)) >= 10, out

@@ -48,6 +48,9 @@ GRAPH_CHUNK = 2000
 #: The check :func:`stoppable` sets (None: nothing to ask).
 _STOP_CHECK: contextvars.ContextVar[Callable[[], None] | None] = contextvars.ContextVar(
     'detour_stop_check', default=None)
+#: A line counts as tangent at a corner when a neighbour on the wrong side is within this
+#: (the sine of the angle) of it.
+TANGENT_SLACK = math.sin(0.01)
 #: An arc of a circumscribed polygon turns at most this much per corner.
 MAX_ARC_STEP_RAD = math.pi / 8
 
@@ -104,25 +107,49 @@ def graph_corners(zones: Zones) -> np.ndarray:
     return _graph_chain(zones)[0]
 
 
-def _graph_chain(zones: Zones) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The graph's corners (K, 2) that keep the margin, and for each the unit directions (K, 2)
-    along the polygon of corners round its zone to its neighbours, back and ahead."""
+def _graph_chain(zones: Zones) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The graph's corners (K, 2) that keep the margin; for each the unit directions (K, 2)
+    along the polygon of corners round its zone to its neighbours, back and ahead; and whether
+    its zone is the only one near it (K,): no other zone comes within
+    :func:`_alone_distance` of it."""
     radius = zones.margin_m + GRAPH_CLEARANCE_M
     chain: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-    for zone in zones.keep_out:
+    owners: list[int] = []
+    for number, zone in enumerate(zones.keep_out):
         if isinstance(zone, KeepOutCircle):
             centre = np.array(zone.center_m)
-            chain += _circle_chain(centre, zone.radius_m + radius)
+            more = _circle_chain(centre, zone.radius_m + radius)
         else:
-            chain += _polygon_chain(zone.vertices_m, radius, outside=True)
+            more = _polygon_chain(zone.vertices_m, radius, outside=True)
+        chain += more
+        owners += [number] * len(more)
     if zones.area is not None:
-        chain += _polygon_chain(zones.area.vertices_m, radius, outside=False)
+        more = _polygon_chain(zones.area.vertices_m, radius, outside=False)
+        chain += more
+        owners += [len(zones.keep_out)] * len(more)
     if not chain:
-        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2))
+        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, dtype=bool)
     corners, back, ahead = (np.array(part) for part in zip(*chain))
     # Each corner as a segment of no length: it keeps the margin (it is never on an edge).
     keep = segments_clear(zones, corners, corners)
-    return corners[keep], back[keep], ahead[keep]
+    corners, back, ahead = corners[keep], back[keep], ahead[keep]
+    owner = np.array(owners)[keep]
+    alone = np.ones(len(corners), dtype=bool)
+    reach = _alone_distance(zones)
+    for number, zone in enumerate((*zones.keep_out, *(() if zones.area is None
+                                                      else (zones.area,)))):
+        others = owner != number
+        if others.any():
+            alone[others] &= zone.clearance(corners[others]) >= reach
+    return corners, back, ahead, alone
+
+
+def _alone_distance(zones: Zones) -> float:
+    """How far (m) the other zones keep from a corner for the tangent rule to prune its
+    pairs: twice the corners' distance from their zone and a metre. Where zones come closer
+    (they overlap, or meet within their margins) the shortest path may bend round the union's
+    corners, which are no zone's own: there every pair of the corner is tested."""
+    return 2.0 * (zones.margin_m + GRAPH_CLEARANCE_M) + 1.0
 
 
 def _circle_chain(centre: np.ndarray,
@@ -140,22 +167,24 @@ def _circle_chain(centre: np.ndarray,
 
 
 def tangent_pairs(corners: np.ndarray, back: np.ndarray, ahead: np.ndarray,
-                  rows: slice) -> tuple[np.ndarray, np.ndarray]:
+                  alone: np.ndarray, rows: slice) -> tuple[np.ndarray, np.ndarray]:
     """The corner pairs (i, j), i in ``rows`` and j > i, whose line is tangent at both corners
     to the polygon of corners round each one's zone: its neighbours there (``back``,
-    ``ahead``: unit directions) lie on one side of the line, or on it (within 1e-9 of its
-    length). A shortest path round the zones bends only where it wraps round a zone, and there
+    ``ahead``: unit directions) lie on one side of the line, or within
+    :data:`TANGENT_SLACK` of it. A shortest path round the zones bends only where it wraps round a zone, and there
     both its segments are tangent (Lee's reduced visibility graph): the other pairs need no
-    visibility test."""
+    visibility test. A corner not ``alone`` (another zone near it) is taken as tangent to
+    every line."""
     first = np.arange(len(corners))[rows]
     direction = corners[None, :] - corners[first, None]            # (R, K, 2)
-    tolerance = 1e-9 * np.hypot(direction[..., 0], direction[..., 1])
+    tolerance = TANGENT_SLACK * np.hypot(direction[..., 0], direction[..., 1])
 
     def tangent(before: np.ndarray, after: np.ndarray) -> np.ndarray:
         one = direction[..., 0] * before[..., 1] - direction[..., 1] * before[..., 0]
         two = direction[..., 0] * after[..., 1] - direction[..., 1] * after[..., 0]
         return (one * two >= 0) | (np.abs(one) <= tolerance) | (np.abs(two) <= tolerance)
-    both = tangent(back[first, None], ahead[first, None]) & tangent(back[None], ahead[None])
+    both = (tangent(back[first, None], ahead[first, None]) | ~alone[first, None]) \
+        & (tangent(back[None], ahead[None]) | ~alone[None])
     both &= np.arange(len(corners))[None, :] > first[:, None]
     i, j = np.nonzero(both)
     return first[i], j
@@ -282,13 +311,13 @@ def _corner_graph(zones: Zones) -> tuple[np.ndarray, np.ndarray]:
     corner pairs tangent at both ends (:func:`tangent_pairs`) are tested and joined, in chunks
     of :data:`GRAPH_CHUNK` pairs, the check of :func:`stoppable` asked between chunks (and
     between the rows of pairs the tangents are found for)."""
-    corners, back, ahead = _graph_chain(zones)
+    corners, back, ahead, alone = _graph_chain(zones)
     count = len(corners)
     candidates = [(np.zeros(0, dtype=int), np.zeros(0, dtype=int))]
     rows_per_chunk = max(1, GRAPH_CHUNK * 50 // max(count, 1))
     for first in range(0, count, rows_per_chunk):
         _ask_stop()
-        candidates.append(tangent_pairs(corners, back, ahead,
+        candidates.append(tangent_pairs(corners, back, ahead, alone,
                                         slice(first, first + rows_per_chunk)))
     i = np.concatenate([pair[0] for pair in candidates])
     j = np.concatenate([pair[1] for pair in candidates])

@@ -20,6 +20,8 @@ from typing import Union
 import numpy as np
 from numpy.typing import ArrayLike
 
+from uav_comm_planner.core.crossings import first_crossing as _first_crossing
+from uav_comm_planner.core.crossings import segment_meets_edges as _segment_meets_edges
 from uav_comm_planner.core.numbers import real_number
 from uav_comm_planner.errors import InvalidScenarioError
 
@@ -76,53 +78,6 @@ def _segments_cross(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) 
         return True
     return (o1 == 0 and on(a, b, c)) or (o2 == 0 and on(a, b, d)) or \
         (o3 == 0 and on(c, d, a)) or (o4 == 0 and on(c, d, b))
-
-
-#: Edge pairs the self-crossing check tests at once (bounds its work arrays' memory).
-CROSSING_CHUNK_PAIRS = 1_000_000
-
-
-def _first_crossing(points: np.ndarray) -> tuple[int, int] | None:
-    """The first pair of edges i < j (edge k from vertex k to k + 1, the last one closing
-    the polygon; in the order i, then j) that are not neighbours and share a point, as
-    :func:`_segments_cross` finds it; None for a simple polygon. Vectorised over the pairs,
-    in blocks of rows."""
-    count = len(points)
-    a, b = points, np.roll(points, -1, axis=0)
-    columns = np.arange(count)
-    rows_per_block = max(1, CROSSING_CHUNK_PAIRS // count)
-
-    def orient(p, q, r):
-        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) \
-            - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
-
-    def on(p, q, r):  # r on segment pq, given collinear
-        return ((np.minimum(p[..., 0], q[..., 0]) <= r[..., 0])
-                & (r[..., 0] <= np.maximum(p[..., 0], q[..., 0]))
-                & (np.minimum(p[..., 1], q[..., 1]) <= r[..., 1])
-                & (r[..., 1] <= np.maximum(p[..., 1], q[..., 1])))
-    for first in range(0, count, rows_per_block):
-        rows = np.arange(first, min(first + rows_per_block, count))
-        i, j = rows[:, None], columns[None, :]
-        valid = (j >= i + 2) & ~((i == 0) & (j == count - 1))   # not neighbours
-        p, q, r, s = a[rows][:, None], b[rows][:, None], a[None], b[None]
-        # Only edge pairs whose bounding boxes meet can share a point.
-        valid &= ((np.minimum(p[..., 0], q[..., 0]) <= np.maximum(r[..., 0], s[..., 0]))
-                  & (np.minimum(r[..., 0], s[..., 0]) <= np.maximum(p[..., 0], q[..., 0]))
-                  & (np.minimum(p[..., 1], q[..., 1]) <= np.maximum(r[..., 1], s[..., 1]))
-                  & (np.minimum(r[..., 1], s[..., 1]) <= np.maximum(p[..., 1], q[..., 1])))
-        if not valid.any():
-            continue
-        ii, jj = np.nonzero(valid)
-        p, q, r, s = a[rows[ii]], b[rows[ii]], a[jj], b[jj]
-        o1, o2, o3, o4 = orient(p, q, r), orient(p, q, s), orient(r, s, p), orient(r, s, q)
-        meet = (((o1 * o2 < 0) & (o3 * o4 < 0)) | ((o1 == 0) & on(p, q, r))
-                | ((o2 == 0) & on(p, q, s)) | ((o3 == 0) & on(r, s, p))
-                | ((o4 == 0) & on(r, s, q)))
-        if meet.any():
-            at = int(np.argmax(meet))        # nonzero lists pairs in row-major order
-            return int(rows[ii[at]]), int(jj[at])
-    return None
 
 
 def _simple_polygon(name: str, vertices: ArrayLike) -> np.ndarray:
@@ -190,9 +145,7 @@ def _segment_polygon_distance(a: np.ndarray, b: np.ndarray, vertices: np.ndarray
     """Signed distance of segment ab to a polygon: the least distance when they are apart,
     minus the depth of the segment's deepest point when any part of it is inside (0 when it
     only touches the boundary)."""
-    count = len(vertices)
-    meets = any(_segments_cross(a, b, vertices[i], vertices[(i + 1) % count])
-                for i in range(count))
+    meets = _segment_meets_edges(a, b, vertices, np.roll(vertices, -1, axis=0))
     if not meets:
         ends = _polygon_signed_distance(np.array([a, b]), vertices)
         if (ends < 0).any():  # wholly inside
@@ -335,9 +288,7 @@ def _segment_polygon_distance_outside(a: np.ndarray, b: np.ndarray,
     """How far the segment ab gets from being wholly inside the polygon: minus its least
     distance to the boundary when it is inside, the depth of its farthest point outside when
     any part of it is outside (0 when it only touches)."""
-    count = len(vertices)
-    meets = any(_segments_cross(a, b, vertices[i], vertices[(i + 1) % count])
-                for i in range(count))
+    meets = _segment_meets_edges(a, b, vertices, np.roll(vertices, -1, axis=0))
     ends = _polygon_signed_distance(np.array([a, b]), vertices)
     if not meets and (ends < 0).all():
         inside = min(float(_point_segment_distance(vertices, a, b).min()), -float(ends.max()))
@@ -460,6 +411,14 @@ def _is_convex(vertices: np.ndarray) -> bool:
 KeepOut = Union[KeepOutCircle, KeepOutPolygon]
 
 
+def _bounding_box(zone: KeepOut) -> np.ndarray:
+    """A keep-out zone's bounding box, [[x low, y low], [x high, y high]] metres."""
+    if isinstance(zone, KeepOutCircle):
+        centre = np.array(zone.center_m)
+        return np.array([centre - zone.radius_m, centre + zone.radius_m])
+    return np.array([zone.vertices_m.min(axis=0), zone.vertices_m.max(axis=0)])
+
+
 @dataclass(frozen=True)
 class Zones:
     """The operating area (None: anywhere) and the keep-out zones, with the clearance
@@ -512,11 +471,31 @@ class Zones:
     def path_clearance(self, path: ArrayLike) -> float:
         """The least clearance along the polyline ``path`` (K, 2), segments included."""
         path = np.atleast_2d(np.asarray(path, dtype=float))
-        zones = (*((self.area,) if self.area is not None else ()), *self.keep_out)
         least = float(np.min(self.clearance(path))) if len(path) else math.inf
-        for a, b in zip(path[:-1], path[1:]):
-            for zone in zones:
-                least = min(least, zone.segment_clearance(a, b))
+        a, b = path[:-1], path[1:]
+        if not len(a):
+            return least
+        if self.area is not None:
+            for start, end in zip(a, b):
+                least = min(least, self.area.segment_clearance(start, end))
+        if not self.keep_out:
+            return least
+        # A segment's clearance from a keep-out zone is at least the gap between their
+        # bounding boxes when those are apart: only the pairs whose gap is below the least
+        # clearance found so far are measured, nearest first (the same least clearance).
+        low_s, high_s = np.minimum(a, b), np.maximum(a, b)
+        boxes = np.array([_bounding_box(zone) for zone in self.keep_out])    # (Z, 2, 2)
+        low_z, high_z = boxes[:, 0], boxes[:, 1]
+        gaps = np.maximum(np.maximum(low_z[None] - high_s[:, None], low_s[:, None] - high_z[None]),
+                          0.0)
+        gap = np.hypot(gaps[..., 0], gaps[..., 1])
+        gap[gap == 0.0] = -math.inf     # boxes that meet: the segment may enter the zone
+        order = np.argsort(gap, axis=None)
+        for flat in order:
+            segment, zone = np.unravel_index(flat, gap.shape)
+            if gap[segment, zone] >= least:
+                break
+            least = min(least, self.keep_out[zone].segment_clearance(a[segment], b[segment]))
         return least
 
     def to_dict(self) -> dict:

@@ -107,7 +107,7 @@ class GeoFence:
             what = f'polygon {index + 1}'
             vertices = _edges_as_drawn(what, polygon.vertices_deg, home)
             kind = OperatingArea if polygon.inclusion else KeepOutPolygon
-            zone = _zone(what, kind, vertices, (home, polygon))
+            zone = _zone(what, kind, vertices, (home, polygon, index))
             if polygon.inclusion:
                 area = zone
             else:
@@ -118,10 +118,11 @@ class GeoFence:
                                 reach_m=circle.radius_m)[0]
             if circle.inclusion:
                 area = _zone(what, OperatingArea,
-                             circle_ring(center, circle.radius_m, CIRCLE_SIDES), (home, circle))
+                             circle_ring(center, circle.radius_m, CIRCLE_SIDES),
+                             (home, circle, index))
             else:
                 keep_out.append(_zone(what, KeepOutCircle, tuple(center), circle.radius_m,
-                                      (home, circle)))
+                                      (home, circle, index)))
         return Zones(area, tuple(keep_out), margin_m)
 
     def plan_section(self) -> dict:
@@ -234,20 +235,22 @@ def _chord_deviation(start: np.ndarray, end: np.ndarray, pieces: np.ndarray,
                      home: Home) -> np.ndarray:
     """The largest distance (m) of each edge start -> end (latitude, relative longitude), cut
     into ``pieces`` equal pieces in degrees, from its pieces' chords in the planning frame,
-    sampled at 7 points a piece."""
-    worst = np.zeros(len(start))
+    sampled at 7 points a piece (every edge in one conversion)."""
     samples = np.linspace(0.0, 1.0, 9)
-    for index in range(len(start)):
-        t = (np.arange(pieces[index])[:, None] + samples[None, :]) / pieces[index]
-        along = start[index] + t.reshape(-1, 1) * (end[index] - start[index])
-        east, north, _ = geodetic_to_plane(*_absolute(along, home).T, home)
-        points = np.column_stack([east, north]).reshape(pieces[index], len(samples), 2)
-        a, b = points[:, :1], points[:, -1:]
-        chord = b - a
-        length = np.linalg.norm(chord, axis=2)
-        cross = np.abs(chord[..., 0] * (points[..., 1] - a[..., 1])
-                       - chord[..., 1] * (points[..., 0] - a[..., 0]))
-        worst[index] = float(np.max(cross / np.where(length > 0, length, 1.0)))
+    edge = np.repeat(np.arange(len(start)), pieces)                  # each piece's edge
+    piece = np.arange(len(edge)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    t = (piece[:, None] + samples[None, :]) / pieces[edge][:, None]  # (P, 9)
+    along = start[edge][:, None] + t[..., None] * (end[edge] - start[edge])[:, None]
+    east, north, _ = geodetic_to_plane(*_absolute(along.reshape(-1, 2), home).T, home)
+    points = np.column_stack([east, north]).reshape(len(edge), len(samples), 2)
+    a, b = points[:, :1], points[:, -1:]
+    chord = b - a
+    length = np.linalg.norm(chord, axis=2)
+    cross = np.abs(chord[..., 0] * (points[..., 1] - a[..., 1])
+                   - chord[..., 1] * (points[..., 0] - a[..., 0]))
+    offset = (cross / np.where(length > 0, length, 1.0)).max(axis=1)
+    worst = np.zeros(len(start))
+    np.maximum.at(worst, edge, offset)
     return worst
 
 
@@ -262,39 +265,44 @@ def _to_degrees(points_m: np.ndarray, home: Home) -> tuple[tuple[float, float], 
                  for a, b in zip(np.atleast_1d(latitude), np.atleast_1d(longitude)))
 
 
-def _read_from(zone, home: Home):
-    """The fence zone ``zone`` was read from at ``home`` (None: made in metres, or read at
-    another home)."""
+def _read_from(zone, home: Home) -> tuple[FencePolygon | FenceCircle, int] | None:
+    """The fence zone ``zone`` was read from at ``home`` and its place among the file's
+    polygons or circles (None: made in metres, or read at another home)."""
     source = getattr(zone, 'source', None)
-    if isinstance(source, tuple) and len(source) == 2 and source[0] == home and isinstance(
+    if isinstance(source, tuple) and len(source) == 3 and source[0] == home and isinstance(
             source[1], (FencePolygon, FenceCircle)):
-        return source[1]
+        return source[1], source[2]
     return None
 
 
 def fence_from_zones(zones: Zones, home: Home) -> GeoFence:
     """The geofence of ``zones`` anchored at ``home``: the operating area an inclusion polygon,
     the keep-out zones exclusion polygons and circles (the margin is the planner's own and
-    stays out of the fence). A zone read from a fence file at ``home`` is written as it was
-    read (the same latitudes and longitudes, an inclusion circle a circle), not converted
-    back from the planning frame."""
-    polygons: list[FencePolygon] = []
-    circles: list[FenceCircle] = []
-    for zone, inclusion in ((zones.area, True), *((z, False) for z in zones.keep_out)):
-        if zone is None:
-            continue
-        read = _read_from(zone, home)
-        if isinstance(read, FencePolygon):
-            polygons.append(read)
-        elif isinstance(read, FenceCircle):
-            circles.append(read)
+    stays out of the fence). Zones read from a fence file at ``home`` are written as they were
+    read (the same latitudes and longitudes, an inclusion circle a circle, in the file's
+    order), not converted back from the planning frame."""
+    polygons: list[tuple[float, FencePolygon]] = []
+    circles: list[tuple[float, FenceCircle]] = []
+    zones_in_order = [(z, False) for z in zones.keep_out]
+    if zones.area is not None:
+        zones_in_order.insert(0, (zones.area, True))
+    read = [_read_from(zone, home) for zone, _ in zones_in_order]
+    every_read = all(found is not None for found in read)
+    for (zone, inclusion), found in zip(zones_in_order, read):
+        # The file's order when every zone came from it; else the zones' own.
+        place = found[1] if every_read else len(polygons) + len(circles)
+        if found is not None and isinstance(found[0], FencePolygon):
+            polygons.append((place, found[0]))
+        elif found is not None:
+            circles.append((place, found[0]))
         elif isinstance(zone, KeepOutCircle):
             center = _to_degrees(np.array([zone.center_m]), home)[0]
-            circles.append(FenceCircle(False, center, zone.radius_m))
+            circles.append((place, FenceCircle(False, center, zone.radius_m)))
         else:
-            polygons.append(FencePolygon(inclusion,
-                                         _to_degrees(np.asarray(zone.vertices_m), home)))
-    return GeoFence(tuple(polygons), tuple(circles))
+            polygons.append((place, FencePolygon(
+                inclusion, _to_degrees(np.asarray(zone.vertices_m), home))))
+    return GeoFence(tuple(p for _, p in sorted(polygons, key=lambda item: item[0])),
+                    tuple(c for _, c in sorted(circles, key=lambda item: item[0])))
 
 
 # Reading.
