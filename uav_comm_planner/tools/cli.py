@@ -24,8 +24,9 @@ from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
 from uav_comm_planner.tools import energy_sweep, fit_airframe
-from uav_comm_planner.tools.energy_cli import (add_energy_arguments, energy_record,
-                                               energy_request, format_energy, planner_for)
+from uav_comm_planner.tools.energy_cli import (add_airframe_argument, add_energy_arguments,
+                                               energy_record, energy_request, format_energy,
+                                               planner_for)
 from uav_comm_planner.tools.plots import check_figure_path, make_folder, METHOD_LABELS
 from uav_comm_planner.tools.serialize import (package_version, result_to_dict, run_record,
                                               scenario_from_dict, scenario_to_dict,
@@ -494,8 +495,7 @@ def build_parser() -> argparse.ArgumentParser:
     energy_parser = commands.add_parser(
         'energy-sweep', help='min throughput against the propulsion energy budget')
     _add_scenario_arguments(energy_parser)
-    energy_parser.add_argument('--airframe', metavar='NAME|FILE.yaml',
-                               help='propulsion model (docs/energy.md)')
+    add_airframe_argument(energy_parser)
     energy_sweep.add_arguments(energy_parser)
     energy_parser.set_defaults(handler=_command_energy_sweep)
 

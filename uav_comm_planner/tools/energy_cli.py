@@ -18,13 +18,18 @@ from uav_comm_planner.mission.energy import energy_record as mission_energy_reco
 from uav_comm_planner.vehicle.airframe import airframe_named, airframe_names
 
 
+def add_airframe_argument(parser) -> None:
+    """``--airframe NAME|FILE.yaml`` on ``parser`` (or an argument group)."""
+    parser.add_argument('--airframe', metavar='NAME|FILE.yaml',
+                        help=f'propulsion model: one of {", ".join(airframe_names())}, or a '
+                             'YAML file (its top airspeed also bounds the airspeed)')
+
+
 def add_energy_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group(
         'energy', "the vehicle's propulsion energy (Zeng 2019's rotary-wing model, "
         'docs/energy.md): stated with --airframe, kept within a budget or a battery')
-    group.add_argument('--airframe', metavar='NAME|FILE.yaml',
-                       help=f'propulsion model: one of {", ".join(airframe_names())}, or a '
-                            'YAML file (its top airspeed also bounds the airspeed)')
+    add_airframe_argument(group)
     group.add_argument('--energy-budget-wh', type=float, metavar='WH',
                        help="cap on the horizon's propulsion energy q0 -> qF, Wh")
     group.add_argument('--battery-wh', type=float, metavar='WH',
@@ -99,5 +104,5 @@ def energy_record(result: PlanResult, request: EnergyRequest | None) -> dict:
     return record
 
 
-__all__ = ['add_energy_arguments', 'energy_record', 'energy_request', 'EnergyRequest',
+__all__ = ['add_airframe_argument', 'add_energy_arguments', 'energy_record', 'energy_request', 'EnergyRequest',
            'format_energy', 'planner_for']
