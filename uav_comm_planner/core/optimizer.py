@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 import functools
 import logging
 import math
+import os
+import threading
 import time
 from typing import Callable, Mapping, Sequence
 
@@ -24,7 +26,8 @@ from uav_comm_planner.core.sca.fast import LOOSE_TOLERANCE
 from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.splits import resplit
-from uav_comm_planner.core.steps import PowerSolver, step_solvers, TrajectorySolver
+from uav_comm_planner.core.steps import (PowerSolver, step_solvers, TRAJECTORY_STEPPERS,
+                                         TrajectorySolver)
 from uav_comm_planner.core.tours import distinct_tours, tour_draws
 from uav_comm_planner.core.zone_rows import zone_model
 from uav_comm_planner.errors import InvalidScenarioError, PlanCancelledError, SolverError
@@ -325,6 +328,8 @@ def _zone_keeper(scenario: Scenario) -> ZoneKeeper | None:
 CONTINUED = 1
 #: SCA steps per power step at the tight tolerance once the loose steps have converged.
 FINAL_SCA_STEPS = 1
+#: How many of the best screened tours get their hover split searched before the shortlist.
+RESPLIT = 3
 
 
 def letter_rules(settings: SolverSettings) -> SolverSettings:
@@ -354,15 +359,54 @@ def _set_tolerance(trajectory_solver: TrajectorySolver, tolerance: float | None)
         setter(tolerance)
 
 
+class _InBackground:
+    """``work()`` run on a thread of its own from the start: :meth:`result` waits for it and
+    returns its answer or raises its error."""
+
+    def __init__(self, work: Callable[[], Run]):
+        self._answer: Run | None = None
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, args=(work,), daemon=True,
+                                        name='letter run')
+        self._thread.start()
+
+    def _run(self, work: Callable[[], Run]) -> None:
+        try:
+            self._answer = work()
+        except BaseException as error:          # handed to the thread that waits for it
+            self._error = error
+
+    def result(self) -> Run:
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._answer
+
+
+def _cores() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:                  # not on every platform
+        return os.cpu_count() or 1
+
+
 def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: SolverSettings,
                    run_from: Callable[..., Run], trajectory_solver: TrajectorySolver,
-                   draws: Mapping[str, tuple] | None = None) -> dict[str, Run]:
+                   draws: Mapping[str, tuple], screened: Callable[[np.ndarray], Run],
+                   value_of: Callable[[np.ndarray], float],
+                   closed_form: float | None = None,
+                   letter_run_from: Callable[..., Run] | None = None) -> dict[str, Run]:
     """Runs from every start, screened: the straight start runs the letter's Algorithm 1
     exactly (:func:`letter_rules`), every other start is screened by one power step on it;
-    the best ``settings.shortlist`` of those get one outer iteration, the best
-    :data:`CONTINUED` of these are continued under ``settings`` to convergence (a tour of
-    ``draws`` also with its split searched, :func:`.splits.resplit`), then the letter's run if
-    still ahead of all.
+    a tour of ``draws`` by ``screened`` (the same power step without the checks a tour
+    needs not: it is flown within the speed limit and out of the zones). The best
+    :data:`RESPLIT` tours by it get their hover split searched (:func:`.splits.resplit`, each
+    split valued by ``value_of``, the efficiency of one power step on its SNR per watt, or
+    in closed form with ``closed_form``, the budget P_T, where that applies), each tour with
+    the split found screened as 'tour k resplit'; the best ``settings.shortlist`` of all get
+    one outer iteration, the best :data:`CONTINUED` of these are continued under ``settings``
+    to convergence, then the letter's run if still ahead of all.
 
     Continuing with ``fast_steps`` alternates one SCA step at :data:`LOOSE_TOLERANCE` per
     power step until a power step gains at most the tolerance, then :data:`FINAL_SCA_STEPS`
@@ -371,50 +415,86 @@ def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: So
     minimum rate, and one that ends below where it began (by round-off, in its first power
     step) is dropped: no run ends below its screening, the straight start below the letter's.
     """
-    loose = LOOSE_TOLERANCE if settings.fast_steps else None
-    sca_steps = 1 if settings.fast_steps else None
-
-    def continued(begun: Run) -> Run:
-        _set_tolerance(trajectory_solver, loose)
-        run = _joined(begun, run_from(begun.q, settings, sca_steps=sca_steps))
-        if settings.fast_steps:
-            _set_tolerance(trajectory_solver, None)
-            run = _joined(run, run_from(run.q, settings, sca_steps=FINAL_SCA_STEPS))
-        return run if run.min_throughput >= begun.min_throughput else begun
-
     runs: dict[str, Run] = {}
     screen = dataclasses.replace(settings, max_outer_iterations=1)
     letter = {name for name, start in starts.items() if start is STARTS['straight']}
-    for name, start in starts.items():
-        q = start.make(scenario)
-        if name in letter:
-            _set_tolerance(trajectory_solver, None)
-            runs[name] = run_from(q, letter_rules(settings))
-        else:
-            runs[name] = run_from(q, screen, sca_steps=0)
-    order = list(runs)
+    background: dict[str, _InBackground] = {}
+    try:
+        for name, start in starts.items():
+            q = start.make(scenario)
+            if name in letter and letter_run_from is not None:
+                background[name] = _InBackground(functools.partial(
+                    letter_run_from, q, letter_rules(settings)))
+            elif name in letter:
+                _set_tolerance(trajectory_solver, None)
+                runs[name] = run_from(q, letter_rules(settings))
+            elif name in draws:     # a tour, flown within the speed limit and out of the zones
+                runs[name] = screened(q)
+            else:
+                runs[name] = run_from(q, screen, sca_steps=0)
+        done = _search(scenario, runs, letter, settings, run_from, trajectory_solver, draws,
+                       value_of, closed_form)
+    except BaseException:
+        for work in background.values():    # ended too, by the same should_stop, or done
+            try:
+                work.result()
+            except BaseException:
+                pass
+        raise
+    for name, work in background.items():
+        runs[name] = work.result()
+    runs = {**{name: runs[name] for name in starts}, **runs}    # in the order of the starts
+    for name in letter:
+        if all(runs[name].min_throughput > runs[other].min_throughput for other in done):
+            runs[name] = _continued(runs[name], settings, run_from, trajectory_solver)
+    _set_tolerance(trajectory_solver, None)
+    return runs
+
+
+def _search(scenario: Scenario, runs: dict[str, Run], letter: set[str],
+            settings: SolverSettings, run_from: Callable[..., Run],
+            trajectory_solver: TrajectorySolver, draws: Mapping[str, tuple],
+            value_of: Callable[[np.ndarray], float], closed_form: float | None) -> list[str]:
+    """:func:`_screened_runs`' search beside the letter's run, on ``runs`` (every other start
+    screened), in place: the splits searched, the shortlist and the best continued, whose
+    names it returns."""
+    screen = dataclasses.replace(settings, max_outer_iterations=1)
+    loose = LOOSE_TOLERANCE if settings.fast_steps else None
+    sca_steps = 1 if settings.fast_steps else None
+    position: dict[str, int] = {}
 
     def ranked(names) -> list[str]:
-        return sorted(names, key=lambda name: (-runs[name].min_throughput, order.index(name)))
+        for name in runs:
+            position.setdefault(name, len(position))
+        return sorted(names, key=lambda name: (-runs[name].min_throughput, position[name]))
 
+    tours = [name for name in ranked(runs) if name in draws]
+    for name in tours[:RESPLIT]:        # the best screened tours, their splits searched
+        q = resplit(scenario, draws[name], value_of, power_budget_w=closed_form)
+        if q is not None:
+            runs[f'{name} resplit'] = run_from(q, screen, sca_steps=0)
     shortlist = ranked(name for name in runs if name not in letter)[:settings.shortlist]
     _set_tolerance(trajectory_solver, loose)
     for name in shortlist:
         runs[name] = _joined(runs[name], run_from(runs[name].q, screen, sca_steps=sca_steps))
     done = ranked(shortlist)[:CONTINUED]
-    for name in list(done):
-        runs[name] = continued(runs[name])
-        if name in (draws or {}):   # a screened tour: its split searched by water-filling
-            q = resplit(scenario, draws[name], lambda q: run_from(
-                q, screen, sca_steps=0, power_solver=waterfilling_power))
-            if q is not None:
-                done.append(f'{name} resplit')
-                runs[done[-1]] = continued(run_from(q, screen, sca_steps=0))
-    for name in letter:
-        if all(runs[name].min_throughput > runs[other].min_throughput for other in done):
-            runs[name] = continued(runs[name])
+    for name in done:
+        runs[name] = _continued(runs[name], settings, run_from, trajectory_solver)
+    return done
+
+
+def _continued(begun: Run, settings: SolverSettings, run_from: Callable[..., Run],
+               trajectory_solver: TrajectorySolver) -> Run:
+    """``begun`` continued to convergence (:func:`_screened_runs`), or ``begun`` itself if
+    that ends below it."""
+    sca_steps = 1 if settings.fast_steps else None
+    _set_tolerance(trajectory_solver, LOOSE_TOLERANCE if settings.fast_steps else None)
+    run = _joined(begun, run_from(begun.q, settings, sca_steps=sca_steps))
+    if settings.fast_steps:
+        _set_tolerance(trajectory_solver, None)
+        run = _joined(run, run_from(run.q, settings, sca_steps=FINAL_SCA_STEPS))
     _set_tolerance(trajectory_solver, None)
-    return runs
+    return run if run.min_throughput >= begun.min_throughput else begun
 
 
 def throughput_upper_bound(scenario: Scenario) -> float:
@@ -516,15 +596,32 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
         draws = tour_draws(scenario, settings.screened_tours)
         tours = {name: q for name, q in distinct_tours(scenario, draws).items() if name not in
                  starts and (keeper is None or keeper.keeps(q))}    # none crossing a zone
-        tours = {name: q for name, q in tours.items() if admitted(q)}
-        starts = {name: start for name, start in starts.items()
-                  if admitted(start.make(scenario))}
+        if blocks:
+            tours = {name: q for name, q in tours.items() if admitted(q)}
+            starts = {name: start for name, start in starts.items()
+                      if admitted(start.make(scenario))}
         if not starts and not tours:
             raise InvalidScenarioError('no start keeps the extra blocks: give a start that does '
                                        '(extra_starts) or loosen them')
         starts.update({name: Start.given(name, q) for name, q in tours.items()})
+        extra = _offset_keywords(offsets)
+
+        def value_of(a: np.ndarray) -> float:     # one power step on a: its efficiency
+            check_stop()
+            return waterfilling_power(a, scenario.power_budget_w, **extra).efficiency
+
+        def screened(q: np.ndarray) -> Run:      # what alternate() gives with one power step
+            check_stop()
+            allocation = power_solver(snr_per_watt(q, scenario), scenario.power_budget_w,
+                                      **extra)
+            value = float(spectral_efficiency_to_rate(allocation.efficiency, scenario))
+            return Run(q, allocation.p, (Step('power', value),), 1, 0, False)
         runs = _screened_runs(scenario, starts, settings, run_from, trajectory_solver,
-                              {name: draws[name] for name in tours})
+                              {name: draws[name] for name in tours}, screened, value_of,
+                              closed_form=scenario.power_budget_w if offsets is None else None,
+                              letter_run_from=_letter_beside(scenario, settings, power_method,
+                                                             trajectory_method, blocks,
+                                                             should_stop, offsets))
     else:
         starts = {name: start for name, start in starts.items()
                   if admitted(start.make(scenario))}
@@ -549,6 +646,25 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
         solve_time_s=time.perf_counter() - began, start=best,
         upper_bound=(throughput_upper_bound(scenario) if offsets is None else math.inf),
         start_throughputs=values, offsets=offsets)
+
+
+def _letter_beside(scenario: Scenario, settings: SolverSettings, power_method: str,
+                   trajectory_method: str, blocks: tuple[BlockFactory, ...],
+                   should_stop: StopCheck | None,
+                   offsets: np.ndarray | None) -> Callable[..., Run] | None:
+    """Runs of Algorithm 1 on steps of their own, for the letter's run to go on beside the
+    search on another core: on the fast path (a stepper per plan, its Clarabel solver its
+    own while it solves) with more than one core; None otherwise (the reference path's cvxpy
+    problems are built on one thread). Neither run reads the other's, so the plan is the
+    same either way."""
+    if trajectory_method not in TRAJECTORY_STEPPERS or _cores() < 2:
+        return None
+    power_solver, trajectory_solver = step_solvers(scenario, power_method, trajectory_method,
+                                                   keep_path_length=settings.keep_path_length,
+                                                   blocks=blocks)
+    return functools.partial(alternate, scenario, power_solver=power_solver,
+                             trajectory_solver=trajectory_solver, should_stop=should_stop,
+                             offsets=offsets)
 
 
 def _admitted_by(scenario: Scenario,
