@@ -113,7 +113,7 @@ def resplit(scenario: Scenario, draw: tuple, value_of: Callable[[np.ndarray], fl
         inverse_base, inverse_stops = float((1.0 / a_base).sum()), (1.0 / a_stops).sum(axis=0)
         # No split's least a_n[m] is below this, so the closed form is only taken where it
         # holds (a stop is the last point of the leg to it, to round-off).
-        least = np.minimum(a_base.min(axis=1), a_stops.min(axis=1))
+        least = np.minimum(a_base.min(axis=1, initial=np.inf), a_stops.min(axis=1))
 
         def value_of_split(split: np.ndarray) -> float:
             bits = _all_active(log_base + log_stops @ split,
