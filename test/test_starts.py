@@ -11,7 +11,8 @@ from uav_comm_planner.core.initial import (even_hovers, fly_legs, hover_and_fly,
                                            nearest_neighbour_order, spare_legs, straight_line,
                                            tour_legs, tour_order, TourFlier, two_opt)
 from uav_comm_planner.core.model import average_rates, leg_lengths, snr_per_watt
-from uav_comm_planner.core.optimizer import RESPLIT, throughput_upper_bound
+from uav_comm_planner.core.optimizer import throughput_upper_bound
+from uav_comm_planner.core.search import RESPLIT
 from uav_comm_planner.core.power import conic_power
 from uav_comm_planner.core.tours import random_tours
 
@@ -315,13 +316,13 @@ def test_a_tour_flown_with_any_split_is_its_legs_then_its_hovers(seed):
 def test_the_letters_run_beside_the_search_gives_the_same_plan(monkeypatch):
     # On another core the letter's run goes on beside the search, on steps of its own; the
     # plan must be the one the same search gives on one core, to the last bit.
-    from uav_comm_planner.core import optimizer
+    from uav_comm_planner.core import search
 
     scenario = random_scenario(31, nodes=7, slots=80)
     settings = SolverSettings(compute_baselines=False)
-    monkeypatch.setattr(optimizer, '_cores', lambda: 2)
+    monkeypatch.setattr(search, 'cores', lambda: 2)
     beside = plan(scenario, settings)
-    monkeypatch.setattr(optimizer, '_cores', lambda: 1)
+    monkeypatch.setattr(search, 'cores', lambda: 1)
     alone = plan(scenario, settings)
     assert beside.start == alone.start
     assert beside.start_throughputs == alone.start_throughputs
@@ -335,9 +336,9 @@ def test_a_cancelled_plan_leaves_no_letter_run_behind(monkeypatch):
     import threading
 
     from uav_comm_planner import PlanCancelledError
-    from uav_comm_planner.core import optimizer
+    from uav_comm_planner.core import search
 
-    monkeypatch.setattr(optimizer, '_cores', lambda: 2)
+    monkeypatch.setattr(search, 'cores', lambda: 2)
     scenario = random_scenario(32, nodes=6, slots=80)
     asked = []
 

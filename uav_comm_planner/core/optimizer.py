@@ -2,19 +2,16 @@
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 import functools
 import logging
 import math
-import os
-import threading
 import time
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from uav_comm_planner.core import detour
+from uav_comm_planner.core import detour, search
 from uav_comm_planner.core.bound import dual_upper_bound
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt,
@@ -22,10 +19,9 @@ from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per
                                          spectral_efficiency_to_rate)
 from uav_comm_planner.core.power import checked_offsets, waterfilling_power
 from uav_comm_planner.core.sca.block import BlockFactory, Frame
-from uav_comm_planner.core.sca.fast import LOOSE_TOLERANCE
 from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
-from uav_comm_planner.core.splits import resplit
+from uav_comm_planner.core.search import Run, Step
 from uav_comm_planner.core.steps import (PowerSolver, step_solvers, TRAJECTORY_STEPPERS,
                                          TrajectorySolver)
 from uav_comm_planner.core.tours import distinct_tours, tour_draws
@@ -60,32 +56,6 @@ STARTS: dict[str, Start] = {
     'straight': Start('straight', detour.straight_start),
     'hover': Start('hover', detour.hover_start),
 }
-
-
-@dataclass(frozen=True)
-class Step:
-    """One entry of the objective history: which step ran and the true min rate after it."""
-
-    kind: str            # 'power' or 'trajectory'
-    min_throughput: float
-
-
-@dataclass(frozen=True)
-class Run:
-    """One run of Algorithm 1 from one start: the trajectory q (M, 2) metres and power p
-    (N, M) watts it ends with, the objective after every step, and how it ended."""
-
-    q: np.ndarray
-    p: np.ndarray
-    history: tuple[Step, ...]
-    outer_iterations: int
-    trajectory_steps: int
-    converged: bool
-
-    @property
-    def min_throughput(self) -> float:
-        """The true min rate of (q, p), bit/s: the value after the last step."""
-        return self.history[-1].min_throughput
 
 
 @dataclass(frozen=True)
@@ -324,14 +294,6 @@ def _zone_keeper(scenario: Scenario) -> ZoneKeeper | None:
     return ZoneKeeper(scenario)
 
 
-#: How many screened starts are continued to convergence: the best after one outer iteration.
-CONTINUED = 1
-#: SCA steps per power step at the tight tolerance once the loose steps have converged.
-FINAL_SCA_STEPS = 1
-#: How many of the best screened tours get their hover split searched before the shortlist.
-RESPLIT = 3
-
-
 def letter_rules(settings: SolverSettings) -> SolverSettings:
     """The letter's Algorithm 1 (:meth:`SolverSettings.letter`) within the iteration limits of
     ``settings``: the rules of the straight start's first run."""
@@ -340,161 +302,6 @@ def letter_rules(settings: SolverSettings) -> SolverSettings:
                                  max_nodes=settings.max_nodes,
                                  max_node_slots=settings.max_node_slots,
                                  compute_baselines=False)
-
-
-def _joined(first: Run, *later: Run) -> Run:
-    """A run continued by ``later`` runs, each started where the one before it ended."""
-    runs = (first, *later)
-    return Run(runs[-1].q, runs[-1].p, tuple(step for run in runs for step in run.history),
-               sum(run.outer_iterations for run in runs),
-               sum(run.trajectory_steps for run in runs), runs[-1].converged)
-
-
-def _set_tolerance(trajectory_solver: TrajectorySolver, tolerance: float | None) -> None:
-    """Loosen (or, with None, restore) the interior-point tolerance of a solver that offers it
-    (:class:`~uav_comm_planner.core.sca.fast.ClarabelTrajectoryStep`); the cvxpy
-    reference always solves at its own."""
-    setter = getattr(trajectory_solver, 'set_tolerance', None)
-    if setter is not None:
-        setter(tolerance)
-
-
-class _InBackground:
-    """``work()`` run on a thread of its own from the start: :meth:`result` waits for it and
-    returns its answer or raises its error."""
-
-    def __init__(self, work: Callable[[], Run]):
-        self._answer: Run | None = None
-        self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, args=(work,), daemon=True,
-                                        name='letter run')
-        self._thread.start()
-
-    def _run(self, work: Callable[[], Run]) -> None:
-        try:
-            self._answer = work()
-        except BaseException as error:          # handed to the thread that waits for it
-            self._error = error
-
-    def result(self) -> Run:
-        self._thread.join()
-        if self._error is not None:
-            raise self._error
-        return self._answer
-
-
-def _cores() -> int:
-    """The CPUs this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:                  # not on every platform
-        return os.cpu_count() or 1
-
-
-def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: SolverSettings,
-                   run_from: Callable[..., Run], trajectory_solver: TrajectorySolver,
-                   draws: Mapping[str, tuple], screened: Callable[[np.ndarray], Run],
-                   value_of: Callable[[np.ndarray], float],
-                   closed_form: float | None = None,
-                   letter_run_from: Callable[..., Run] | None = None) -> dict[str, Run]:
-    """Runs from every start, screened: the straight start runs the letter's Algorithm 1
-    exactly (:func:`letter_rules`), every other start is screened by one power step on it;
-    a tour of ``draws`` by ``screened`` (the same power step without the checks a tour
-    needs not: it is flown within the speed limit and out of the zones). The best
-    :data:`RESPLIT` tours by it get their hover split searched (:func:`.splits.resplit`, each
-    split valued by ``value_of``, the efficiency of one power step on its SNR per watt, or
-    in closed form with ``closed_form``, the budget P_T, where that applies), each tour with
-    the split found screened as 'tour k resplit'; the best ``settings.shortlist`` of all get
-    one outer iteration, the best :data:`CONTINUED` of these are continued under ``settings``
-    to convergence, then the letter's run if still ahead of all.
-
-    Continuing with ``fast_steps`` alternates one SCA step at :data:`LOOSE_TOLERANCE` per
-    power step until a power step gains at most the tolerance, then :data:`FINAL_SCA_STEPS`
-    SCA steps per power step at the tight tolerance until the same rule stops it, so the last
-    steps are tight. Every continuation keeps a step only when it does not lower the true
-    minimum rate, and one that ends below where it began (by round-off, in its first power
-    step) is dropped: no run ends below its screening, the straight start below the letter's.
-    """
-    runs: dict[str, Run] = {}
-    screen = dataclasses.replace(settings, max_outer_iterations=1)
-    letter = {name for name, start in starts.items() if start is STARTS['straight']}
-    background: dict[str, _InBackground] = {}
-    try:
-        for name, start in starts.items():
-            q = start.make(scenario)
-            if name in letter and letter_run_from is not None:
-                background[name] = _InBackground(functools.partial(
-                    letter_run_from, q, letter_rules(settings)))
-            elif name in letter:
-                _set_tolerance(trajectory_solver, None)
-                runs[name] = run_from(q, letter_rules(settings))
-            elif name in draws:     # a tour, flown within the speed limit and out of the zones
-                runs[name] = screened(q)
-            else:
-                runs[name] = run_from(q, screen, sca_steps=0)
-        done = _search(scenario, runs, letter, settings, run_from, trajectory_solver, draws,
-                       value_of, closed_form)
-    except BaseException:
-        for work in background.values():    # ended too, by the same should_stop, or done
-            try:
-                work.result()
-            except BaseException:
-                pass
-        raise
-    for name, work in background.items():
-        runs[name] = work.result()
-    runs = {**{name: runs[name] for name in starts}, **runs}    # in the order of the starts
-    for name in letter:
-        if all(runs[name].min_throughput > runs[other].min_throughput for other in done):
-            runs[name] = _continued(runs[name], settings, run_from, trajectory_solver)
-    _set_tolerance(trajectory_solver, None)
-    return runs
-
-
-def _search(scenario: Scenario, runs: dict[str, Run], letter: set[str],
-            settings: SolverSettings, run_from: Callable[..., Run],
-            trajectory_solver: TrajectorySolver, draws: Mapping[str, tuple],
-            value_of: Callable[[np.ndarray], float], closed_form: float | None) -> list[str]:
-    """:func:`_screened_runs`' search beside the letter's run, on ``runs`` (every other start
-    screened), in place: the splits searched, the shortlist and the best continued, whose
-    names it returns."""
-    screen = dataclasses.replace(settings, max_outer_iterations=1)
-    loose = LOOSE_TOLERANCE if settings.fast_steps else None
-    sca_steps = 1 if settings.fast_steps else None
-    position: dict[str, int] = {}
-
-    def ranked(names) -> list[str]:
-        for name in runs:
-            position.setdefault(name, len(position))
-        return sorted(names, key=lambda name: (-runs[name].min_throughput, position[name]))
-
-    tours = [name for name in ranked(runs) if name in draws]
-    for name in tours[:RESPLIT]:        # the best screened tours, their splits searched
-        q = resplit(scenario, draws[name], value_of, power_budget_w=closed_form)
-        if q is not None:
-            runs[f'{name} resplit'] = run_from(q, screen, sca_steps=0)
-    shortlist = ranked(name for name in runs if name not in letter)[:settings.shortlist]
-    _set_tolerance(trajectory_solver, loose)
-    for name in shortlist:
-        runs[name] = _joined(runs[name], run_from(runs[name].q, screen, sca_steps=sca_steps))
-    done = ranked(shortlist)[:CONTINUED]
-    for name in done:
-        runs[name] = _continued(runs[name], settings, run_from, trajectory_solver)
-    return done
-
-
-def _continued(begun: Run, settings: SolverSettings, run_from: Callable[..., Run],
-               trajectory_solver: TrajectorySolver) -> Run:
-    """``begun`` continued to convergence (:func:`_screened_runs`), or ``begun`` itself if
-    that ends below it."""
-    sca_steps = 1 if settings.fast_steps else None
-    _set_tolerance(trajectory_solver, LOOSE_TOLERANCE if settings.fast_steps else None)
-    run = _joined(begun, run_from(begun.q, settings, sca_steps=sca_steps))
-    if settings.fast_steps:
-        _set_tolerance(trajectory_solver, None)
-        run = _joined(run, run_from(run.q, settings, sca_steps=FINAL_SCA_STEPS))
-    _set_tolerance(trajectory_solver, None)
-    return run if run.min_throughput >= begun.min_throughput else begun
 
 
 def throughput_upper_bound(scenario: Scenario) -> float:
@@ -531,7 +338,7 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     :func:`~uav_comm_planner.core.initial.hover_and_fly`) and ``settings.screened_tours``
     random tours, and returns the best as a :class:`PlanResult`; ties go to the earlier start.
     With screened tours or ``fast_steps`` (the default) the starts are screened and the best
-    continued (:func:`_screened_runs`), the straight start being the letter's own run;
+    continued (:func:`.search.screened_runs`), the straight start being the letter's own run;
     otherwise each start is run to convergence. The default methods are the exact
     water-filling power step and the SCA step on a Clarabel solver updated in place (kept
     across plans of one size);
@@ -616,12 +423,14 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
                                       **extra)
             value = float(spectral_efficiency_to_rate(allocation.efficiency, scenario))
             return Run(q, allocation.p, (Step('power', value),), 1, 0, False)
-        runs = _screened_runs(scenario, starts, settings, run_from, trajectory_solver,
-                              {name: draws[name] for name in tours}, screened, value_of,
-                              closed_form=scenario.power_budget_w if offsets is None else None,
-                              letter_run_from=_letter_beside(scenario, settings, power_method,
-                                                             trajectory_method, blocks,
-                                                             should_stop, offsets))
+        runs = search.screened_runs(
+            scenario, {name: start.make for name, start in starts.items()},
+            {name for name, start in starts.items() if start is STARTS['straight']},
+            letter_rules(settings), settings, run_from, trajectory_solver,
+            {name: draws[name] for name in tours}, screened, value_of,
+            closed_form=scenario.power_budget_w if offsets is None else None,
+            letter_run_from=_letter_beside(scenario, settings, power_method, trajectory_method,
+                                           blocks, should_stop, offsets))
     else:
         starts = {name: start for name, start in starts.items()
                   if admitted(start.make(scenario))}
@@ -657,7 +466,7 @@ def _letter_beside(scenario: Scenario, settings: SolverSettings, power_method: s
     own while it solves) with more than one core; None otherwise (the reference path's cvxpy
     problems are built on one thread). Neither run reads the other's, so the plan is the
     same either way."""
-    if trajectory_method not in TRAJECTORY_STEPPERS or _cores() < 2:
+    if trajectory_method not in TRAJECTORY_STEPPERS or search.cores() < 2:
         return None
     power_solver, trajectory_solver = step_solvers(scenario, power_method, trajectory_method,
                                                    keep_path_length=settings.keep_path_length,
