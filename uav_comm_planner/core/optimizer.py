@@ -22,8 +22,7 @@ from uav_comm_planner.core.sca.block import BlockFactory, Frame
 from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.search import Run, Step
-from uav_comm_planner.core.steps import (PowerSolver, step_solvers, TRAJECTORY_STEPPERS,
-                                         TrajectorySolver)
+from uav_comm_planner.core.steps import PowerSolver, step_solvers, TrajectorySolver
 from uav_comm_planner.core.tours import distinct_tours, tour_draws
 from uav_comm_planner.core.zone_rows import zone_model
 from uav_comm_planner.errors import InvalidScenarioError, PlanCancelledError, SolverError
@@ -428,9 +427,7 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
             {name for name, start in starts.items() if start is STARTS['straight']},
             letter_rules(settings), settings, run_from, trajectory_solver,
             {name: draws[name] for name in tours}, screened, value_of,
-            closed_form=scenario.power_budget_w if offsets is None else None,
-            letter_run_from=_letter_beside(scenario, settings, power_method, trajectory_method,
-                                           blocks, should_stop, offsets))
+            closed_form=scenario.power_budget_w if offsets is None else None)
     else:
         starts = {name: start for name, start in starts.items()
                   if admitted(start.make(scenario))}
@@ -455,25 +452,6 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
         solve_time_s=time.perf_counter() - began, start=best,
         upper_bound=(throughput_upper_bound(scenario) if offsets is None else math.inf),
         start_throughputs=values, offsets=offsets)
-
-
-def _letter_beside(scenario: Scenario, settings: SolverSettings, power_method: str,
-                   trajectory_method: str, blocks: tuple[BlockFactory, ...],
-                   should_stop: StopCheck | None,
-                   offsets: np.ndarray | None) -> Callable[..., Run] | None:
-    """Runs of Algorithm 1 on steps of their own, for the letter's run to go on beside the
-    search on another core: on the fast path (a stepper per plan, its Clarabel solver its
-    own while it solves) with more than one core; None otherwise (the reference path's cvxpy
-    problems are built on one thread). Neither run reads the other's, so the plan is the
-    same either way."""
-    if trajectory_method not in TRAJECTORY_STEPPERS or search.cores() < 2:
-        return None
-    power_solver, trajectory_solver = step_solvers(scenario, power_method, trajectory_method,
-                                                   keep_path_length=settings.keep_path_length,
-                                                   blocks=blocks)
-    return functools.partial(alternate, scenario, power_solver=power_solver,
-                             trajectory_solver=trajectory_solver, should_stop=should_stop,
-                             offsets=offsets)
 
 
 def _admitted_by(scenario: Scenario,

@@ -7,9 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-import functools
-import os
-import threading
 from typing import Callable, Mapping
 
 import numpy as np
@@ -71,49 +68,15 @@ def set_tolerance(trajectory_solver: TrajectorySolver, tolerance: float | None) 
         setter(tolerance)
 
 
-class InBackground:
-    """``work()`` run on a thread of its own from the start: :meth:`result` waits for it and
-    returns its answer or raises its error."""
-
-    def __init__(self, work: Callable[[], Run]):
-        self._answer: Run | None = None
-        self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, args=(work,), daemon=True,
-                                        name='letter run')
-        self._thread.start()
-
-    def _run(self, work: Callable[[], Run]) -> None:
-        try:
-            self._answer = work()
-        except BaseException as error:          # handed to the thread that waits for it
-            self._error = error
-
-    def result(self) -> Run:
-        self._thread.join()
-        if self._error is not None:
-            raise self._error
-        return self._answer
-
-
-def cores() -> int:
-    """The CPUs this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:                  # not on every platform
-        return os.cpu_count() or 1
-
-
 def screened_runs(scenario: Scenario, starts: Mapping[str, Callable[[Scenario], np.ndarray]],
                   letter: set[str], letter_settings: SolverSettings, settings: SolverSettings,
                   run_from: Callable[..., Run], trajectory_solver: TrajectorySolver,
                   draws: Mapping[str, tuple], screened: Callable[[np.ndarray], Run],
                   value_of: Callable[[np.ndarray], float],
-                  closed_form: float | None = None,
-                  letter_run_from: Callable[..., Run] | None = None) -> dict[str, Run]:
+                  closed_form: float | None = None) -> dict[str, Run]:
     """Runs from every start (by name, the function that makes its trajectory), screened: the
-    ``letter`` start runs the letter's Algorithm 1 exactly (``letter_settings``; on a thread
-    of its own with ``letter_run_from``, :class:`InBackground`), every other start is
-    screened by one power step on it;
+    ``letter`` start runs the letter's Algorithm 1 exactly (``letter_settings``), every other
+    start is screened by one power step on it;
     a tour of ``draws`` by ``screened`` (the same power step without the checks a tour
     needs not: it is flown within the speed limit and out of the zones). The best
     :data:`RESPLIT` tours by it get their hover split searched (:func:`.splits.resplit`, each
@@ -132,32 +95,17 @@ def screened_runs(scenario: Scenario, starts: Mapping[str, Callable[[Scenario], 
     """
     runs: dict[str, Run] = {}
     screen = dataclasses.replace(settings, max_outer_iterations=1)
-    background: dict[str, InBackground] = {}
-    try:
-        for name, make in starts.items():
-            q = make(scenario)
-            if name in letter and letter_run_from is not None:
-                background[name] = InBackground(functools.partial(
-                    letter_run_from, q, letter_settings))
-            elif name in letter:
-                set_tolerance(trajectory_solver, None)
-                runs[name] = run_from(q, letter_settings)
-            elif name in draws:     # a tour, flown within the speed limit and out of the zones
-                runs[name] = screened(q)
-            else:
-                runs[name] = run_from(q, screen, sca_steps=0)
-        done = search(scenario, runs, letter, settings, run_from, trajectory_solver, draws,
-                       value_of, closed_form)
-    except BaseException:
-        for work in background.values():    # ended too, by the same should_stop, or done
-            try:
-                work.result()
-            except BaseException:
-                pass
-        raise
-    for name, work in background.items():
-        runs[name] = work.result()
-    runs = {**{name: runs[name] for name in starts}, **runs}    # in the order of the starts
+    for name, make in starts.items():
+        q = make(scenario)
+        if name in letter:
+            set_tolerance(trajectory_solver, None)
+            runs[name] = run_from(q, letter_settings)
+        elif name in draws:     # a tour, flown within the speed limit and out of the zones
+            runs[name] = screened(q)
+        else:
+            runs[name] = run_from(q, screen, sca_steps=0)
+    done = search(scenario, runs, letter, settings, run_from, trajectory_solver, draws, value_of,
+                  closed_form)
     for name in letter:
         if all(runs[name].min_throughput > runs[other].min_throughput for other in done):
             runs[name] = continued(runs[name], settings, run_from, trajectory_solver)
@@ -169,7 +117,7 @@ def search(scenario: Scenario, runs: dict[str, Run], letter: set[str],
             settings: SolverSettings, run_from: Callable[..., Run],
             trajectory_solver: TrajectorySolver, draws: Mapping[str, tuple],
             value_of: Callable[[np.ndarray], float], closed_form: float | None) -> list[str]:
-    """:func:`screened_runs`' search beside the letter's run, on ``runs`` (every other start
+    """:func:`screened_runs`' search after the letter's run, on ``runs`` (every start
     screened), in place: the splits searched, the shortlist and the best continued, whose
     names it returns."""
     screen = dataclasses.replace(settings, max_outer_iterations=1)
@@ -211,5 +159,5 @@ def continued(begun: Run, settings: SolverSettings, run_from: Callable[..., Run]
     return run if run.min_throughput >= begun.min_throughput else begun
 
 
-__all__ = ['CONTINUED', 'FINAL_SCA_STEPS', 'InBackground', 'RESPLIT', 'Run', 'Step', 'continued',
-           'cores', 'joined', 'screened_runs', 'search', 'set_tolerance']
+__all__ = ['CONTINUED', 'FINAL_SCA_STEPS', 'RESPLIT', 'Run', 'Step', 'continued', 'joined',
+           'screened_runs', 'search', 'set_tolerance']
