@@ -376,6 +376,35 @@ def default_size_cases(quick: bool) -> list[SizeCase]:
             SizeCase('N=20, M=500', random_scenario(20, 500, 20, side_m=2000.0), 1)]
 
 
+def side_by_side(cases: Sequence[SizeCase]) -> str:
+    """The letter's method (both steps by cvxpy + Clarabel, rebuilt every step, from the
+    straight line: the reference path at the letter's settings), the letter mode (the same
+    Algorithm 1 on the fast path, ``SolverSettings.letter()``) and the default plan, timed in
+    alternation in one process ('runs' rounds, after one untimed plan of each); medians, each
+    mode's speed-up over the letter's method, and the default's min throughput against the
+    letter's."""
+    letter = SolverSettings.letter(compute_baselines=False)
+    modes = (("letter's method", letter, REFERENCE), ('letter mode', letter, FAST),
+             ('default', SolverSettings(compute_baselines=False), FAST))
+    lines = ["case            runs  letter's_method_s  letter_mode_s  speed-up  default_s  "
+             'speed-up  default_vs_letter']
+    for case in cases:
+        times: dict[str, list[float]] = {name: [] for name, _, _ in modes}
+        values = {}
+        for round_ in range(case.repeats + 1):
+            for name, settings, methods in modes:
+                seconds, result = timed_plan(case.scenario, settings, methods)
+                values[name] = result.min_throughput
+                if round_:      # the first round builds the solvers and the cone structure
+                    times[name].append(seconds)
+        median = {name: statistics.median(seconds) for name, seconds in times.items()}
+        method, mode, default = (median[name] for name, _, _ in modes)
+        lines.append(f'{case.label:<15} {case.repeats:>4} {method:>18.4f} {mode:>14.4f} '
+                     f'{method / mode:>8.1f}x {default:>10.4f} {method / default:>8.1f}x '
+                     f'{values["default"] / values[modes[0][0]] - 1:>+17.3%}')
+    return '\n'.join(lines)
+
+
 DESCRIPTION = ("time the reference and fast paths; compare the default plan with the letter's "
                'Algorithm 1')
 
@@ -426,6 +455,10 @@ def run(quick: bool = False, out: TextIO | None = None, *, flights: bool = True,
             "'runs' reference plans, each followed by 3 pairs of fast plans (kept solvers, and "
             'no cached solver or cone structure)', format_default_speed(
                 [measure_default_speed(case) for case in default_size_cases(quick)]))
+    section("Side by side: the letter's method (cvxpy + Clarabel rebuilt every step, straight "
+            "start), the letter mode and the default plan, median of 'runs' alternating rounds; "
+            "target: the default at least 20x the letter's method",
+            side_by_side(default_size_cases(quick)))
     section('Replans in flight: the node\'s replan of the rest of an N = 20, M = 500 mission '
             '(ArduCopter limits, mission items built), warm (the plan in force continued) and '
             'with the full search, median of 2 alternating pairs; target under 150 ms',

@@ -75,7 +75,8 @@ def test_a_resplit_tour_keeps_the_path_and_the_speed_limit_and_serves_better():
     gained = 0
     for draw in draws.values():
         before = fly_draw(scenario, draw)
-        after = resplit(scenario, draw, lambda q: _power_only(scenario, q))
+        after = resplit(scenario, draw, lambda a: waterfilling_power(
+            a, scenario.power_budget_w).efficiency)
         if after is None:
             continue
         gained += 1
@@ -112,3 +113,47 @@ def test_the_default_plan_takes_a_resplit_tour_where_it_serves_better():
     assert default.min_throughput > default.start_throughputs[tour] * 1.005
     assert default.min_throughput == max(default.start_throughputs.values())
     assert default.power.sum(axis=0).max() <= scenario.power_budget_w
+
+
+@pytest.mark.parametrize('low_snr', [False, True])
+def test_the_closed_form_values_a_split_as_the_power_step_does(low_snr):
+    # The letter's radio (every slot active: the closed form from the hover counts applies)
+    # and low SNR (mostly not: the power step itself). Either way the split found, and so the
+    # tour, is the one the water-filling power step alone finds, and the closed form is taken
+    # only where it agrees with it.
+    radio = dict(bandwidth_hz=1e6, reference_gain=1e-6) if low_snr else {}
+    scenario = random_scenario(5, nodes=6, slots=120, **radio)
+    budget = scenario.power_budget_w
+    asked = []
+
+    def power_step(a):
+        asked.append(a.shape)
+        return waterfilling_power(a, budget).efficiency
+
+    for draw in tour_draws(scenario, 6).values():
+        exact = resplit(scenario, draw, power_step)
+        calls = len(asked)
+        closed = resplit(scenario, draw, power_step, power_budget_w=budget)
+        if exact is None:
+            assert closed is None
+        else:
+            np.testing.assert_array_equal(closed, exact)
+        if not low_snr:
+            assert len(asked) == calls       # every split valued in closed form
+
+
+def test_the_closed_form_is_the_water_filling_optimum_where_every_slot_is_active():
+    from uav_comm_planner.core.splits import _all_active
+
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        a = rng.uniform(1e3, 1e5, size=(4, 30))
+        budget = float(rng.uniform(0.1, 10.0))
+        bits = _all_active(np.log2(a).sum(axis=1), float((1.0 / a).sum()), a.min(axis=1), 30,
+                           budget)
+        exact = waterfilling_power(a, budget)
+        if bits is None:
+            assert (exact.p <= 0.0).any()
+        else:
+            assert (exact.p > 0.0).all()
+            assert bits == pytest.approx(exact.efficiency, rel=1e-12)

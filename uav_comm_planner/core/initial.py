@@ -46,27 +46,31 @@ def two_opt(start: np.ndarray, goal: np.ndarray, w: np.ndarray,
     (i, j+1); moves are made while one shortens the path by more than round-off.
     """
     order = list(order)
+    n = len(order)
+    if n < 2:
+        return order
     # Distances between the points start (0), w (1..N) and goal (N + 1), computed once.
     points = np.vstack([start, w, goal])
     distance = np.linalg.norm(points[:, None, :] - points[None, :, :], axis=-1)
-    improved = True
-    while improved:
-        improved = False
+    # Every move at once: entry (i - 1, j - 1) is the stretch i..j, i < j (the others masked).
+    # The move made is the loop's over i = 1..N: the first i whose best j (the first of equal
+    # gains) shortens the path by more than round-off, that j.
+    movable = np.triu(np.ones((n, n), dtype=bool), k=1)
+    rows = np.arange(n)
+    while True:
         path = np.array([0, *(k + 1 for k in order), len(w) + 1])
-        for i in range(1, len(order) + 1):
-            j = np.arange(i + 1, len(order) + 1)
-            if j.size == 0:
-                continue
-            old = distance[path[i], path[i - 1]] + distance[path[j + 1], path[j]]
-            new = distance[path[j], path[i - 1]] + distance[path[j + 1], path[i]]
-            gain = old - new
-            best = int(np.argmax(gain))
-            if gain[best] > 1e-9 * (1.0 + old[best]):
-                k = int(j[best])
-                order[i - 1:k] = order[i - 1:k][::-1]
-                improved = True
-                break
-    return order
+        d = distance[np.ix_(path, path)]
+        edge = np.diagonal(d, offset=-1)                   # edge[k]: path[k] to path[k + 1]
+        old = edge[:n, None] + edge[None, 1:]              # (i - 1, i) and (j, j + 1)
+        new = d[1:n + 1, :n].T + d[2:, 1:n + 1].T          # (i - 1, j) and (i, j + 1)
+        gain = np.where(movable, old - new, -np.inf)
+        best = np.argmax(gain, axis=1)
+        shortens = gain[rows, best] > 1e-9 * (1.0 + old[rows, best])
+        if not shortens.any():
+            return order
+        row = int(np.argmax(shortens))
+        last = int(best[row]) + 1
+        order[row:last] = order[row:last][::-1]
 
 
 def tour_order(scenario: Scenario) -> list[int]:
@@ -81,6 +85,8 @@ def _legs_needed(points: np.ndarray, scenario: Scenario) -> np.ndarray:
     (V, or less against the wind: :meth:`Scenario.fastest_ground_speed_mps`)."""
     steps = np.diff(points, axis=0)
     lengths = np.linalg.norm(steps, axis=1)
+    if not scenario.airspeed_limited:       # V along every stretch
+        return np.ceil(lengths / (scenario.max_speed_mps * scenario.slot_s)).astype(int)
     fastest = np.array([scenario.fastest_ground_speed_mps(step / length) if length > 0 else 1.0
                         for step, length in zip(steps, lengths)])
     return np.ceil(lengths / (fastest * scenario.slot_s)).astype(int)
@@ -181,8 +187,14 @@ class TourFlier:
         self.hover_at = np.cumsum(legs + 1) - 1
         self.counts[self.hover_at[-1]] = 0           # no hover after the last stretch
 
-    def __call__(self, hovers: np.ndarray) -> np.ndarray:
-        """q (M, 2) metres with ``hovers`` (integers, one per visited node) hover slots."""
+    def slot_rows(self, hovers: np.ndarray) -> np.ndarray:
+        """For ``hovers`` (integers, one per visited node) hover slots: the row of
+        :attr:`rows` (every leg point of the tour, then its stops) each slot of q flies to,
+        (M,) integers."""
         counts = self.counts.copy()
         counts[self.hover_at[:-1]] = hovers
-        return self.rows[np.repeat(self.picked, counts)][:-1]
+        return np.repeat(self.picked, counts)[:-1]
+
+    def __call__(self, hovers: np.ndarray) -> np.ndarray:
+        """q (M, 2) metres with ``hovers`` (integers, one per visited node) hover slots."""
+        return self.rows[self.slot_rows(hovers)]

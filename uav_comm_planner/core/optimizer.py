@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 import functools
 import logging
@@ -12,7 +11,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from uav_comm_planner.core import detour
+from uav_comm_planner.core import detour, search
 from uav_comm_planner.core.bound import dual_upper_bound
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt,
@@ -20,11 +19,10 @@ from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per
                                          spectral_efficiency_to_rate)
 from uav_comm_planner.core.power import checked_offsets, waterfilling_power
 from uav_comm_planner.core.sca.block import BlockFactory
-from uav_comm_planner.core.sca.fast import LOOSE_TOLERANCE
 from uav_comm_planner.core.sca.program import no_start_error, start_filter
 from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
-from uav_comm_planner.core.splits import resplit
+from uav_comm_planner.core.search import Run, Step
 from uav_comm_planner.core.steps import PowerSolver, step_solvers, TrajectorySolver
 from uav_comm_planner.core.tours import distinct_tours, tour_draws
 from uav_comm_planner.core.zone_rows import zone_model
@@ -58,32 +56,6 @@ STARTS: dict[str, Start] = {
     'straight': Start('straight', detour.straight_start),
     'hover': Start('hover', detour.hover_start),
 }
-
-
-@dataclass(frozen=True)
-class Step:
-    """One entry of the objective history: which step ran and the true min rate after it."""
-
-    kind: str            # 'power' or 'trajectory'
-    min_throughput: float
-
-
-@dataclass(frozen=True)
-class Run:
-    """One run of Algorithm 1 from one start: the trajectory q (M, 2) metres and power p
-    (N, M) watts it ends with, the objective after every step, and how it ended."""
-
-    q: np.ndarray
-    p: np.ndarray
-    history: tuple[Step, ...]
-    outer_iterations: int
-    trajectory_steps: int
-    converged: bool
-
-    @property
-    def min_throughput(self) -> float:
-        """The true min rate of (q, p), bit/s: the value after the last step."""
-        return self.history[-1].min_throughput
 
 
 @dataclass(frozen=True)
@@ -322,12 +294,6 @@ def _zone_keeper(scenario: Scenario) -> ZoneKeeper | None:
     return ZoneKeeper(scenario)
 
 
-#: How many screened starts are continued to convergence: the best after one outer iteration.
-CONTINUED = 1
-#: SCA steps per power step at the tight tolerance once the loose steps have converged.
-FINAL_SCA_STEPS = 1
-
-
 def letter_rules(settings: SolverSettings) -> SolverSettings:
     """The letter's Algorithm 1 (:meth:`SolverSettings.letter`) within the iteration limits of
     ``settings``: the rules of the straight start's first run."""
@@ -336,86 +302,6 @@ def letter_rules(settings: SolverSettings) -> SolverSettings:
                                  max_nodes=settings.max_nodes,
                                  max_node_slots=settings.max_node_slots,
                                  compute_baselines=False)
-
-
-def _joined(first: Run, *later: Run) -> Run:
-    """A run continued by ``later`` runs, each started where the one before it ended."""
-    runs = (first, *later)
-    return Run(runs[-1].q, runs[-1].p, tuple(step for run in runs for step in run.history),
-               sum(run.outer_iterations for run in runs),
-               sum(run.trajectory_steps for run in runs), runs[-1].converged)
-
-
-def _set_tolerance(trajectory_solver: TrajectorySolver, tolerance: float | None) -> None:
-    """Loosen (or, with None, restore) the interior-point tolerance of a solver that offers it
-    (:class:`~uav_comm_planner.core.sca.fast.ClarabelTrajectoryStep`); the cvxpy
-    reference always solves at its own."""
-    setter = getattr(trajectory_solver, 'set_tolerance', None)
-    if setter is not None:
-        setter(tolerance)
-
-
-def _screened_runs(scenario: Scenario, starts: Mapping[str, Start], settings: SolverSettings,
-                   run_from: Callable[..., Run], trajectory_solver: TrajectorySolver,
-                   draws: Mapping[str, tuple] | None = None) -> dict[str, Run]:
-    """Runs from every start, screened: the straight start runs the letter's Algorithm 1
-    exactly (:func:`letter_rules`), every other start is screened by one power step on it;
-    the best ``settings.shortlist`` of those get one outer iteration, the best
-    :data:`CONTINUED` of these are continued under ``settings`` to convergence (a tour of
-    ``draws`` also with its split searched, :func:`.splits.resplit`), then the letter's run if
-    still ahead of all.
-
-    Continuing with ``fast_steps`` alternates one SCA step at :data:`LOOSE_TOLERANCE` per
-    power step until a power step gains at most the tolerance, then :data:`FINAL_SCA_STEPS`
-    SCA steps per power step at the tight tolerance until the same rule stops it, so the last
-    steps are tight. Every continuation keeps a step only when it does not lower the true
-    minimum rate, and one that ends below where it began (by round-off, in its first power
-    step) is dropped: no run ends below its screening, the straight start below the letter's.
-    """
-    loose = LOOSE_TOLERANCE if settings.fast_steps else None
-    sca_steps = 1 if settings.fast_steps else None
-
-    def continued(begun: Run) -> Run:
-        _set_tolerance(trajectory_solver, loose)
-        run = _joined(begun, run_from(begun.q, settings, sca_steps=sca_steps))
-        if settings.fast_steps:
-            _set_tolerance(trajectory_solver, None)
-            run = _joined(run, run_from(run.q, settings, sca_steps=FINAL_SCA_STEPS))
-        return run if run.min_throughput >= begun.min_throughput else begun
-
-    runs: dict[str, Run] = {}
-    screen = dataclasses.replace(settings, max_outer_iterations=1)
-    letter = {name for name, start in starts.items() if start is STARTS['straight']}
-    for name, start in starts.items():
-        q = start.make(scenario)
-        if name in letter:
-            _set_tolerance(trajectory_solver, None)
-            runs[name] = run_from(q, letter_rules(settings))
-        else:
-            runs[name] = run_from(q, screen, sca_steps=0)
-    order = list(runs)
-
-    def ranked(names) -> list[str]:
-        return sorted(names, key=lambda name: (-runs[name].min_throughput, order.index(name)))
-
-    shortlist = ranked(name for name in runs if name not in letter)[:settings.shortlist]
-    _set_tolerance(trajectory_solver, loose)
-    for name in shortlist:
-        runs[name] = _joined(runs[name], run_from(runs[name].q, screen, sca_steps=sca_steps))
-    done = ranked(shortlist)[:CONTINUED]
-    for name in list(done):
-        runs[name] = continued(runs[name])
-        if name in (draws or {}):   # a screened tour: its split searched by water-filling
-            q = resplit(scenario, draws[name], lambda q: run_from(
-                q, screen, sca_steps=0, power_solver=waterfilling_power))
-            if q is not None:
-                done.append(f'{name} resplit')
-                runs[done[-1]] = continued(run_from(q, screen, sca_steps=0))
-    for name in letter:
-        if all(runs[name].min_throughput > runs[other].min_throughput for other in done):
-            runs[name] = continued(runs[name])
-    _set_tolerance(trajectory_solver, None)
-    return runs
 
 
 def throughput_upper_bound(scenario: Scenario) -> float:
@@ -452,7 +338,7 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
     :func:`~uav_comm_planner.core.initial.hover_and_fly`) and ``settings.screened_tours``
     random tours, and returns the best as a :class:`PlanResult`; ties go to the earlier start.
     With screened tours or ``fast_steps`` (the default) the starts are screened and the best
-    continued (:func:`_screened_runs`), the straight start being the letter's own run;
+    continued (:func:`.search.screened_runs`), the straight start being the letter's own run;
     otherwise each start is run to convergence. The default methods are the exact
     water-filling power step and the SCA step on a Clarabel solver updated in place (kept
     across plans of one size);
@@ -517,14 +403,31 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
         draws = tour_draws(scenario, settings.screened_tours)
         tours = {name: q for name, q in distinct_tours(scenario, draws).items() if name not in
                  starts and (keeper is None or keeper.keeps(q))}    # none crossing a zone
-        tours = {name: q for name, q in tours.items() if admitted(q)}
-        starts = {name: start for name, start in starts.items()
-                  if admitted(start.make(scenario))}
+        if blocks or scenario.energy_budget_wh is not None:
+            tours = {name: q for name, q in tours.items() if admitted(q)}
+            starts = {name: start for name, start in starts.items()
+                      if admitted(start.make(scenario))}
         if not starts and not tours:
             raise no_start_error(scenario, STARTS['straight'].make(scenario))
         starts.update({name: Start.given(name, q) for name, q in tours.items()})
-        runs = _screened_runs(scenario, starts, settings, run_from, trajectory_solver,
-                              {name: draws[name] for name in tours})
+        extra = _offset_keywords(offsets)
+
+        def value_of(a: np.ndarray) -> float:     # one power step on a: its efficiency
+            check_stop()
+            return waterfilling_power(a, scenario.power_budget_w, **extra).efficiency
+
+        def screened(q: np.ndarray) -> Run:      # what alternate() gives with one power step
+            check_stop()
+            allocation = power_solver(snr_per_watt(q, scenario), scenario.power_budget_w,
+                                      **extra)
+            value = float(spectral_efficiency_to_rate(allocation.efficiency, scenario))
+            return Run(q, allocation.p, (Step('power', value),), 1, 0, False)
+        runs = search.screened_runs(
+            scenario, {name: start.make for name, start in starts.items()},
+            {name for name, start in starts.items() if start is STARTS['straight']},
+            letter_rules(settings), settings, run_from, trajectory_solver,
+            {name: draws[name] for name in tours}, screened, value_of,
+            closed_form=scenario.power_budget_w if offsets is None else None)
     else:
         starts = {name: start for name, start in starts.items()
                   if admitted(start.make(scenario))}

@@ -421,7 +421,7 @@ class SolverSettings:
     screened_tours: int = 80
     fast_steps: bool = True
     keep_path_length: bool = False
-    shortlist: int = 8
+    shortlist: int = 2
 
     @classmethod
     def letter(cls, **changes: object) -> 'SolverSettings':

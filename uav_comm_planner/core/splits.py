@@ -19,12 +19,14 @@ the benchmark's low-SNR drops, for many more values (4827 instead of 604 for N =
 
 from __future__ import annotations
 
-from typing import Any, Callable
+import math
+from typing import Callable
 
 import numpy as np
 
+from uav_comm_planner.core.initial import TourFlier
+from uav_comm_planner.core.model import snr_per_watt
 from uav_comm_planner.core.scenario import Scenario
-from uav_comm_planner.core.tours import fly_draw
 
 #: A split must gain more than this share of the value of the split it replaces.
 MIN_GAIN = 1e-9
@@ -57,18 +59,70 @@ def searched_split(hovers: np.ndarray,
     return best, value
 
 
-def resplit(scenario: Scenario, draw: tuple, screen: Callable[[np.ndarray], Any]
-            ) -> np.ndarray | None:
+def _all_active(log_sum: np.ndarray, inverse_sum: float, least: np.ndarray, slots: int,
+                power_budget_w: float) -> float | None:
+    """The closed form of the all-active power step from its sums (node n's
+    sum_m log2 a_n[m] (N,), sum_{n,m} 1/a_n[m], node n's min_m a_n[m] (N,), M): the max-min
+    efficiency, bits per use, or None when not every slot would be active (or P_T is below a
+    thousandth of sum 1/a, where the closed form loses digits).
+
+    With every slot active node n's efficiency is log2 mu_n + mean_m log2 a_n[m], equal for
+    all n, and the budget gives mu_n = (P_T + sum 1/a) / (M sum_k G_min / G_k) G_min / G_n
+    (G_n the geometric mean of a_n, :func:`~uav_comm_planner.core.power.waterfilling_power`);
+    the slots are all active when mu_n min_m a_n[m] >= 1."""
+    if power_budget_w < 1e-3 * inverse_sum:
+        return None
+    mean_log = log_sum / slots
+    lowest = float(mean_log.min())
+    inverse_g = np.exp2(lowest - mean_log)
+    level = (power_budget_w + inverse_sum) / (slots * float(inverse_g.sum()))
+    if float((level * inverse_g * least).min()) < 1.0:
+        return None
+    return math.log2(level) + lowest
+
+
+def resplit(scenario: Scenario, draw: tuple, value_of: Callable[[np.ndarray], float], *,
+            power_budget_w: float | None = None) -> np.ndarray | None:
     """The tour of ``draw`` (:func:`~uav_comm_planner.core.tours.tour_draws`) flown with its
-    split searched (:func:`searched_split`), each split valued by the min throughput of
-    ``screen`` (one power step) on its tour: q (M, 2) metres, or None when no split gains."""
+    split searched (:func:`searched_split`): q (M, 2) metres, or None when no split gains (or
+    the tour visits no node).
+
+    Each split is valued by ``value_of``, the max-min efficiency of one power step (bits per
+    use) on the SNR per watt a (N, M) of its tour; the SNR per watt of every point the tour
+    can fly to is worked out once, and each split picks its slots' columns. With
+    ``power_budget_w`` (the letter's problem, water-filling: no offsets) a split is valued in
+    closed form whenever every slot is active (the usual case at high SNR): a split's slots
+    are those of no hover plus h_k more at stop k, so the sums the closed form needs are
+    those of no hover plus h_k times stop k's, a few operations per node, where ``value_of``
+    takes a few per slot; it agrees with the power step to round-off.
+    """
     tour, hovers = draw
+    if not tour[0]:
+        return None
+    flier = TourFlier(tour)
+    a_rows = snr_per_watt(flier.rows, scenario)
 
-    def value_of(split: np.ndarray) -> float:
-        return screen(fly_draw(scenario, (tour, split))).min_throughput
+    def value_of_a(split: np.ndarray) -> float:
+        return value_of(a_rows[:, flier.slot_rows(split)])
 
-    split, _ = searched_split(hovers, value_of)
-    return None if np.array_equal(split, hovers) else fly_draw(scenario, (tour, split))
+    value_of_split = value_of_a
+    if power_budget_w is not None:
+        a_base = a_rows[:, flier.slot_rows(np.zeros_like(hovers))]
+        a_stops = a_rows[:, flier.picked[flier.hover_at[:-1]]]        # (N, stops)
+        log_base, log_stops = np.log2(a_base).sum(axis=1), np.log2(a_stops)
+        inverse_base, inverse_stops = float((1.0 / a_base).sum()), (1.0 / a_stops).sum(axis=0)
+        # No split's least a_n[m] is below this, so the closed form is only taken where it
+        # holds (a stop is the last point of the leg to it, to round-off).
+        least = np.minimum(a_base.min(axis=1, initial=np.inf), a_stops.min(axis=1))
+
+        def value_of_split(split: np.ndarray) -> float:
+            bits = _all_active(log_base + log_stops @ split,
+                               inverse_base + float(inverse_stops @ split), least,
+                               scenario.num_slots, power_budget_w)
+            return value_of_a(split) if bits is None else bits
+
+    split, _ = searched_split(hovers, value_of_split)
+    return None if np.array_equal(split, hovers) else flier(split)
 
 
 __all__ = ['MIN_GAIN', 'resplit', 'searched_split']
