@@ -37,9 +37,9 @@ def test_make_bench_runs_the_benchmark_from_devtools_not_the_installed_command(c
     """``make bench`` runs ``python -m devtools.bench`` from the checkout (devtools/ is not
     installed), and the installed command has no ``bench`` any more."""
     checkout = Path(__file__).resolve().parents[1]
-    done = subprocess.run(['make', '--dry-run', '--always-make', 'bench', 'SITL=',
-                           f'VENV={sys.prefix}'], cwd=checkout, capture_output=True, text=True,
-                          timeout=60)
+    done = subprocess.run(['make', '--no-print-directory', '--dry-run', '--always-make', 'bench',
+                           'SITL=', f'VENV={sys.prefix}'], cwd=checkout, capture_output=True,
+                          text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert f'{sys.prefix}/bin/python -m devtools.bench' in done.stdout.splitlines()[-1]
     helped = subprocess.run([sys.executable, '-m', 'devtools.bench', '--help'], cwd=checkout,

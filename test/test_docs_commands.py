@@ -68,8 +68,11 @@ NOT_RUN = (
     ('uav-comm-planner montecarlo --out study.parquet$', 'resumes the table a study wrote '
                                                          'before (without one it runs a '
                                                          'default study: a long run)'),
-    ('uav-comm-planner bench$', 'a long run (the full benchmark flies on SITL for tens of '
-                               'minutes); its --quick form runs'),
+    ('make bench', 'the benchmark (minutes even --quick, tens of minutes in full with its SITL '
+                   'flights); test_bench runs its sections on small sizes'),
+    ('uav-comm-planner fit-airframe flight.tlog', "fits the user's own flight log; "
+                                                  'test_airframe runs the command on a '
+                                                  'recorded SITL log'),
 )
 
 

@@ -623,7 +623,8 @@ def test_changelog_has_the_ros_layout():
 
 def _make_install_commands(venv: Path, *, always: bool = False) -> str:
     """What ``make install`` would run for ``venv`` (make's dry run: nothing is installed)."""
-    command = ['make', '--dry-run', 'install', f'VENV={venv}'] + (['--always-make'] * always)
+    command = (['make', '--no-print-directory', '--dry-run', 'install', f'VENV={venv}']
+               + ['--always-make'] * always)
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     return done.stdout
