@@ -690,8 +690,8 @@ def test_the_lock_file_pins_every_requirement_within_setup_pys_ranges():
 def test_make_run_says_it_installs_before_the_long_install():
     """`make run` on a fresh clone installs for minutes before the node starts: its first line
     says so (make -n: the commands, none run; -W setup.py: as if a source changed)."""
-    done = subprocess.run(['make', '-n', '-W', 'setup.py', 'run'], cwd=ROOT, text=True,
-                          capture_output=True, timeout=60)
+    done = subprocess.run(['make', '--no-print-directory', '-n', '-W', 'setup.py', 'run'],
+                          cwd=ROOT, text=True, capture_output=True, timeout=60)
     assert done.returncode == 0, done.stderr
     first = done.stdout.splitlines()[0]
     assert first.startswith('echo ') and 'Installing' in first and 'minutes' in first
