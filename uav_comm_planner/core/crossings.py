@@ -21,15 +21,6 @@ def first_crossing(points: np.ndarray) -> tuple[int, int] | None:
     columns = np.arange(count)
     rows_per_block = max(1, CROSSING_CHUNK_PAIRS // count)
 
-    def orient(p, q, r):
-        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) \
-            - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
-
-    def on(p, q, r):  # r on segment pq, given collinear
-        return ((np.minimum(p[..., 0], q[..., 0]) <= r[..., 0])
-                & (r[..., 0] <= np.maximum(p[..., 0], q[..., 0]))
-                & (np.minimum(p[..., 1], q[..., 1]) <= r[..., 1])
-                & (r[..., 1] <= np.maximum(p[..., 1], q[..., 1])))
     for first in range(0, count, rows_per_block):
         rows = np.arange(first, min(first + rows_per_block, count))
         i, j = rows[:, None], columns[None, :]
@@ -44,10 +35,7 @@ def first_crossing(points: np.ndarray) -> tuple[int, int] | None:
             continue
         ii, jj = np.nonzero(valid)
         p, q, r, s = a[rows[ii]], b[rows[ii]], a[jj], b[jj]
-        o1, o2, o3, o4 = orient(p, q, r), orient(p, q, s), orient(r, s, p), orient(r, s, q)
-        meet = (((o1 * o2 < 0) & (o3 * o4 < 0)) | ((o1 == 0) & on(p, q, r))
-                | ((o2 == 0) & on(p, q, s)) | ((o3 == 0) & on(r, s, p))
-                | ((o4 == 0) & on(r, s, q)))
+        meet = _segments_meet(p, q, r, s)
         if meet.any():
             at = int(np.argmax(meet))        # nonzero lists pairs in row-major order
             return int(rows[ii[at]]), int(jj[at])
@@ -57,19 +45,29 @@ def first_crossing(points: np.ndarray) -> tuple[int, int] | None:
 def segment_meets_edges(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> bool:
     """Whether the closed segment ab shares a point with any of the closed segments cd ((E, 2)
     each): ``zones._segments_cross`` for every edge at once."""
-    def orient(p, q, r):
-        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) \
-            - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+    return bool(_segments_meet(a, b, c, d).any())
 
-    def on(p, q, r):  # r on segment pq, given collinear
-        return ((np.minimum(p[..., 0], q[..., 0]) <= r[..., 0])
-                & (r[..., 0] <= np.maximum(p[..., 0], q[..., 0]))
-                & (np.minimum(p[..., 1], q[..., 1]) <= r[..., 1])
-                & (r[..., 1] <= np.maximum(p[..., 1], q[..., 1])))
-    o1, o2, o3, o4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
-    meet = (((o1 * o2 < 0) & (o3 * o4 < 0)) | ((o1 == 0) & on(a, b, c))
-            | ((o2 == 0) & on(a, b, d)) | ((o3 == 0) & on(c, d, a)) | ((o4 == 0) & on(c, d, b)))
-    return bool(meet.any())
+
+def _orient(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The sign of the turn p -> q -> r (twice the signed area), elementwise over (..., 2)."""
+    return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) \
+        - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+
+
+def _on(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """r within the box of segment pq (on it, given the three are collinear)."""
+    return ((np.minimum(p[..., 0], q[..., 0]) <= r[..., 0])
+            & (r[..., 0] <= np.maximum(p[..., 0], q[..., 0]))
+            & (np.minimum(p[..., 1], q[..., 1]) <= r[..., 1])
+            & (r[..., 1] <= np.maximum(p[..., 1], q[..., 1])))
+
+
+def _segments_meet(p: np.ndarray, q: np.ndarray, r: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Whether the closed segments pq and rs share a point, elementwise (broadcast)."""
+    o1, o2, o3, o4 = _orient(p, q, r), _orient(p, q, s), _orient(r, s, p), _orient(r, s, q)
+    return (((o1 * o2 < 0) & (o3 * o4 < 0)) | ((o1 == 0) & _on(p, q, r))
+            | ((o2 == 0) & _on(p, q, s)) | ((o3 == 0) & _on(r, s, p))
+            | ((o4 == 0) & _on(r, s, q)))
 
 
 __all__ = ['CROSSING_CHUNK_PAIRS', 'first_crossing', 'segment_meets_edges']
