@@ -17,7 +17,7 @@ import numpy as np
 
 from devtools.sitl import fly_plan, SitlFlight
 from uav_comm_planner.core.scenario import paper_scenario, Scenario
-from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+from uav_comm_planner.mission.policy import plan_for_vehicle
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 

@@ -46,7 +46,7 @@ def random_scenario(seed: int, nodes: int = 6, slots: int = 60, *, side_m: float
 def two_node_stream_reference():
     """The stream reference of a short vehicle plan (two nodes, 700 m, 30 slots of 4 s at
     10 m/s, ArduCopter's limits): what the stream tests send targets from."""
-    from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+    from uav_comm_planner.mission.policy import plan_for_vehicle
     from uav_comm_planner.vehicle.limits import VehicleLimits
     from uav_comm_planner.vehicle.stream import stream_reference
 

@@ -19,7 +19,7 @@ from devtools.sitl import fly_plan, why_not_runnable
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.mission.energy import energy_figures
 from uav_comm_planner.vehicle.airframe import default_airframe
-from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+from uav_comm_planner.mission.policy import plan_for_vehicle
 from uav_comm_planner.vehicle.geodesy import Home
 
 pytestmark = [pytest.mark.sitl,

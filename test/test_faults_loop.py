@@ -147,7 +147,7 @@ def test_the_node_streams_a_px4_plan_at_10_mps_and_says_the_acceleration_it_asks
     from uav_comm_planner import paper_scenario
     from uav_comm_planner.mission.request import vehicle_limits
     from uav_comm_planner.ros.vehicle import _reference_for
-    from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+    from uav_comm_planner.mission.policy import plan_for_vehicle
 
     scenario = paper_scenario('I', ground_nodes_m=((-150.0, 150.0), (150.0, 350.0)),
                               start_m=(0.0, 10.0), goal_m=(0.0, 400.0), horizon_s=120.0,

@@ -25,7 +25,7 @@ from devtools.sitl import fly_plan, why_not_runnable
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.core.zones import KeepOutPolygon, OperatingArea, Zones
 from uav_comm_planner.vehicle.fence import fence_from_zones
-from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+from uav_comm_planner.mission.policy import plan_for_vehicle
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink.fence import fence_items
 from uav_comm_planner.vehicle.mavlink.guided import COPTER_MODES

@@ -20,8 +20,8 @@ from uav_comm_planner import Scenario
 from uav_comm_planner.core.model import leg_lengths
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline, evaluate_flight
 from uav_comm_planner.core.optimizer import plan_along, PlanResult
-from uav_comm_planner.vehicle.flyable import (check_speed, MAX_TURN_DEG, plan_for_vehicle,
-                                              schedule_flight)
+from uav_comm_planner.mission.policy import plan_for_vehicle
+from uav_comm_planner.vehicle.flyable import check_speed, MAX_TURN_DEG, schedule_flight
 from uav_comm_planner.vehicle.waypoints import simplify, turn_angles_deg
 from uav_comm_planner.vehicle.leg_models import MIN_STOP_HOLD_S
 from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
@@ -286,4 +286,4 @@ def test_a_planner_that_refuses_every_speed_gives_its_own_typed_error():
     def refusing(scenario, settings):
         raise InfeasibleHorizonError('no plan at this speed')
     with pytest.raises(InfeasibleHorizonError, match='no plan at this speed'):
-        plan_for_vehicle(multirotor_case_one(), planner=refusing)
+        plan_for_vehicle(multirotor_case_one(), sources=refusing)

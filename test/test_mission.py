@@ -21,8 +21,9 @@ from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import MissionFileError, VehicleLinkError
 from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.vehicle.evaluation import distance_to_polyline
+from uav_comm_planner.mission.policy import plan_for_vehicle
 from uav_comm_planner.vehicle.flyable import (MERGE_RADIUS_M, MIN_SPEED_MPS, PATH_TOLERANCE_M,
-                                              plan_for_vehicle, schedule_flight)
+                                              schedule_flight)
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, enu_to_geodetic, geodetic_to_enu, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink import files

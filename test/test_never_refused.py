@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import Scenario
-from uav_comm_planner.vehicle.flyable import GOAL_TOLERANCE_SLOTS, plan_for_vehicle
+from uav_comm_planner.mission.policy import plan_for_vehicle
+from uav_comm_planner.vehicle.flyable import GOAL_TOLERANCE_SLOTS
 from uav_comm_planner.vehicle.leg_models import MIN_STOP_HOLD_S
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.timing import LEG_LATENCY_S, Profile

@@ -36,7 +36,7 @@ from uav_comm_planner.ros.node import PlannerNode
 from uav_comm_planner.ros.publishing import (OUTPUT_QOS, TOPIC_MARKERS, TOPIC_MIN_THROUGHPUT,
                                              TOPIC_PATH, TOPIC_POWER)
 from uav_comm_planner.ros.send_ground_nodes import describe, GroundNodesSender
-from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+from uav_comm_planner.mission.policy import plan_for_vehicle
 
 
 def flight_points(path: Path) -> np.ndarray:

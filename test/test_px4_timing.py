@@ -116,7 +116,7 @@ def test_the_quick_refusal_and_the_horizon_it_asks_for_use_the_firmwares_leg_tim
     follow PX4's own timing."""
     from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
     from uav_comm_planner.mission.request import check_goal_in_time
-    from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+    from uav_comm_planner.mission.policy import plan_for_vehicle
 
     limits = VehicleLimits.for_firmware('px4')
     line = np.array([[0.0, 0.0], [1000.0, 0.0]])

@@ -241,7 +241,7 @@ def test_a_vehicle_replan_is_solved_for_its_offsets_once():
     for them at the flown positions, its rates count them, so nothing solves it again."""
     from uav_comm_planner.core.model import average_rates
     from uav_comm_planner.core.optimizer import optimal_power
-    from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+    from uav_comm_planner.mission.policy import plan_for_vehicle
 
     mission = paper_scenario('I', max_speed_mps=10.0, horizon_s=400.0, num_slots=100)
     first = plan_for_vehicle(mission).flown
@@ -250,7 +250,7 @@ def test_a_vehicle_replan_is_solved_for_its_offsets_once():
     rest = rest_of_mission(mission, first.trajectory[k - 1], flown)
     offsets = delivered_bits(mission, flown) / (rest.slot_s * rest.bandwidth_hz
                                                 / rest.num_nodes * rest.num_slots)
-    vehicle = plan_for_vehicle(rest, planner=lambda s, settings: plan(s, settings,
+    vehicle = plan_for_vehicle(rest, sources=lambda s, settings: plan(s, settings,
                                                                       offsets=offsets))
     as_flown = vehicle.flown
     np.testing.assert_array_equal(as_flown.offsets, offsets)

@@ -22,7 +22,7 @@ import pytest
 
 from devtools.sitl import fly_plan, why_not_runnable
 from uav_comm_planner import paper_scenario
-from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+from uav_comm_planner.mission.policy import plan_for_vehicle
 from uav_comm_planner.vehicle.geodesy import Home
 
 pytestmark = [pytest.mark.sitl,

@@ -13,7 +13,7 @@ from uav_comm_planner import paper_scenario
 from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.smooth_motion import least_acceleration, MotionBounds, smooth_motion
 from uav_comm_planner.errors import InfeasibleHorizonError
-from uav_comm_planner.vehicle.flyable import plan_for_vehicle
+from uav_comm_planner.mission.policy import plan_for_vehicle
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.stream import (resume_item, STREAM_ACCEL_ALLOWANCE,
                                              stream_reference, STREAM_SPEED_MARGIN)

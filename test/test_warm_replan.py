@@ -26,8 +26,9 @@ from uav_comm_planner.ros.flight import MissionFlight
 from uav_comm_planner.ros.params import NodeSettings, PlannerConfig
 from uav_comm_planner.errors import InfeasibleHorizonError
 from uav_comm_planner.mission.progress import MissionProgress
-from uav_comm_planner.vehicle.flyable import (plan_for_vehicle, schedule_flight,
-                                              WIDER_SEARCH_GAIN)
+from uav_comm_planner.mission.policy import (plan_for_vehicle, Source, WARM_REPLAN,
+                                             WIDER_SEARCH_GAIN)
+from uav_comm_planner.vehicle.flyable import schedule_flight
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
 SETTINGS = SolverSettings(compute_baselines=False)
@@ -103,32 +104,33 @@ def test_warm_only_where_the_plan_in_force_is_a_start(first):
     position = first.trajectory[k]
     problem = receding_problem(MISSION, position, flown(first, k),
                                previous_q=first.trajectory[k:], warm=True)
-    start = problem.plan_options['extra_starts'][PREVIOUS_PLAN_START]
+    start = problem.options.start(PREVIOUS_PLAN_START)
+    assert start is problem.previous_start
     warm, options = problem.for_scenario(SETTINGS)
     assert warm.screened_tours == 0 and warm.starts == WARM_STARTS
     assert warm.keep_path_length and not SETTINGS.keep_path_length
     assert warm.shortlist == WARM_SHORTLIST == 1 and SETTINGS.shortlist > 1
     assert warm.relative_tolerance == SETTINGS.relative_tolerance
-    assert options['extra_starts'][PREVIOUS_PLAN_START] is start
-    np.testing.assert_array_equal(options['offsets'], problem.offsets)
+    assert options.start(PREVIOUS_PLAN_START) is start
+    np.testing.assert_array_equal(options.offsets, problem.offsets)
     # A slower scenario the plan in force is too fast for gets it retimed, still warm.
     slower = problem.rest.replace(max_speed_mps=0.9 * MISSION.max_speed_mps)
     assert not within_speed_limit(start, slower)
     warm, options = problem.for_scenario(SETTINGS, slower)
     assert warm.screened_tours == 0 and warm.keep_path_length
-    np.testing.assert_array_equal(options['extra_starts'][PREVIOUS_PLAN_START],
+    np.testing.assert_array_equal(options.start(PREVIOUS_PLAN_START),
                                   retimed(start, slower))
     # So slow that its path no longer fits the horizon: the tours are screened again.
     slowest = problem.rest.replace(max_speed_mps=0.6 * MISSION.max_speed_mps)
     assert retimed(start, slowest) is None
     settings, options = problem.for_scenario(SETTINGS, slowest)
-    assert settings is SETTINGS and 'extra_starts' not in options
+    assert settings is SETTINGS and not options.extra_starts
     cold = receding_problem(MISSION, position, flown(first, k), previous_q=first.trajectory[k:])
     assert not cold.warm and cold.for_scenario(SETTINGS)[0] is SETTINGS
     # No plan in force that can be rejoined: no warm replan, whatever is asked.
     lost = receding_problem(MISSION, position, flown(first, k),
                             previous_q=first.trajectory[k:] + 900.0, warm=True)
-    assert not lost.warm and 'extra_starts' not in lost.plan_options
+    assert not lost.warm and lost.previous_start is None and not lost.options.extra_starts
 
 
 def test_the_plan_in_force_kept_is_its_start_with_the_power_optimal_for_it(first):
@@ -142,7 +144,7 @@ def test_the_plan_in_force_kept_is_its_start_with_the_power_optimal_for_it(first
     for share in (1.0, 0.9):
         rest = problem.rest.replace(max_speed_mps=share * MISSION.max_speed_mps)
         kept = problem.kept(rest, SETTINGS)
-        start = problem.for_scenario(SETTINGS, rest)[1]['extra_starts'][PREVIOUS_PLAN_START]
+        start = problem.for_scenario(SETTINGS, rest)[1].start(PREVIOUS_PLAN_START)
         np.testing.assert_array_equal(kept.trajectory, start)
         assert within_speed_limit(kept.trajectory, rest)
         assert kept.outer_iterations == 0 and kept.start == PREVIOUS_PLAN_START
@@ -156,7 +158,7 @@ def test_the_plan_in_force_kept_is_its_start_with_the_power_optimal_for_it(first
                      for offset, p, gain in zip(problem.offsets, kept.power, a)]
         np.testing.assert_allclose(kept.rates, by_letter, rtol=1e-12)
         warm = plan(rest, *problem.for_scenario(SETTINGS, rest)[:1],
-                    **problem.for_scenario(SETTINGS, rest)[1])
+                    **problem.for_scenario(SETTINGS, rest)[1].keywords())
         assert warm.min_throughput >= kept.min_throughput
     slowest = problem.rest.replace(max_speed_mps=0.6 * MISSION.max_speed_mps)
     assert problem.kept(slowest, SETTINGS) is None          # its path no longer fits
@@ -229,7 +231,7 @@ def test_the_vehicle_ladder_tries_the_wider_search_unless_a_close_slower_plan_fl
         return planner
 
     slow = VehicleLimits(max_accel_mpss=0.5)
-    plain = plan_for_vehicle(MISSION, slow, planner=tagged('plan'))
+    plain = plan_for_vehicle(MISSION, slow, sources=tagged('plan'))
     ladder = [speed for _, speed in calls]
     assert len(ladder) == 3 and ladder == sorted(ladder, reverse=True)    # fast to slow
     assert plain.ideal.scenario.max_speed_mps == ladder[-1]
@@ -237,14 +239,16 @@ def test_the_vehicle_ladder_tries_the_wider_search_unless_a_close_slower_plan_fl
     # The slower plans state as much: the one at the third speed flies and is taken as the
     # look-ahead from the second, without the wider search there.
     calls.clear()
-    close = plan_for_vehicle(MISSION, slow, planner=tagged('plan'), wider_planner=tagged('wide'))
+    close = plan_for_vehicle(MISSION, slow, policy=WARM_REPLAN, sources={
+        Source.OPTIMISER: tagged('plan'), Source.OTHER_TOURS: tagged('wide')})
     assert calls == [('plan', first), ('plan', second), ('wide', first), ('plan', third)]
     assert close.ideal.scenario.max_speed_mps == third
     # Each speed states more than WIDER_SEARCH_GAIN less than the one before: the wider search
     # runs at each speed first.
     calls.clear()
-    far = plan_for_vehicle(MISSION, slow, wider_planner=tagged('wide'),
-                           planner=tagged('plan', slower_share=1.0 - 2 * WIDER_SEARCH_GAIN))
+    far = plan_for_vehicle(MISSION, slow, policy=WARM_REPLAN, sources={
+        Source.OTHER_TOURS: tagged('wide'),
+        Source.OPTIMISER: tagged('plan', slower_share=1.0 - 2 * WIDER_SEARCH_GAIN)})
     assert calls == [('plan', first), ('plan', second), ('wide', first), ('plan', third),
                      ('wide', second)]
     assert far.ideal.scenario.max_speed_mps == third
@@ -259,17 +263,18 @@ def test_the_vehicle_ladder_tries_the_wider_search_unless_a_close_slower_plan_fl
         result = plan(scenario, SETTINGS)
         worse = np.repeat(result.trajectory[:1], len(result.trajectory), axis=0)
         return dataclasses.replace(result, trajectory=worse)      # hovers at its first point
-    kept = plan_for_vehicle(MISSION, slow, wider_planner=spoilt,
-                            planner=tagged('plan', slower_share=1.0 - 2 * WIDER_SEARCH_GAIN))
+    kept = plan_for_vehicle(MISSION, slow, policy=WARM_REPLAN, sources={
+        Source.OTHER_TOURS: spoilt,
+        Source.OPTIMISER: tagged('plan', slower_share=1.0 - 2 * WIDER_SEARCH_GAIN)})
     assert ('wide', second) in calls
     assert kept.ideal.scenario.max_speed_mps == third
     spoilt_flown = plan_for_vehicle(MISSION.replace(max_speed_mps=second), slow,
-                                    planner=spoilt).flown.min_throughput
+                                    sources=spoilt).flown.min_throughput
     assert spoilt_flown < kept.flown.min_throughput
 
 
 def test_the_vehicle_ladder_takes_the_plan_in_force_kept_where_it_flies_close():
-    """With ``kept_planner``: where the vehicle cannot fly the warm plan at a speed, the plan
+    """With the plan in force as a source (WARM_REPLAN): where the vehicle cannot fly the warm plan at a speed, the plan
     in force flown on is tried first at that speed and taken when it delivers, as flown, within
     WIDER_SEARCH_GAIN of what the warm plan stated; otherwise the ladder goes on and the kept
     plan is one of those the best flown is chosen from."""
@@ -280,14 +285,14 @@ def test_the_vehicle_ladder_takes_the_plan_in_force_kept_where_it_flies_close():
     def measured(scenario, settings):
         speeds.append(scenario.max_speed_mps)
         return plan(scenario, SETTINGS)
-    plan_for_vehicle(MISSION, slow, planner=measured)
+    plan_for_vehicle(MISSION, slow, sources=measured)
     first, second, third = speeds                # the vehicle flies the third speed's plan
 
     def kept(scenario, settings):
         calls.append(('kept', scenario.max_speed_mps))
         flyable = plan(scenario.replace(max_speed_mps=third), SETTINGS)
         return dataclasses.replace(flyable, scenario=scenario)
-    held = plan_for_vehicle(MISSION, slow, planner=kept).flown.min_throughput
+    held = plan_for_vehicle(MISSION, slow, sources=kept).flown.min_throughput
 
     def stating(share):
         def planner(scenario, settings):
@@ -299,14 +304,16 @@ def test_the_vehicle_ladder_takes_the_plan_in_force_kept_where_it_flies_close():
         calls.append(('wide', scenario.max_speed_mps))
         return None
     calls.clear()
-    close = plan_for_vehicle(MISSION, slow, planner=stating(1 - 0.5 * WIDER_SEARCH_GAIN),
-                             wider_planner=wide, kept_planner=kept)
+    close = plan_for_vehicle(MISSION, slow, policy=WARM_REPLAN, sources={
+        Source.OPTIMISER: stating(1 - 0.5 * WIDER_SEARCH_GAIN), Source.OTHER_TOURS: wide,
+        Source.PLAN_IN_FORCE: kept})
     assert calls == [('plan', first), ('kept', first)]
     assert close.ideal.scenario.max_speed_mps == first
     assert close.flown.min_throughput == held
     calls.clear()
-    far = plan_for_vehicle(MISSION, slow, planner=stating(1 - 2 * WIDER_SEARCH_GAIN),
-                           wider_planner=wide, kept_planner=kept)
+    far = plan_for_vehicle(MISSION, slow, policy=WARM_REPLAN, sources={
+        Source.OPTIMISER: stating(1 - 2 * WIDER_SEARCH_GAIN), Source.OTHER_TOURS: wide,
+        Source.PLAN_IN_FORCE: kept})
     # The second speed's plan does not fly and the wider search adds none: the kept plan is
     # the one candidate left, taken over planning a third speed.
     assert calls == [('plan', first), ('kept', first), ('plan', second), ('wide', first)]
@@ -388,11 +395,12 @@ def test_a_warm_replan_keeps_its_path_length_and_the_vehicle_flies_it_at_once():
     problem = receding_problem(scenario, in_flight.position_m, in_flight.flown,
                                previous_q=in_flight.previous_q, warm=True)
     settings, options = problem.for_scenario(None)
-    free = plan(problem.rest, dataclasses.replace(settings, keep_path_length=False), **options)
+    free = plan(problem.rest, dataclasses.replace(settings, keep_path_length=False),
+                **options.keywords())
     for stop_at_hovers in (True, False):
         with pytest.raises(InfeasibleHorizonError, match='cannot fly this plan on time'):
             schedule_flight(free, VehicleLimits(), stop_at_hovers=stop_at_hovers)
-    warm = plan(problem.rest, settings, **options)
+    warm = plan(problem.rest, settings, **options.keywords())
     assert warm.start == PREVIOUS_PLAN_START
     schedule_flight(warm, VehicleLimits())
     start = problem.kept()

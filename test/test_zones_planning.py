@@ -9,8 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from uav_comm_planner.core.detour import (_corner_graph, around_zones, GRAPH_CHUNK,
-                                          GRAPH_CLEARANCE_M, graph_corners, hover_start,
+from uav_comm_planner.core.detour import (around_zones, GRAPH_CHUNK,
+                                          GRAPH_CLEARANCE_M, graph_corners, GRAPHS, hover_start,
                                           outside_point, path_length, segments_clear,
                                           shortest_path)
 from uav_comm_planner.core.sca.fast import trajectory_step_clarabel
@@ -462,16 +462,16 @@ def test_a_plan_cancelled_while_its_visibility_graph_is_built_stops_there():
     def should_stop() -> bool:
         asked.append(True)
         return len(asked) >= 2          # the first two asks are the graph's first chunks
-    before = _corner_graph.cache_info()
+    GRAPHS.clear()
+    before = GRAPHS.stored
     with pytest.raises(PlanCancelledError):
         plan(scenario, should_stop=should_stop)
     print(f'{corners} corners, {pairs} pairs: asked {len(asked)} times')
     assert len(asked) == 2
-    assert _corner_graph.cache_info().misses == before.misses + 1
-    # Not cancelled, the same plan builds the graph again (none was kept), then keeps it.
+    assert GRAPHS.stored == before and zones not in GRAPHS
+    # Not cancelled, the same plan builds the graph (none was kept), once, and keeps it.
     check_plan(plan(scenario), scenario)
-    built = _corner_graph.cache_info()
-    assert built.misses == before.misses + 2 and built.hits > before.hits
+    assert GRAPHS.stored == before + 1 and zones in GRAPHS
 
 
 def test_the_hover_start_hovers_at_each_node_s_nearest_point_outside_the_zones(across):

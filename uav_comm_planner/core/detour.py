@@ -19,17 +19,16 @@ A request with no path around the zones, or none that fits the horizon at V, is 
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 import functools
 import math
-from typing import Callable, Iterator
+from typing import Callable
 
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from uav_comm_planner.core import initial
+from uav_comm_planner.core.recent import RecentlyUsed
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.core.zones import (closest_on_segments, inside_polygon, KeepOutCircle,
                                          Zones)
@@ -43,11 +42,11 @@ CIRCLE_SIDES = 16
 GRAPH_CLEARANCE_M = 0.05
 #: Segment-edge pairs tested at once (bounds the work arrays' memory).
 CHUNK_PAIRS = 500_000
-#: Corner pairs of the visibility graph tested between two asks of :func:`stoppable`'s check.
+#: Corner pairs of the visibility graph tested between two asks of :func:`corner_graph`'s
+#: check.
 GRAPH_CHUNK = 2000
-#: The check :func:`stoppable` sets (None: nothing to ask).
-_STOP_CHECK: contextvars.ContextVar[Callable[[], None] | None] = contextvars.ContextVar(
-    'detour_stop_check', default=None)
+#: Visibility graphs kept (the most recently used), by their zones.
+GRAPHS_KEPT = 16
 #: A line counts as tangent at a corner when a neighbour on the wrong side is within this
 #: (the sine of the angle) of it.
 TANGENT_SLACK = math.sin(0.01)
@@ -305,25 +304,38 @@ def clear(zones: Zones, a: np.ndarray, b: np.ndarray) -> bool:
     return bool(segments_clear(zones, a, b)[0])
 
 
-@functools.lru_cache(maxsize=16)
-def _corner_graph(zones: Zones) -> tuple[np.ndarray, np.ndarray]:
-    """The graph's corners (K, 2) and their visibility (K, K), lengths or 0 (none): only
-    corner pairs tangent at both ends (:func:`tangent_pairs`) are tested and joined, in chunks
-    of :data:`GRAPH_CHUNK` pairs, the check of :func:`stoppable` asked between chunks (and
-    between the rows of pairs the tangents are found for)."""
+#: The visibility graphs built, by their zones (:func:`corner_graph`).
+GRAPHS: RecentlyUsed[tuple[np.ndarray, np.ndarray]] = RecentlyUsed(GRAPHS_KEPT)
+
+
+def corner_graph(zones: Zones, check: Callable[[], None] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The graph's corners (K, 2) and their visibility (K, K), lengths or 0 (none), built
+    once per zones and kept: only corner pairs tangent at both ends (:func:`tangent_pairs`)
+    are tested and joined, in chunks of :data:`GRAPH_CHUNK` pairs. The building is the work
+    that grows with the zones' corners (cubed): ``check`` is asked between its chunks (and
+    between the rows of pairs the tangents are found for) and raises to give up (a plan being
+    cancelled), nothing being kept then. A planner given a way to be cancelled builds the
+    graph first with it (:func:`~uav_comm_planner.core.optimizer.plan`); the paths and starts
+    then use the graph kept."""
+    graph = GRAPHS.get(zones)
+    if graph is not None:
+        return graph
     corners, back, ahead, alone = _graph_chain(zones)
     count = len(corners)
     candidates = [(np.zeros(0, dtype=int), np.zeros(0, dtype=int))]
     rows_per_chunk = max(1, GRAPH_CHUNK * 50 // max(count, 1))
     for first in range(0, count, rows_per_chunk):
-        _ask_stop()
+        if check is not None:
+            check()
         candidates.append(tangent_pairs(corners, back, ahead, alone,
                                         slice(first, first + rows_per_chunk)))
     i = np.concatenate([pair[0] for pair in candidates])
     j = np.concatenate([pair[1] for pair in candidates])
     visible = np.zeros(len(i), dtype=bool)
     for first in range(0, len(i), GRAPH_CHUNK):
-        _ask_stop()
+        if check is not None:
+            check()
         pairs = slice(first, first + GRAPH_CHUNK)
         visible[pairs] = segments_clear(zones, corners[i[pairs]], corners[j[pairs]])
     lengths = np.zeros((count, count))
@@ -331,25 +343,8 @@ def _corner_graph(zones: Zones) -> tuple[np.ndarray, np.ndarray]:
     lengths[i, j] = np.linalg.norm(corners[j] - corners[i], axis=1)
     for array in (corners, lengths):
         array.setflags(write=False)
+    GRAPHS.put(zones, (corners, lengths))
     return corners, lengths
-
-
-def _ask_stop() -> None:
-    check = _STOP_CHECK.get()
-    if check is not None:
-        check()
-
-
-@contextlib.contextmanager
-def stoppable(check: Callable[[], None]) -> Iterator[None]:
-    """Within it, building a visibility graph (the work that grows with the zones' corners,
-    cubed) asks ``check`` between chunks of it; ``check`` raises to give up (a plan being
-    cancelled), and nothing is kept of the graph then."""
-    token = _STOP_CHECK.set(check)
-    try:
-        yield
-    finally:
-        _STOP_CHECK.reset(token)
 
 
 def shortest_path(zones: Zones, start: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
@@ -358,7 +353,7 @@ def shortest_path(zones: Zones, start: np.ndarray, goal: np.ndarray) -> np.ndarr
     start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
     if clear(zones, start, goal):
         return np.array([start, goal])
-    corners, corner_lengths = _corner_graph(zones)
+    corners, corner_lengths = corner_graph(zones)
     count = len(corners) + 2
     lengths = np.zeros((count, count))
     lengths[2:, 2:] = corner_lengths
@@ -478,7 +473,7 @@ def outside_point(zones: Zones, point: np.ndarray) -> np.ndarray | None:
     if zones.clearance([point])[0] >= zones.margin_m:
         return point
     reach = zones.margin_m + GRAPH_CLEARANCE_M
-    candidates = [_corner_graph(zones)[0]]
+    candidates = [corner_graph(zones)[0]]
     for zone in (*zones.keep_out, *(() if zones.area is None else (zones.area,))):
         if zone.clearance([point])[0] >= zones.margin_m:
             continue
@@ -580,5 +575,6 @@ def _joined(pieces: list[np.ndarray],
     return np.vstack(path), np.concatenate(counts), stops[:-1]
 
 
-__all__ = ['around_zones', 'graph_corners', 'hover_start', 'outside_point', 'shortest_path',
-           'static_start', 'stoppable', 'straight_start']
+__all__ = ['GRAPHS', 'around_zones', 'corner_graph', 'graph_corners',
+           'hover_start', 'outside_point', 'shortest_path',
+           'static_start', 'straight_start']

@@ -373,9 +373,18 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
         raise InvalidScenarioError(f'should_stop must be callable, got {should_stop!r}')
     check_stop = stop_checker(should_stop)
     offsets = checked_offsets(offsets, scenario.num_nodes)
-    with detour.stoppable(check_stop):      # the paths around the zones ask it too
-        return _best_plan(scenario, settings, power_method, trajectory_method, should_stop,
-                          check_stop, offsets, extra_starts, tuple(blocks))
+    prepare_zones(scenario, check_stop)
+    return _best_plan(scenario, settings, power_method, trajectory_method, should_stop,
+                      check_stop, offsets, extra_starts, tuple(blocks))
+
+
+def prepare_zones(scenario: Scenario, check_stop: Callable[[], None]) -> None:
+    """With zones, build their visibility graph (:func:`~uav_comm_planner.core.detour.
+    corner_graph`: the work that grows with their corners) first, asking ``check_stop`` between
+    its chunks, so that a plan cancelled while it is built stops there; the starts and paths
+    around the zones then use the graph kept."""
+    if scenario.zones is not None and not scenario.zones.empty:
+        detour.corner_graph(scenario.zones, check_stop)
 
 
 def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
@@ -478,5 +487,6 @@ def plan_along(scenario: Scenario, q: np.ndarray, settings: SolverSettings | Non
 
 
 __all__ = ['PlanResult', 'Run', 'Start', 'Step', 'StopCheck', 'alternate',
-           'baseline_rates', 'letter_rules', 'optimal_power', 'plan', 'plan_along', 'step_solvers',
+           'baseline_rates', 'letter_rules', 'optimal_power', 'plan', 'plan_along',
+           'prepare_zones', 'step_solvers',
            'spectral_efficiency_to_rate', 'stop_checker', 'throughput_upper_bound']

@@ -38,6 +38,7 @@ from uav_comm_planner.core.energy import JOULES_PER_WH
 from uav_comm_planner.core.feasibility import retimed, within_speed_limit
 from uav_comm_planner.core.model import snr_per_watt, spectral_efficiencies
 from uav_comm_planner.core.optimizer import plan, plan_along, PlanResult, ZoneKeeper
+from uav_comm_planner.core.plan_options import PlanOptions
 from uav_comm_planner.core.scenario import DUPLICATE_NODE_DISTANCE_M, Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 
@@ -293,11 +294,10 @@ class RecedingProblem:
     """The rest of a mission as the optimiser must solve it, and how its answer counts.
 
     rest: :func:`rest_of_mission`; delivered_bits: D_n (N,) bits so far; offsets: o (N,) bits
-    per use, D_n over the rest's slots; plan_options: the keywords for the core's
-    :func:`~uav_comm_planner.core.optimizer.plan` (the offsets, and the rest of the plan in
-    force, :func:`rejoined` from the UAV's position, as one more start when it keeps the speed
-    limit); warm: whether the replan continues that start instead of searching the tours again
-    (:meth:`for_scenario`).
+    per use, D_n over the rest's slots; previous_start: the rest of the plan in force,
+    :func:`rejoined` from the UAV's position, when it keeps the speed limit and the zones
+    (None: no plan in force, or none that gives a start); warm: whether the replan continues
+    that start instead of searching the tours again (:meth:`for_scenario`).
     """
 
     mission: Scenario
@@ -305,20 +305,40 @@ class RecedingProblem:
     rest: Scenario
     delivered_bits: np.ndarray
     offsets: np.ndarray
-    plan_options: dict
+    previous_start: np.ndarray | None = None
     warm: bool = False
 
-    def for_scenario(self, settings: SolverSettings | None, scenario: Scenario | None = None,
-                     *, warm: bool | None = None) -> tuple[SolverSettings | None, dict]:
-        """The optimiser's settings and :attr:`plan_options` for this replan of ``scenario``
-        (:attr:`rest`, or a slower one that a vehicle-aware plan tries); ``warm`` False asks
-        a warm replan for the other tours: the full search without the plan in force, which
-        the warm search has just continued (None: :attr:`warm`).
+    @property
+    def options(self) -> PlanOptions:
+        """The optimiser's options for :attr:`rest`: the offsets, and the plan in force as
+        one more start (:data:`PREVIOUS_PLAN_START`) when it gives one."""
+        options = PlanOptions(offsets=self.offsets)
+        if self.previous_start is None:
+            return options
+        return options.with_starts(**{PREVIOUS_PLAN_START: self.previous_start})
 
-        The previous plan's start goes to a slower ``scenario`` :func:`~uav_comm_planner.core.
-        feasibility.retimed` (its path flown at the slower pace, its stops shortened), since
-        the optimiser would otherwise blend it towards the straight line. A warm replan then
-        runs that start and the hover start (:data:`WARM_STARTS`) with no screened tours:
+    def start_for(self, scenario: Scenario) -> np.ndarray | None:
+        """The plan in force as a start for ``scenario`` (:attr:`rest`, or a slower one that
+        a vehicle-aware plan tries): :attr:`previous_start`, :func:`~uav_comm_planner.core.
+        feasibility.retimed` when ``scenario`` is slower than it (its path flown at the slower
+        pace, its stops shortened, since the optimiser would otherwise blend it towards the
+        straight line); None when it gives none."""
+        start = self.previous_start
+        if start is not None and not within_speed_limit(start, scenario):
+            start = retimed(start, scenario)
+            if start is not None and not _keeps_zones(start, scenario):
+                start = None
+        return start
+
+    def for_scenario(self, settings: SolverSettings | None, scenario: Scenario | None = None,
+                     *, warm: bool | None = None) -> tuple[SolverSettings | None, PlanOptions]:
+        """The optimiser's settings and options for this replan of ``scenario`` (:attr:`rest`,
+        or a slower one that a vehicle-aware plan tries); ``warm`` False asks a warm replan
+        for the other tours: the full search without the plan in force, which the warm search
+        has just continued (None: :attr:`warm`).
+
+        The plan in force is one more start (:meth:`start_for`). A warm replan then runs that
+        start and the hover start (:data:`WARM_STARTS`) with no screened tours:
         the plan in force already is the best tour the screening found for these nodes, and
         the replan only moves its start to where the UAV is, so continuing it (one SCA step
         per power step, as the default continues its best tour) gives at least what flying on
@@ -334,17 +354,13 @@ class RecedingProblem:
         previous plan gives no start for ``scenario``, the tours are screened as usual.
         """
         scenario = self.rest if scenario is None else scenario
-        options = dict(self.plan_options)
-        start = options.pop('extra_starts', {}).get(PREVIOUS_PLAN_START)
+        options = PlanOptions(offsets=self.offsets)
         if self.warm and warm is False:
             return settings, options
-        if start is not None and not within_speed_limit(start, scenario):
-            start = retimed(start, scenario)
-            if start is not None and not _keeps_zones(start, scenario):
-                start = None
+        start = self.start_for(scenario)
         if start is None:
             return settings, options
-        options['extra_starts'] = {PREVIOUS_PLAN_START: start}
+        options = options.with_starts(**{PREVIOUS_PLAN_START: start})
         if not self.warm:
             return settings, options
         return dataclasses.replace(settings or SolverSettings(), starts=WARM_STARTS,
@@ -354,11 +370,10 @@ class RecedingProblem:
     def kept(self, scenario: Scenario | None = None,
              settings: SolverSettings | None = None) -> PlanResult | None:
         """The plan in force flown on as it is from where the UAV is (its start for
-        ``scenario``, :meth:`for_scenario`), with the power optimal for it and no trajectory
+        ``scenario``, :meth:`start_for`), with the power optimal for it and no trajectory
         step: what going on with it gives. None when it gives no start for ``scenario``."""
         scenario = self.rest if scenario is None else scenario
-        start = self.for_scenario(settings, scenario)[1].get('extra_starts', {}).get(
-            PREVIOUS_PLAN_START)
+        start = self.start_for(scenario)
         if start is None:
             return None
         return plan_along(scenario, start, settings, name=PREVIOUS_PLAN_START,
@@ -392,13 +407,12 @@ def receding_problem(mission: Scenario, position_m: Sequence[float], flown: Flow
     delivered = delivered_bits(mission, flown)
     per_use = rest.slot_s * rest.bandwidth_hz / rest.num_nodes * rest.num_slots
     offsets = delivered / per_use
-    options: dict = {'offsets': offsets}
     start = None if previous_q is None else rejoined(previous_q, rest.start_m, rest)
-    if start is not None and within_speed_limit(start, rest) and _keeps_zones(start, rest):
-        options['extra_starts'] = {PREVIOUS_PLAN_START: start}
+    if start is not None and not (within_speed_limit(start, rest) and _keeps_zones(start, rest)):
+        start = None
     return RecedingProblem(mission=mission, flown=flown, rest=rest, delivered_bits=delivered,
-                           offsets=offsets, plan_options=options,
-                           warm=bool(warm) and 'extra_starts' in options)
+                           offsets=offsets, previous_start=start,
+                           warm=bool(warm) and start is not None)
 
 
 def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
@@ -418,7 +432,7 @@ def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
     """
     problem = receding_problem(mission, position_m, flown, previous_q=previous_q, warm=warm)
     settings, options = problem.for_scenario(settings)
-    result = planner(problem.rest, settings, **options, **plan_options)
+    result = planner(problem.rest, settings, **options.keywords(), **plan_options)
     return problem.outcome(result)
 
 

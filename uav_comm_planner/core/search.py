@@ -59,15 +59,6 @@ def joined(first: Run, *later: Run) -> Run:
                sum(run.trajectory_steps for run in runs), runs[-1].converged)
 
 
-def set_tolerance(trajectory_solver: TrajectorySolver, tolerance: float | None) -> None:
-    """Loosen (or, with None, restore) the interior-point tolerance of a solver that offers it
-    (:class:`~uav_comm_planner.core.sca.fast.ClarabelTrajectoryStep`); the cvxpy
-    reference always solves at its own."""
-    setter = getattr(trajectory_solver, 'set_tolerance', None)
-    if setter is not None:
-        setter(tolerance)
-
-
 def screened_runs(scenario: Scenario, starts: Mapping[str, Callable[[Scenario], np.ndarray]],
                   letter: set[str], letter_settings: SolverSettings, settings: SolverSettings,
                   run_from: Callable[..., Run], trajectory_solver: TrajectorySolver,
@@ -98,7 +89,7 @@ def screened_runs(scenario: Scenario, starts: Mapping[str, Callable[[Scenario], 
     for name, make in starts.items():
         q = make(scenario)
         if name in letter:
-            set_tolerance(trajectory_solver, None)
+            trajectory_solver.set_tolerance(None)
             runs[name] = run_from(q, letter_settings)
         elif name in draws:     # a tour, flown within the speed limit and out of the zones
             runs[name] = screened(q)
@@ -109,7 +100,7 @@ def screened_runs(scenario: Scenario, starts: Mapping[str, Callable[[Scenario], 
     for name in letter:
         if all(runs[name].min_throughput > runs[other].min_throughput for other in done):
             runs[name] = continued(runs[name], settings, run_from, trajectory_solver)
-    set_tolerance(trajectory_solver, None)
+    trajectory_solver.set_tolerance(None)
     return runs
 
 
@@ -136,7 +127,7 @@ def search(scenario: Scenario, runs: dict[str, Run], letter: set[str],
         if q is not None:
             runs[f'{name} resplit'] = run_from(q, screen, sca_steps=0)
     shortlist = ranked(name for name in runs if name not in letter)[:settings.shortlist]
-    set_tolerance(trajectory_solver, loose)
+    trajectory_solver.set_tolerance(loose)
     for name in shortlist:
         runs[name] = joined(runs[name], run_from(runs[name].q, screen, sca_steps=sca_steps))
     done = ranked(shortlist)[:CONTINUED]
@@ -150,14 +141,14 @@ def continued(begun: Run, settings: SolverSettings, run_from: Callable[..., Run]
     """``begun`` continued to convergence (:func:`screened_runs`), or ``begun`` itself if
     that ends below it."""
     sca_steps = 1 if settings.fast_steps else None
-    set_tolerance(trajectory_solver, LOOSE_TOLERANCE if settings.fast_steps else None)
+    trajectory_solver.set_tolerance(LOOSE_TOLERANCE if settings.fast_steps else None)
     run = joined(begun, run_from(begun.q, settings, sca_steps=sca_steps))
     if settings.fast_steps:
-        set_tolerance(trajectory_solver, None)
+        trajectory_solver.set_tolerance(None)
         run = joined(run, run_from(run.q, settings, sca_steps=FINAL_SCA_STEPS))
-    set_tolerance(trajectory_solver, None)
+    trajectory_solver.set_tolerance(None)
     return run if run.min_throughput >= begun.min_throughput else begun
 
 
 __all__ = ['CONTINUED', 'FINAL_SCA_STEPS', 'RESPLIT', 'Run', 'Step', 'continued', 'joined',
-           'screened_runs', 'search', 'set_tolerance']
+           'screened_runs', 'search']

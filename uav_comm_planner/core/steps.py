@@ -7,8 +7,7 @@ Clarabel solver updated in place (default) or the cvxpy reference rebuilt at eve
 
 from __future__ import annotations
 
-import functools
-from typing import Callable, Sequence
+from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
@@ -21,13 +20,40 @@ from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import InvalidScenarioError
 
 PowerSolver = Callable[[np.ndarray, float], PowerAllocation]
-TrajectorySolver = Callable[[np.ndarray, np.ndarray, Scenario], TrajectoryStep]
+
+
+class TrajectorySolver(Protocol):
+    """A plan's trajectory step: ``solver(q_k, p, scenario, offsets=...)`` gives the step from
+    q_k (M, 2) metres and p (N, M) watts; ``set_tolerance`` loosens (a share, or None to
+    restore) the interior-point tolerance where the solver has one to loosen."""
+
+    def __call__(self, q_k: np.ndarray, p: np.ndarray, scenario: Scenario,
+                 **keywords) -> TrajectoryStep: ...
+
+    def set_tolerance(self, tolerance: float | None) -> None: ...
+
+
+class RebuiltStep:
+    """A step function (the cvxpy reference) as a :class:`TrajectorySolver`: its problem is
+    built afresh at every call with ``keywords`` and solved at the solver's own tolerance,
+    which :meth:`set_tolerance` leaves as it is."""
+
+    def __init__(self, step: Callable[..., TrajectoryStep], **keywords) -> None:
+        self._step, self._keywords = step, keywords
+
+    def __call__(self, q_k: np.ndarray, p: np.ndarray, scenario: Scenario,
+                 **keywords) -> TrajectoryStep:
+        return self._step(q_k, p, scenario, **self._keywords, **keywords)
+
+    def set_tolerance(self, tolerance: float | None) -> None:
+        """Nothing to loosen: the reference always solves at its own tolerance."""
+
 
 POWER_SOLVERS: dict[str, PowerSolver] = {
     'waterfilling': waterfilling_power,
     'conic': conic_power,
 }
-TRAJECTORY_SOLVERS: dict[str, TrajectorySolver] = {
+TRAJECTORY_SOLVERS: dict[str, Callable[..., TrajectoryStep]] = {
     'cvxpy': trajectory_step_cvxpy,
     'clarabel': trajectory_step_clarabel,
 }
@@ -60,12 +86,12 @@ def step_solvers(scenario: Scenario, power_method: str, trajectory_method: str, 
     if trajectory_method in TRAJECTORY_STEPPERS:
         trajectory_solver = TRAJECTORY_STEPPERS[trajectory_method](
             scenario, keep_path_length=keep_path_length, blocks=tuple(blocks))
-    elif keep_path_length or blocks:
-        trajectory_solver = functools.partial(trajectory_solver,
-                                              keep_path_length=keep_path_length,
-                                              blocks=tuple(blocks))
+    else:
+        keywords = {'keep_path_length': True} if keep_path_length else {}
+        trajectory_solver = RebuiltStep(trajectory_solver, **keywords,
+                                        **({'blocks': tuple(blocks)} if blocks else {}))
     return power_solver, trajectory_solver
 
 
-__all__ = ['POWER_SOLVERS', 'PowerSolver', 'TRAJECTORY_SOLVERS', 'TRAJECTORY_STEPPERS',
-           'TrajectorySolver', 'step_solvers']
+__all__ = ['POWER_SOLVERS', 'PowerSolver', 'RebuiltStep', 'TRAJECTORY_SOLVERS',
+           'TRAJECTORY_STEPPERS', 'TrajectorySolver', 'step_solvers']

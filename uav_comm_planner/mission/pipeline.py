@@ -26,17 +26,19 @@ from pathlib import Path
 import time
 from typing import Callable
 
-from uav_comm_planner.core import detour
-from uav_comm_planner.core.optimizer import plan, PlanResult, stop_checker
+from uav_comm_planner.core.optimizer import plan, PlanResult, prepare_zones, stop_checker
+from uav_comm_planner.core.plan_options import PlanOptions
 from uav_comm_planner.core.receding import (lengthened, receding_problem, RecedingPlan,
                                             RecedingProblem)
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import (InfeasibleHorizonError, InvalidScenarioError, PlannerError,
                                      WalledInError)
 from uav_comm_planner.files import OutputFolder
+from uav_comm_planner.mission.policy import (FIRST_PLAN, Optimiser, plan_for_vehicle,
+                                             PlanningPolicy, Source, WARM_REPLAN)
 from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.vehicle.fence import fence_from_zones
-from uav_comm_planner.vehicle.flyable import plan_for_vehicle, VehiclePlan
+from uav_comm_planner.vehicle.flyable import VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink.fence import fence_items, mission_clearance
 from uav_comm_planner.vehicle.mavlink.files import write_mission_file
@@ -102,75 +104,70 @@ class MissionPlan:
                                   zones=self.request.planned_scenario.zones)
 
 
-def _bound(planner: Planner, **options) -> Callable[[Scenario, SolverSettings | None],
-                                                    PlanResult]:
-    """``planner`` with the keywords that are given (None ones left out)."""
-    given = {name: value for name, value in options.items() if value is not None}
-    return lambda scenario, settings: planner(scenario, settings, **given)
-
-
 def plan_mission(request: MissionRequest, *, planner: Planner = plan,
                  should_stop: Callable[[], bool] | None = None) -> MissionPlan:
     """Plan ``request`` (module docstring); ``should_stop`` is passed on to the planner, which
-    asks it between steps, and so does the building of paths around the zones outside the
-    planner (a replan's start moved out of a zone's margin, the plan in force flown on).
-    Raises the planner's errors (:class:`~uav_comm_planner.errors.PlannerError` and its
-    subclasses)."""
-    if should_stop is not None and not callable(should_stop):
-        raise InvalidScenarioError(f'should_stop must be callable, got {should_stop!r}')
-    with detour.stoppable(stop_checker(should_stop)):
-        if request.in_flight is None:
-            result, vehicle_plan = _plan_scenario(request, request.planned_scenario, planner,
-                                                  {'should_stop': should_stop})
-            receding = None
-        else:
-            result, vehicle_plan, receding = _plan_rest(request, planner, should_stop)
+    asks it between steps, and to the building of the paths around the zones (which is done
+    first, :func:`~uav_comm_planner.core.optimizer.prepare_zones`). Raises the planner's
+    errors (:class:`~uav_comm_planner.errors.PlannerError` and its subclasses)."""
+    options = PlanOptions(should_stop=should_stop)
+    prepare_zones(request.planned_scenario, stop_checker(should_stop))
+    if request.in_flight is None:
+        result, vehicle_plan = _plan_scenario(request, request.planned_scenario,
+                                              _sources(planner, options), FIRST_PLAN)
+        receding = None
+    else:
+        result, vehicle_plan, receding = _plan_rest(request, planner, options)
     items = _items(request, vehicle_plan or result) if request.items else {}
     return MissionPlan(request, result, vehicle_plan, receding, **items)
 
 
-#: A rest the vehicle cannot fly in time is lengthened this many times at most, each time by
-#: a tenth of its slots (at least one) more.
-LENGTHEN_ATTEMPTS = 5
-
-
-def _plan_scenario(request: MissionRequest, scenario: Scenario, planner: Planner,
-                   options: dict, problem: RecedingProblem | None = None
-                   ) -> tuple[PlanResult, VehiclePlan | None]:
-    """``scenario`` planned for ``request``; for the rest of a mission in flight, every
-    scenario the vehicle-aware planning tries gets ``problem``'s settings and options for it
-    (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`), and where the
-    vehicle cannot fly a warm replan on time the plan in force flown on as it is, then the
-    other tours, are tried at the same speed before a slower one is."""
-    def optimiser(rest: Scenario, settings: SolverSettings | None) -> PlanResult:
-        extra: dict = {}
+def _sources(planner: Planner, options: PlanOptions,
+             problem: RecedingProblem | None = None) -> dict[Source, Optimiser]:
+    """The candidate plans' sources (:class:`~uav_comm_planner.mission.policy.Source`) for a
+    request: ``planner`` with ``options``; for the rest of a mission in flight, with
+    ``problem``'s settings and options for each scenario tried (:meth:`~uav_comm_planner.core.
+    receding.RecedingProblem.for_scenario`), the plan in force flown on
+    (:meth:`~uav_comm_planner.core.receding.RecedingProblem.kept`) and the other tours."""
+    def optimiser(scenario: Scenario, settings: SolverSettings | None) -> PlanResult:
+        asked = options
         if problem is not None:
-            settings, extra = problem.for_scenario(settings, rest)
-        return _bound(planner, **options, **extra)(rest, settings)
+            settings, asked = problem.for_scenario(settings, scenario)
+            asked = replace(asked, should_stop=options.should_stop)
+        return planner(scenario, settings, **asked.keywords())
 
-    def other_tours(rest: Scenario, settings: SolverSettings | None) -> PlanResult | None:
-        if problem.for_scenario(settings, rest)[0] is settings:
+    def other_tours(scenario: Scenario, settings: SolverSettings | None) -> PlanResult | None:
+        if problem.for_scenario(settings, scenario)[0] is settings:
             return None                     # the optimiser searched them all at this speed
-        wider, extra = problem.for_scenario(settings, rest, warm=False)
-        return _bound(planner, **options, **extra)(rest, wider)
+        wider, asked = problem.for_scenario(settings, scenario, warm=False)
+        asked = replace(asked, should_stop=options.should_stop)
+        return planner(scenario, wider, **asked.keywords())
 
+    if problem is None or not problem.warm:
+        return {Source.OPTIMISER: optimiser}
+    return {Source.OPTIMISER: optimiser, Source.PLAN_IN_FORCE: problem.kept,
+            Source.OTHER_TOURS: other_tours}
+
+
+def _plan_scenario(request: MissionRequest, scenario: Scenario,
+                   sources: dict[Source, Optimiser], policy: PlanningPolicy
+                   ) -> tuple[PlanResult, VehiclePlan | None]:
+    """``scenario`` planned for ``request``: by its optimiser, or for a vehicle-aware request
+    by ``policy`` with ``sources`` (:func:`~uav_comm_planner.mission.policy.plan_for_vehicle`)."""
     if not request.vehicle_aware:
-        return optimiser(scenario, request.settings), None
-    warm = problem is not None and problem.warm
-    vehicle_plan = plan_for_vehicle(
-        scenario, request.vehicle, request.settings, firmware=request.firmware,
-        planner=optimiser, wider_planner=other_tours if warm else None,
-        kept_planner=problem.kept if warm else None)
+        return sources[Source.OPTIMISER](scenario, request.settings), None
+    vehicle_plan = plan_for_vehicle(scenario, request.vehicle, request.settings,
+                                    firmware=request.firmware, sources=sources, policy=policy)
     return vehicle_plan.flown, vehicle_plan
 
 
-def _plan_rest(request: MissionRequest, planner: Planner,
-               should_stop: Callable[[], bool] | None
+def _plan_rest(request: MissionRequest, planner: Planner, options: PlanOptions
                ) -> tuple[PlanResult, VehiclePlan | None, RecedingPlan]:
     """The rest of a mission in flight; when qF cannot be kept in time (by the speed limit,
-    or by the vehicle's timing), the mission is lengthened by whole slots until it can, and
-    the plan promises the whole mission over that longer horizon. A warm replan continues the
-    plan in force (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`)."""
+    or by the vehicle's timing), the mission is lengthened by whole slots until it can (the
+    policy's ``lengthen_attempts`` times at most, each by its ``lengthen_share`` of the
+    slots), and the plan promises the whole mission over that longer horizon. A warm replan
+    continues the plan in force (:data:`~uav_comm_planner.mission.policy.WARM_REPLAN`)."""
     began = time.perf_counter()
     rest = request.in_flight
     mission = lengthened(rest.mission(request.planned_scenario), rest.position_m, rest.flown)
@@ -178,17 +175,17 @@ def _plan_rest(request: MissionRequest, planner: Planner,
     while True:
         problem = receding_problem(mission, rest.position_m, rest.flown,
                                    previous_q=rest.previous_q, warm=rest.warm)
+        policy = WARM_REPLAN if problem.warm else FIRST_PLAN
         try:
-            result, vehicle_plan = _plan_scenario(
-                request, problem.rest, planner,
-                {'should_stop': should_stop}, problem)
+            result, vehicle_plan = _plan_scenario(request, problem.rest,
+                                                  _sources(planner, options, problem), policy)
         except WalledInError:
             raise                           # no longer horizon finds a way round the zones
         except InfeasibleHorizonError:
             attempts += 1
-            if attempts > LENGTHEN_ATTEMPTS:
+            if attempts > policy.lengthen_attempts:
                 raise
-            more = max(1, math.ceil(problem.rest.num_slots / 10))
+            more = max(1, math.ceil(problem.rest.num_slots * policy.lengthen_share))
             mission = lengthened(mission, rest.position_m, rest.flown, extra_slots=more)
             continue
         # The plan's solve time is the whole replan's, the shorter horizons tried included.

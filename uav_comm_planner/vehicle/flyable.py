@@ -42,10 +42,10 @@ import numpy as np
 
 from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.numbers import counted
-from uav_comm_planner.core.optimizer import plan, plan_along, PlanResult
+from uav_comm_planner.core.optimizer import plan_along, PlanResult
 from uav_comm_planner.core.scenario import MIN_STEP_M, Scenario, SolverSettings
-from uav_comm_planner.errors import InfeasibleHorizonError, WalledInError
-from uav_comm_planner.vehicle.firmware import firmware_named, FIRMWARES
+from uav_comm_planner.errors import InfeasibleHorizonError
+from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.leg_models import leg_model, LegModel, LegProfile
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.timing import (Dwell, Flight, Leg, LEG_LATENCY_S, ramp_distance,
@@ -309,139 +309,22 @@ def flown_result(ideal: PlanResult, schedule: Schedule) -> PlanResult:
         start_throughputs=ideal.start_throughputs, offsets=ideal.offsets)
 
 
-def plan_for_vehicle(scenario: Scenario, limits: VehicleLimits | None = None,
-                     settings: SolverSettings | None = None, *, firmware: str = 'ardupilot',
-                     planner: Callable[[Scenario, SolverSettings | None], PlanResult] = plan,
-                     wider_planner: Callable[[Scenario, SolverSettings | None],
-                                             PlanResult | None] | None = None,
-                     kept_planner: Callable[[Scenario, SolverSettings | None],
-                                            PlanResult | None] | None = None) -> VehiclePlan:
-    """Plan ``scenario`` for a vehicle with ``limits`` (None: ``firmware``'s defaults,
-    :meth:`VehicleLimits.for_firmware`): the mission and what it delivers.
-
-    In wind (``scenario.wind_speed_mps`` > 0) the plan keeps the vehicle's airspeed
-    (:attr:`VehicleLimits.airspeed_mps`, unless the scenario gives its own) and every leg is
-    flown at a ground speed it holds on its slowest heading. When the vehicle cannot fly the
-    plan by the end of the horizon (too little hovering to absorb its starts and stops), it
-    flies through the hovers instead of stopping; if that is still too slow, plans again at
-    :data:`SLOWER_PLANNING` shares of ``max_speed_mps`` (the ideal plan returned then carries
-    the slower scenario); the last fallback is the straight line q0 -> qF flown rest to rest, so a
-    request whose straight line fits the horizon is never refused (with zones, only when that
-    line keeps out of them). With zones, no leg of the mission is straightened across them:
-    every segment between the mission's waypoints keeps their margin. ``planner`` is the
-    optimiser (the core's :func:`~uav_comm_planner.core.optimizer.plan`); ``wider_planner``,
-    when given, is tried at the same speed when the vehicle cannot fly ``planner``'s plan on
-    time (a warm replan's other tours: another tour may fly where the plan in force no longer
-    does), before a slower speed is, unless ``planner``'s plan at the next slower speed flies
-    and states within :data:`WIDER_SEARCH_GAIN` of the plan it cannot fly; the best flown of
-    them is kept (:meth:`_Ladder.slower_or_wider`). It returns None where it
-    would search as ``planner`` did. ``kept_planner``, when given with ``wider_planner``, is
-    tried first there: the plan in force flown on as it is (no trajectory step), taken when
-    the vehicle flies it within :data:`WIDER_SEARCH_GAIN` of what ``planner`` stated, else
-    one of those the best flown is chosen from. Raises
-    :class:`~uav_comm_planner.errors.InfeasibleHorizonError` before solving when the planning
-    speed exceeds the vehicle's, or the wind the vehicle's airspeed, and when not even the
-    straight line fits the horizon (saying the horizon it needs).
-    """
-    began = time.perf_counter()
-    firmware_named(firmware)                 # an unknown name is refused before any solve
-    limits = VehicleLimits.for_firmware(firmware) if limits is None else limits
-    check_speed(scenario, limits)
-    scenario = in_wind(scenario, limits)
-    keeps = zone_check(scenario.zones)
-    ladder = _Ladder(scenario, limits, settings, firmware)
-    for step in range(len(ladder.shares)):
-        ideal, flown = ladder.attempt(planner, step)
-        if flown is None and wider_planner is not None:
-            flown = ladder.slower_or_wider(planner, wider_planner, step, ideal, kept_planner)
-        if flown is not None:
-            return flown.timed_from(began)
-    first_error = ladder.errors[0] if ladder.errors else None
-    if keeps is not None and not keeps(np.asarray(scenario.start_m, float),
-                                       np.asarray(scenario.goal_m, float)):
-        # The straight line would cross a zone: there is no fallback to fly.
-        raise first_error
-    return _straight_line_plan(scenario, limits, settings, firmware, planner, first_error,
-                               began)
-
-
-#: A warm replan's plan at the next slower speed that states at least this share less than
-#: the faster plan the vehicle cannot fly is worth searching the other tours at the faster
-#: speed for (:func:`plan_for_vehicle`'s ``wider_planner``); within it, it is taken as it is.
-WIDER_SEARCH_GAIN = 1e-3
-
-
-class _Ladder:
-    """The planning speeds of :func:`plan_for_vehicle` (1 and :data:`SLOWER_PLANNING` shares
-    of ``max_speed_mps``), each planned by an optimiser at most once; ``errors``: why each
-    plan that was refused or not flyable was, in the order met."""
-
-    def __init__(self, scenario: Scenario, limits: VehicleLimits,
-                 settings: SolverSettings | None, firmware: str):
-        self.shares = (1.0,) + SLOWER_PLANNING
-        self.errors: list[Exception] = []
-        self._scenario, self._limits, self._settings = scenario, limits, settings
-        self._firmware = firmware
-        self._tried: dict[tuple[Callable, int], tuple[PlanResult | None,
-                                                      VehiclePlan | None]] = {}
-
-    def attempt(self, optimiser: Callable[[Scenario, SolverSettings | None], PlanResult],
-                step: int) -> tuple[PlanResult | None, VehiclePlan | None]:
-        """The ideal plan at speed ``step`` (None when refused) and the vehicle's plan of it
-        (None when the vehicle cannot fly it on time, stopping at its hovers or not)."""
-        key = (optimiser, step)
-        if key not in self._tried:
-            self._tried[key] = self._plan(optimiser, self.shares[step])
-        return self._tried[key]
-
-    def slower_or_wider(self, optimiser: Callable[[Scenario, SolverSettings | None], PlanResult],
-                        wider: Callable[[Scenario, SolverSettings | None], PlanResult | None],
-                        step: int, ideal: PlanResult | None,
-                        kept: Callable[[Scenario, SolverSettings | None],
-                                       PlanResult | None] | None = None) -> VehiclePlan | None:
-        """Where the vehicle cannot fly ``optimiser``'s plan ``ideal`` at ``step``: ``kept``'s
-        plan at ``step`` when the vehicle flies it within :data:`WIDER_SEARCH_GAIN` of
-        ``ideal``; else ``optimiser``'s plan at the next speed when that flies and the
-        optimiser states it within :data:`WIDER_SEARCH_GAIN` of ``ideal``; else the one of
-        those plans and the plan of the ``wider`` search at ``step`` that delivers more as
-        flown (None when none flies; ``wider`` and ``kept`` return None where they have
-        nothing to add)."""
-        within = (lambda value: ideal is not None
-                  and value >= ideal.min_throughput * (1 - WIDER_SEARCH_GAIN))
-        held = None if kept is None else self.attempt(kept, step)[1]
-        if held is not None and within(held.flown.min_throughput):
-            return held
-        slower = None
-        if ideal is not None and step + 1 < len(self.shares):
-            slower = self.attempt(optimiser, step + 1)[1]
-            if slower is not None and within(slower.ideal.min_throughput):
-                return slower
-        wide = self.attempt(wider, step)[1]
-        flown = [plan for plan in (wide, slower, held) if plan is not None]
-        return max(flown, key=lambda plan: plan.flown.min_throughput) if flown else None
-
-    def _plan(self, optimiser, share: float) -> tuple[PlanResult | None, VehiclePlan | None]:
-        scenario = self._scenario
+def vehicle_plan(ideal: PlanResult, limits: VehicleLimits, *,
+                 firmware: str = 'ardupilot') -> VehiclePlan:
+    """The vehicle's plan of ``ideal``: its schedule stopping at the hovers, else flying
+    through them (:func:`schedule_flight`), and the plan as flown. Raises
+    :class:`~uav_comm_planner.errors.InfeasibleHorizonError` (the last reason) when neither
+    reaches qF on time."""
+    error: InfeasibleHorizonError | None = None
+    for stop_at_hovers in (True, False):
         try:
-            ideal = optimiser(scenario if share == 1.0 else scenario.replace(
-                max_speed_mps=share * scenario.max_speed_mps), self._settings)
-            if ideal is None:
-                return None, None
-        except WalledInError:
-            raise                           # no slower speed finds a way round the zones
+            schedule = schedule_flight(ideal, limits, firmware=firmware,
+                                       stop_at_hovers=stop_at_hovers)
         except InfeasibleHorizonError as exc:
-            self.errors.append(exc)
-            return None, None
-        for stop_at_hovers in (True, False):
-            try:
-                schedule = schedule_flight(ideal, self._limits, firmware=self._firmware,
-                                           stop_at_hovers=stop_at_hovers)
-            except InfeasibleHorizonError as exc:
-                self.errors.append(exc)
-                continue
-            return ideal, VehiclePlan(ideal, flown_result(ideal, schedule), schedule,
-                                      self._limits)
-        return ideal, None
+            error = exc
+            continue
+        return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
+    raise error
 
 
 def in_wind(scenario: Scenario, limits: VehicleLimits) -> Scenario:
@@ -452,14 +335,16 @@ def in_wind(scenario: Scenario, limits: VehicleLimits) -> Scenario:
     return scenario
 
 
-def _straight_line_plan(scenario: Scenario, limits: VehicleLimits,
-                        settings: SolverSettings | None, firmware: str,
-                        planner: Callable[[Scenario, SolverSettings | None], PlanResult],
-                        first_error: Exception | None, began_s: float) -> VehiclePlan:
-    """The last fallback: the straight line q0 -> qF, planned by ``planner`` at exactly its
-    own ground speed (so that it is the only path, with the power optimal for it and any
-    offsets the planner brings) and flown as one leg from rest to rest, leaving at once at the
-    slowest speed that reaches qF by the end of the horizon."""
+def straight_line_plan(scenario: Scenario, limits: VehicleLimits,
+                       settings: SolverSettings | None, firmware: str,
+                       planner: Callable[[Scenario, SolverSettings | None], PlanResult],
+                       first_error: Exception | None = None) -> VehiclePlan:
+    """The last fallback of a plan for a vehicle: the straight line q0 -> qF, planned by
+    ``planner`` at exactly its own ground speed (so that it is the only path, with the power
+    optimal for it and any offsets the planner brings) and flown as one leg from rest to rest,
+    leaving at once at the slowest speed that reaches qF by the end of the horizon. Raises
+    :class:`~uav_comm_planner.errors.InfeasibleHorizonError` (from ``first_error``) when not
+    even it fits the horizon, saying the horizon it needs."""
     distance = math.dist(scenario.start_m, scenario.goal_m)
     legs = scenario.num_slots + 1
     end_s = legs * scenario.slot_s
@@ -486,7 +371,7 @@ def _straight_line_plan(scenario: Scenario, limits: VehicleLimits,
     flight = Flight((Dwell(start, 0.0, hold), leg, Dwell(goal, at_rest, at_rest)))
     schedule = Schedule((Stop(start, hold), Stop(goal, 0.0)), (leg,), flight, firmware,
                         arrival)
-    return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits).timed_from(began_s)
+    return VehiclePlan(ideal, flown_result(ideal, schedule), schedule, limits)
 
 
 def _no_flyable_plan(scenario: Scenario, limits: VehicleLimits, firmware: str) -> str:
