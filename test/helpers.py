@@ -186,6 +186,7 @@ class Harness:
             self.probe.create_subscription(message_type, topic, self.received[topic].append,
                                            OUTPUT_QOS)
         self.error_logs: list[str] = []
+        self.info_logs: list[str] = []
         self.probe.create_subscription(Log, '/rosout', self._on_log, QoSProfile(
             depth=100, reliability=ReliabilityPolicy.RELIABLE))
         self.nodes_pub = self.probe.create_publisher(PoseArray, TOPIC_GROUND_NODES,
@@ -195,6 +196,8 @@ class Harness:
     def _on_log(self, message: Log) -> None:
         if message.name == NODE_NAME and message.level == Log.ERROR:
             self.error_logs.append(message.msg)
+        elif message.name == NODE_NAME and message.level == Log.INFO:
+            self.info_logs.append(message.msg)
 
     def close(self) -> None:
         self.executor.shutdown()

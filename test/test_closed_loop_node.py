@@ -216,6 +216,11 @@ def test_a_replan_in_flight_is_planned_for_the_vehicle(harness):
     assert outcome.receding.mission_energy_w <= 4.0 * (1 + 1e-9)
     rates = outcome.receding.mission_rates
     assert rates.min() == pytest.approx(outcome.min_throughput, rel=1e-12)
+    # The mission's clock started once, at ~/start; the replan only came into force.
+    h.spin_until(lambda: any('runs on' in line for line in h.info_logs), 'the replan logged')
+    started = [line for line in h.info_logs if line.startswith('mission clock started')]
+    assert len(started) == 1, h.info_logs
+    assert 'the replan is in force from now (the mission clock runs on)' in h.info_logs
 
 
 @pytest.mark.slow

@@ -165,8 +165,11 @@ class MissionFlight:
     def start_clock(self, time_s: float, why: str) -> None:
         """Start the plan's clock at ``time_s``; with ``flight_mode`` stream and a link, the
         vehicle then flies the plan as streamed targets from that autopilot time on."""
+        first = not self.progress.started
         self.progress.start_clock(time_s)
-        self._node.get_logger().info(f'mission clock started: {why}')
+        # The mission's clock starts once; a replan taken over later only comes into force.
+        self._node.get_logger().info(f'mission clock started: {why}' if first
+                                     else f'{why} from now (the mission clock runs on)')
         node = self._node
         if node.config.node.flight_mode == 'stream' and node.vehicle.linked:
             node.vehicle.start_stream(self.progress.current.result, time_s, node.config.node)
