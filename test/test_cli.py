@@ -4,6 +4,7 @@ import json
 
 import pytest
 
+from uav_comm_planner import paper_scenario, plan
 from uav_comm_planner.tools import cli
 
 
@@ -67,6 +68,11 @@ def test_sweep_prints_one_row_per_budget_and_draws_fig_2(tmp_path, capsys):
     rows = [line.split() for line in out.splitlines() if line.strip()[:1].isdigit()]
     assert [row[0] for row in rows] == ['0.5', '5']
     assert all(float(row[1]) > max(float(row[2]), float(row[3])) for row in rows)
+    # The dual bound over the flyable paths, as the plan command states it, is above the plan.
+    assert all(float(row[4]) >= float(row[1]) for row in rows)
+    for row, budget in zip(rows, (0.5, 5.0)):
+        result = plan(paper_scenario('I', power_budget_w=budget))
+        assert float(row[4]) == pytest.approx(result.tight_upper_bound, abs=1e-4)
     assert figure.stat().st_size > 0
 
 

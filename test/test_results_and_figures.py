@@ -90,6 +90,9 @@ def test_a_sweep_file_records_scenario_settings_and_version(tmp_path, capsys):
     assert data['version'] == package_version()
     assert data['settings'] == settings_to_dict(SolverSettings())
     assert data['scenario']['goal_m'] == [2000.0, 500.0] and data['scenario']['num_slots'] == 12
+    assert set(data['min_throughput']) == {'proposed', 'straight', 'static'}
+    assert all(bound >= value for bound, value in zip(data['dual_upper_bound'],
+                                                      data['min_throughput']['proposed']))
     again = tmp_path / 'again.json'
     status, _, _ = run(capsys, 'plan', '--scenario', str(sweep), '--budget', '4',
                        '--json', str(again))

@@ -389,17 +389,22 @@ def _command_sweep(args: argparse.Namespace) -> int:
     scenarios = [scenario.replace(power_budget_w=budget) for budget in budgets]
     for each in scenarios:
         settings.check(each)
-    rows: dict[str, list[float]] = {'proposed': [], 'straight': [], 'static': []}
-    print(f'{"P_T (W)":>8}{"proposed":>12}{"straight":>12}{"static":>12}{"time (s)":>10}')
+    rows: dict[str, list[float]] = {'proposed': [], 'straight': [], 'static': [], 'bound': []}
+    # 'bound': the dual bound over the flyable paths, at each plan's multipliers.
+    print(f'{"P_T (W)":>8}{"proposed":>12}{"straight":>12}{"static":>12}{"dual bound":>12}'
+          f'{"time (s)":>10}')
     for budget, each in zip(budgets, scenarios):
         result = plan(each, settings)
-        values = [result.min_throughput, result.baselines['straight'], result.baselines['static']]
+        values = [result.min_throughput, result.baselines['straight'], result.baselines['static'],
+                  result.tight_upper_bound]
         for key, value in zip(rows, values):
             rows[key].append(value)
         print(f'{budget:>8g}' + ''.join(f'{v:>12.4f}' for v in values)
               + f'{result.solve_time_s:>10.2f}')
     if args.json is not None:
-        record = {'budgets_w': budgets, 'min_throughput': rows,
+        record = {'budgets_w': budgets,
+                  'min_throughput': {key: rows[key] for key in ('proposed', 'straight', 'static')},
+                  'dual_upper_bound': rows['bound'],
                   'scenario': scenario_to_dict(scenario), **run_record(settings)}
         print(f'wrote {write_text_atomic(args.json, json_text(record))}')
     if args.figure is not None:

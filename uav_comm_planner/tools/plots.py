@@ -18,6 +18,8 @@ import os
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
+
 from uav_comm_planner.core.model import flown_path, speeds
 from uav_comm_planner.core.optimizer import PlanResult, throughput_upper_bound
 from uav_comm_planner.core.scenario import paper_scenario, Scenario
@@ -107,7 +109,14 @@ _SETTING_TEXT = {
     'reference_gain': lambda v: f'$\\beta_0$ = {10 * math.log10(v):.3g} dB',
     'start_m': lambda v: f'$q_0$ = {_point(v)}',
     'goal_m': lambda v: f'$q_F$ = {_point(v)}',
+    'wind_speed_mps': lambda v: f'wind {v:g} m/s',
+    'max_airspeed_mps': lambda v: f'airspeed {v:g} m/s',
+    'zones': lambda v: 'with zones' if v is not None and not v.empty else 'no zones',
+    'energy_budget_wh': lambda v: f'energy {v:g} Wh',
 }
+#: Settings a title leaves to the others (the wind's direction goes with its speed, the
+#: airframe with the energy budget and the plan's energy figures).
+_UNSTATED = {'ground_nodes_m', 'power_budget_w', 'wind_from_deg', 'airframe'}
 
 
 def scenario_label(scenario: Scenario, *, besides: Sequence[str] = ()) -> str:
@@ -125,7 +134,7 @@ def scenario_label(scenario: Scenario, *, besides: Sequence[str] = ()) -> str:
         changed = [name for name in _SETTING_TEXT
                    if getattr(reference, name) != getattr(scenario, name)]
         unnamed = [f.name for f in dataclasses.fields(Scenario)
-                   if f.name not in _SETTING_TEXT and f.name != 'ground_nodes_m'
+                   if f.name not in _SETTING_TEXT and f.name not in _UNSTATED
                    and getattr(reference, f.name) != getattr(scenario, f.name)]
         if not unnamed and (best is None or len(changed) < len(best[1])):
             best = (case, changed)
@@ -206,9 +215,9 @@ def draw_plan(result: PlanResult, *, title: str = '', as_flown: bool = False):
     scenario = result.scenario
     figure, (ax_path, ax_speed, ax_power) = plt.subplots(1, 3, figsize=(15, 5.2),
                                                          layout='constrained')
-    if scenario.zones is not None:
-        _draw_zones(ax_path, scenario.zones)
     path_xy = flown_path(result.trajectory, scenario)
+    if scenario.zones is not None:
+        _draw_zones(ax_path, scenario.zones, np.vstack([path_xy, scenario.nodes]))
     ax_path.plot(path_xy[:, 0], path_xy[:, 1], '.-', color='tab:blue', markersize=4,
                  label='UAV path')
     w = scenario.nodes
@@ -241,16 +250,41 @@ def draw_plan(result: PlanResult, *, title: str = '', as_flown: bool = False):
                       label=f'node {n}')
     ax_power.set(xlabel='time (s)', ylabel=f'transmit power ({"W" if watts == 1 else "mW"})',
                  title='transmit power')
+    ax_power.set_ylim(bottom=0.0)            # from zero: a cut axis exaggerates differences
     _legend_below(ax_power, columns=min(scenario.num_nodes, 5))
     figure.suptitle(title or plan_title(result, as_flown=as_flown))
     return figure
 
 
-def _draw_zones(ax, zones) -> None:
-    """The operating area's edge (green, dashed) and the keep-out zones (red, filled)."""
+#: Grid points per side on which the zones' margin is drawn (as the contour where the
+#: clearance equals it), and points whose clearance is computed at once.
+MARGIN_GRID = 240
+MARGIN_CHUNK = 4096
+
+
+def _draw_zones(ax, zones, points: np.ndarray) -> None:
+    """The operating area's edge (green, dashed), the keep-out zones (red, filled) and, dotted,
+    the line the plan keeps to: their margin (where the clearance from the zones equals it),
+    over the box round the zones and ``points`` (K, 2) metres."""
     from uav_comm_planner.vehicle.fence import zone_outlines
+    outlines = zone_outlines(zones)
+    if zones.margin_m > 0 and outlines:
+        corners = np.vstack([points, *(ring for _, ring in outlines)])
+        low = corners.min(axis=0) - 2 * zones.margin_m
+        high = corners.max(axis=0) + 2 * zones.margin_m
+        gx, gy = np.meshgrid(np.linspace(low[0], high[0], MARGIN_GRID),
+                             np.linspace(low[1], high[1], MARGIN_GRID))
+        grid = np.column_stack([gx.ravel(), gy.ravel()])
+        clearance = np.concatenate([zones.clearance(grid[i:i + MARGIN_CHUNK])
+                                    for i in range(0, len(grid), MARGIN_CHUNK)])
+        import contourpy              # matplotlib's own contouring, drawn as plain lines
+        lines = contourpy.contour_generator(gx, gy, clearance.reshape(gx.shape)).lines(
+            zones.margin_m)
+        for k, line in enumerate(lines):
+            ax.plot(line[:, 0], line[:, 1], ':', color='tab:red', linewidth=1.0,
+                    label=None if k else f'{zones.margin_m:g} m margin')
     labelled = set()
-    for kind, ring in zone_outlines(zones):
+    for kind, ring in outlines:
         label = None if kind in labelled else {'area': 'operating area',
                                                'keep_out': 'keep-out zone'}[kind]
         labelled.add(kind)
@@ -274,24 +308,31 @@ def draw_sweep(budgets_w: Sequence[float], rows: dict[str, Sequence[float]], *,
     """The letter's Fig. 2: minimum average throughput against the power budget P_T.
 
     ``rows`` maps a method ('proposed', 'straight', 'static') to its min throughput at each
-    budget, bit/s; the axis ticks are the budgets swept. With the ``scenario`` swept, the
-    upper bound (:func:`~uav_comm_planner.core.optimizer.throughput_upper_bound`) at each
-    budget is drawn too and the title states its settings. Returns the matplotlib figure.
+    budget, bit/s, and 'bound' to an upper bound there (the sweep command's: the dual bound
+    over the flyable paths); the axis ticks are the budgets swept. With the ``scenario`` swept
+    and no 'bound' row, the loose bound (every channel at its best,
+    :func:`~uav_comm_planner.core.optimizer.throughput_upper_bound`) is drawn, so labelled;
+    the title states the scenario's settings. Returns the matplotlib figure.
     """
     from matplotlib.ticker import FuncFormatter, NullLocator
 
     plt = _pyplot()
     figure, ax = plt.subplots(figsize=(6.4, 5.0), layout='constrained')
     rows = dict(rows)
+    labels = {'bound': 'upper bound (dual over the flyable paths)'}
     if scenario is not None and 'bound' not in rows:
         rows['bound'] = [throughput_upper_bound(scenario.replace(power_budget_w=float(b)))
                          for b in budgets_w]
-    largest = max((abs(v) for values in rows.values() for v in values), default=1.0)
+        labels['bound'] = 'upper bound (every channel at its best)'
+    rows = {name: [math.nan if not math.isfinite(v) else v for v in values]
+            for name, values in rows.items()}
+    largest = max((abs(v) for values in rows.values() for v in values if math.isfinite(v)),
+                  default=1.0)
     factor, unit = rate_unit(largest)
     markers = {'proposed': 'o-', 'straight': 's--', 'static': '^:', 'bound': 'k-.'}
     for name, values in rows.items():
         ax.plot(budgets_w, [v / factor for v in values], markers.get(name, '.-'),
-                label=legend_label(name))
+                label=labels.get(name) or legend_label(name))
     ax.set_xscale('log')
     ax.set_xticks(list(budgets_w))
     ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f'{value:g}'))
