@@ -154,7 +154,8 @@ def study_rows(design: StudyDesign, nodes, slots, count: int = 30) -> list[dict]
     rng = np.random.default_rng(3)
     rows = []
     for _ in range(count):
-        row = {'status': 'ok', 'nodes': int(rng.choice(nodes)), 'slots': int(rng.choice(slots))}
+        row = {'status': 'ok', 'nodes': int(rng.choice(nodes)), 'slots': int(rng.choice(slots)),
+               'power_budget_w': float(np.exp(rng.uniform(np.log(0.5), np.log(20.0))))}
         base = rng.uniform(5.0, 10.0)
         for method, factor in (('default', 1.10), ('letter', 1.08), ('straight', 1.0),
                                ('static', 1.02), ('bound', 1.3), ('dual_bound', 1.2)):
@@ -176,12 +177,23 @@ SINGLE_TEXT = ('N = 8, M = 30, T = M s, H = 100 m, V = 100 m/s, $P_T$ = 0.5..20 
 
 
 def test_the_cdf_states_the_study_design_and_the_static_point_s_caveat(tmp_path):
-    drawing = Drawing(study_plots.cdf_figure(SWEPT, study_rows(SWEPT, [2, 3, 4], [20, 40]),
-                                             tmp_path / 'cdf.svg'))
-    (axes,) = drawing.axes()
-    texts = drawing.texts(axes)
-    assert f'CDF of the min throughput over 30 random scenarios\n{SWEPT_TEXT}' in texts
+    rows = study_rows(SWEPT, [2, 3, 4], [20, 40])
+    drawing = Drawing(study_plots.cdf_figure(SWEPT, rows, tmp_path / 'cdf.svg'))
+    assert drawing.suptitle == f'CDF of the min throughput over 30 random scenarios\n{SWEPT_TEXT}'
+    # N = 2, 3, 4 are three populations: a panel each, not one staircase.
+    panels = drawing.axes()
+    assert len(panels) == 3
+    for axes, nodes in zip(panels, (2, 3, 4)):
+        count = sum(row['nodes'] == nodes for row in rows)
+        assert f'N = {nodes}: {count} scenarios' in drawing.texts(axes)
+    texts = drawing.texts(panels[-1])
     assert STATIC in texts and 'upper bound' in texts
+
+
+def test_the_cdf_of_one_population_is_one_panel(tmp_path):
+    drawing = Drawing(study_plots.cdf_figure(SINGLE, study_rows(SINGLE, [8], [30]),
+                                             tmp_path / 'cdf.svg'))
+    assert len(drawing.axes()) == 1
 
 
 def test_gain_against_an_integer_setting_has_integer_ticks(tmp_path):
@@ -215,6 +227,9 @@ def test_time_at_a_single_m_is_a_labelled_point_per_method(tmp_path):
                                    for m in ('default', 'letter')]
     texts = drawing.texts(axes)
     assert 'number of slots M = 30' in texts
+    # Times within a decade on a linear axis from zero: no '6x10^-2' ticks.
+    ticks = drawing.ticks(axes, 'y')
+    assert ticks[0] == '0.00' and not any('10^' in tick or '10^{' in tick for tick in ticks)
     assert f'solve time per scenario (one worker core)\n{SINGLE_TEXT}' in texts
 
 

@@ -31,6 +31,8 @@ from uav_comm_planner.tools.study.methods import BASELINES, BOUNDS, METHODS
 CONFIDENCE = 0.95
 #: A setting with more distinct values than this is grouped into this many equal-count bins.
 MAX_GROUPS = 8
+#: A swept setting with at most this many values gets one CDF panel per value.
+MAX_CDF_PANELS = 4
 STYLES = {'default': 'o-', 'letter': 's--'}
 LINES = {'default': '-', 'letter': '--', 'straight': ':', 'static': '-.',
          'bound': (0, (6, 2, 1, 2)), 'dual_bound': (0, (2, 2))}
@@ -152,14 +154,42 @@ def gain_table(design: StudyDesign, rows: Sequence[dict], against: str
     return table
 
 
-def cdf_figure(design: StudyDesign, rows: Sequence[dict], path: str | os.PathLike) -> Path:
-    """Empirical CDF of the min throughput of every method over the study's scenarios."""
+def cdf_figure(design: StudyDesign, rows: Sequence[dict], path: str | os.PathLike, *,
+               against: str | None = None) -> Path:
+    """Empirical CDF of the min throughput of every method over the study's scenarios: one
+    panel per value of the swept setting ``against`` when it takes a few values (N = 2, 3, 4
+    pooled would draw a staircase of three populations, not one distribution)."""
     ok = _ok(rows)
+    against = against or default_against(design)
+    setting = np.array([row[against] for row in ok], dtype=float)
+    values = np.unique(setting)
+    panels = values if 1 < values.size <= MAX_CDF_PANELS else np.array([np.nan])
     plt = _pyplot()
-    figure, ax = plt.subplots(figsize=(6.4, 4.6))
+    several = panels.size > 1
+    figure, axes = plt.subplots(1, panels.size, figsize=(4.2 * panels.size + 2.2 * several + 2.2,
+                                                         4.6),
+                                squeeze=False, sharey=True)
+    for ax, value in zip(axes[0], panels):
+        members = [row for row, x in zip(ok, setting) if np.isnan(value) or x == value]
+        _draw_cdf(ax, design, members)
+        if not np.isnan(value):
+            symbol, unit = SYMBOLS.get(against, (against, ''))
+            ax.set_title(f'{symbol} = {value:g}{unit}: {len(members)} scenarios', fontsize=9)
+    axes[0][0].set_ylabel('fraction of scenarios')
+    # Beside the panels when there are several (inside, it would hide a panel's lines).
+    axes[0][-1].legend(fontsize=8, **({'loc': 'upper left', 'bbox_to_anchor': (1.02, 1.0)}
+                                      if several else {'loc': 'best'}))
+    figure.suptitle(f'CDF of the min throughput over {len(ok)} random scenarios\n'
+                    f'{design_text(design)}', fontsize=9)
+    figure.tight_layout()
+    return save_figure(figure, path)
+
+
+def _draw_cdf(ax, design: StudyDesign, rows: Sequence[dict]) -> None:
+    """The empirical CDF of each method's min throughput over ``rows`` on ``ax``."""
     lowest, highest = np.inf, 0.0
     for method in design.methods:
-        values = np.sort([row[f'{method}_bps'] for row in ok])
+        values = np.sort([row[f'{method}_bps'] for row in rows])
         fraction = np.arange(1, values.size + 1) / values.size
         ax.step(values, fraction, where='post', label=legend_label(method, METHODS[method].label),
                 linestyle=LINES.get(method, '-'))
@@ -168,13 +198,8 @@ def cdf_figure(design: StudyDesign, rows: Sequence[dict], path: str | os.PathLik
             lowest, highest = min(lowest, positive[0]), max(highest, positive[-1])
     if highest > 0 and highest / lowest > 30:
         ax.set_xscale('log')
-    ax.set(xlabel='min average throughput (bit/s)', ylabel='fraction of scenarios', ylim=(0, 1.02))
-    ax.set_title(f'CDF of the min throughput over {len(ok)} random scenarios\n'
-                 f'{design_text(design)}', fontsize=9)
+    ax.set(xlabel='min average throughput (bit/s)', ylim=(0, 1.02))
     ax.grid(True, alpha=0.3)
-    ax.legend(loc='best', fontsize=8)
-    figure.tight_layout()
-    return save_figure(figure, path)
 
 
 def gain_figure(design: StudyDesign, rows: Sequence[dict], path: str | os.PathLike, *,
@@ -230,7 +255,7 @@ def time_figure(design: StudyDesign, rows: Sequence[dict], path: str | os.PathLi
     if not methods:
         raise PlannerError('the time figure needs an optimised method')
     plt = _pyplot()
-    figure, ax = plt.subplots(figsize=(6.4, 4.8))
+    figure, ax = plt.subplots(figsize=(7.6, 4.8))
     slots = np.array([row['slots'] for row in ok], dtype=float)
     single = np.unique(slots).size == 1
     if single:
@@ -253,7 +278,13 @@ def time_figure(design: StudyDesign, rows: Sequence[dict], path: str | os.PathLi
         x, mean, half = np.array(points).T
         ax.errorbar(x, mean, yerr=np.nan_to_num(half), fmt=STYLES.get(method, 'o-'),
                     color=dots.get_color(), capsize=3, label=METHODS[method].label)
-    ax.set_yscale('log')
+    # A log axis only where the times span a decade: within one, it labels 6x10^-2.
+    times = np.array([row[f'{method}_s'] for row in ok for method in methods], dtype=float)
+    times = times[np.isfinite(times) & (times > 0)]
+    if times.size and times.max() / times.min() >= 10.0:
+        ax.set_yscale('log')
+    else:
+        ax.set_ylim(bottom=0.0)
     if not single:
         _setting_ticks(ax, slots, integer=True)
         ax.set_xlabel('number of slots M')
@@ -277,7 +308,7 @@ def all_figures(design: StudyDesign, rows: Sequence[dict], folder: str | os.Path
     """cdf.FMT, gain_vs_SETTING.FMT and time_vs_slots.FMT in ``folder`` (made if missing)."""
     folder = make_folder(folder)
     against = against or default_against(design)
-    written = [cdf_figure(design, rows, folder / f'cdf.{fmt}')]
+    written = [cdf_figure(design, rows, folder / f'cdf.{fmt}', against=against)]
     if optimised_methods(design):
         if any(b in design.methods for b in BASELINES):
             written.append(gain_figure(design, rows, folder / f'gain_vs_{against}.{fmt}',
