@@ -5,7 +5,7 @@ Each case is planned for PX4 with the package's own pipeline (``plan_mission``, 
 QGroundControl ``.plan``, uploaded and read back with the package's ``upload``
 (:func:`~uav_comm_planner.vehicle.mavlink.upload.upload_file`), and flown in AUTO.MISSION on a
 fresh PX4 SITL (``../shared/sitl/px4``) with PX4's default parameters but MPC_XY_CRUISE. The
-three flights run one after the other (instances 4, 5 and 6) at a speed-up of 5. The plan's
+flights run one after the other (instances 4 to 8) at a speed-up of 5. The plan's
 clock starts when PX4 starts counting the hold at q0; every time is autopilot time. What must hold,
 for the letter's case I at 5 and at 10 m/s and for a random scenario of six nodes:
 
@@ -15,7 +15,8 @@ for the letter's case I at 5 and at 10 m/s and for a random scenario of six node
   99 % of the min throughput the plan states.
 
 A mission PX4 refuses is reported by ``uav-comm-planner upload`` as one error line naming the
-item (instance 7). The figures are printed for the record (``pytest -s``).
+item (instance 7). The held-out five-node case (instance 8) was drawn for this test and never
+used to fit PX4's leg timing: its median within a quarter of a slot. The figures are printed for the record (``pytest -s``).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from pathlib import Path
 import subprocess
 import sys
 
-from helpers import random_six_nodes
+from helpers import random_scenario, random_six_nodes
 import pytest
 
 from devtools.px4_sitl import fly_px4_mission, PX4_HOME, start_px4, why_px4_not_runnable
@@ -64,7 +65,12 @@ CASES = {
                                         num_slots=100), 10.0, 5),
     'random, six nodes, 5 m/s': (random_six_nodes().replace(max_speed_mps=5.0, horizon_s=600.0,
                                                             num_slots=150), 5.0, 6),
+    # Held out: drawn for this test only, never used to fit PX4's leg timing.
+    'held out, five nodes, 5 m/s': (random_scenario(
+        21, nodes=5, slots=200, side_m=1000.0, max_speed_mps=5.0, horizon_s=800.0), 5.0, 8),
 }
+#: The held-out case's median lateness, slots: a quarter of a slot.
+HELD_OUT_MEDIAN_SLOTS = 0.25
 
 
 def fly_case(name: str, folder: Path):
@@ -102,7 +108,8 @@ def test_px4_reaches_every_planned_point_on_time(flights, name):
     vehicle_plan, flown = flights[name]
     scenario = vehicle_plan.ideal.scenario
     assert flown.report.worst_reach_slots <= 1.0
-    assert flown.report.median_reach_slots <= MEDIAN_SLOTS
+    assert flown.report.median_reach_slots <= (HELD_OUT_MEDIAN_SLOTS if name.startswith('held')
+                                               else MEDIAN_SLOTS)
     assert abs(flown.arrival_s - scenario.slot_s * (scenario.num_slots + 1)) <= scenario.slot_s
 
 
