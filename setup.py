@@ -42,7 +42,7 @@ setup(
         # In a ROS 2 Jazzy workspace these come from the distribution (rosdep);
         # outside one, the PyPI wheels of Jazzy provide them.
         'ros': ROS_JAZZY,
-        'plots': ['matplotlib>=3.8,<4'],
+        'plots': ['matplotlib>=3.8,<4', 'contourpy>=1.2,<2'],
         # Serial links to a vehicle (mavlink_url /dev/ttyACM0,115200): pymavlink opens them
         # with pyserial.
         'serial': ['pyserial>=3.5,<4'],

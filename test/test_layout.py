@@ -6,7 +6,7 @@
 | vehicle/  | core, pymavlink, pymap3d, yaml (airframe files)                         |
 | mission/  | core, vehicle (the pipeline the node and the command line share)        |
 | ros/      | core, vehicle, mission, rclpy and ROS messages                          |
-| tools/    | core, vehicle, mission, scipy, matplotlib, dask, pyarrow; never rclpy   |
+| tools/    | core, vehicle, mission, scipy, matplotlib (contourpy), dask, pyarrow; never rclpy |
 | top level | errors and files import nothing of the package; ``__init__`` re-exports |
 |           | the public API from core, mission and vehicle                            |
 
@@ -47,7 +47,7 @@ THIRD_PARTY = {
     'ros': {'numpy', 'rclpy', 'builtin_interfaces', 'geometry_msgs', 'nav_msgs', 'std_msgs',
             'std_srvs', 'visualization_msgs', 'rcl_interfaces', 'diagnostic_msgs',
             'trajectory_msgs'},
-    'tools': {'numpy', 'scipy', 'matplotlib', 'dask', 'distributed', 'pyarrow'},
+    'tools': {'numpy', 'scipy', 'matplotlib', 'contourpy', 'dask', 'distributed', 'pyarrow'},
 }
 #: The top-level modules of the package that every folder may use.
 SHARED = {'errors', 'files'}
