@@ -124,11 +124,13 @@ def delivered_bits(mission: Scenario, flown: FlownSlots) -> np.ndarray:
     return mission.slot_s * mission.bandwidth_hz / mission.num_nodes * bits_per_use
 
 
-def rest_of_mission(mission: Scenario, position_m: Sequence[float],
-                    flown: FlownSlots) -> Scenario:
+def rest_of_mission(mission: Scenario, position_m: Sequence[float], flown: FlownSlots, *,
+                    energy_left_wh: float | None = None) -> Scenario:
     """The remaining M - k slots from ``position_m`` (:func:`clear_start`) to qF, same
     delta, with the budget left, and the energy budget left (:func:`flown_energy_wh`) when the
-    mission has one.
+    mission has one; ``energy_left_wh``, when given, is the energy budget of the rest instead
+    (measured: what the vehicle's battery has left for it, :mod:`uav_comm_planner.mission.
+    battery`), whether or not the mission had one.
 
     Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when no slot remains or
     qF is out of reach, :class:`~uav_comm_planner.errors.InvalidScenarioError` when the
@@ -148,6 +150,8 @@ def rest_of_mission(mission: Scenario, position_m: Sequence[float],
         return mission
     changes = dict(start_m=clear_start(mission, position_m), num_slots=remaining,
                    horizon_s=remaining * mission.slot_s, power_budget_w=budget_left)
+    if energy_left_wh is not None:
+        return _with_energy_left(mission, changes, energy_left_wh, flown)
     if mission.energy_budget_wh is None:
         return mission.replace(**changes)
     used_wh = flown_energy_wh(mission, flown)
@@ -162,6 +166,21 @@ def rest_of_mission(mission: Scenario, position_m: Sequence[float],
             f'the energy budget left is too little for the rest: {used_wh:.4g} of '
             f'{mission.energy_budget_wh:.4g} Wh used in {flown.num_slots} slots; {exc}') \
             from None
+
+
+def _with_energy_left(mission: Scenario, changes: dict, energy_left_wh: float,
+                      flown: FlownSlots) -> Scenario:
+    """The rest (``changes`` to ``mission``) with the energy budget ``energy_left_wh``."""
+    if not energy_left_wh > 0.0:
+        raise InfeasibleHorizonError(
+            f'no energy is left for the rest: {energy_left_wh:.4g} Wh after {flown.num_slots} '
+            f'slots; land, or start a new mission')
+    try:
+        return mission.replace(**changes, energy_budget_wh=energy_left_wh)
+    except InfeasibleHorizonError as exc:
+        raise InfeasibleHorizonError(
+            f'the energy left, {energy_left_wh:.4g} Wh after {flown.num_slots} slots, is too '
+            f'little for the rest; {exc}') from None
 
 
 def flown_energy_wh(mission: Scenario, flown: FlownSlots) -> float:
@@ -395,15 +414,15 @@ def _keeps_zones(q: np.ndarray, scenario: Scenario) -> bool:
 
 
 def receding_problem(mission: Scenario, position_m: Sequence[float], flown: FlownSlots, *,
-                     previous_q: np.ndarray | None = None,
-                     warm: bool = False) -> RecedingProblem:
+                     previous_q: np.ndarray | None = None, warm: bool = False,
+                     energy_left_wh: float | None = None) -> RecedingProblem:
     """The rest of ``mission`` from ``position_m`` after the slots ``flown``, as a problem for
     the optimiser (module docstring). ``previous_q`` (M - k, 2) metres, the rest of the plan
     being flown, becomes one more start, :func:`rejoined` from ``position_m``, when that keeps
     the speed limit (and the zones); with ``warm`` (the plan in force serves the same nodes)
     the replan then continues it (:meth:`RecedingProblem.for_scenario`). Raises the errors of
-    :func:`rest_of_mission`."""
-    rest = rest_of_mission(mission, position_m, flown)
+    :func:`rest_of_mission` (``energy_left_wh``: the rest's energy budget, measured)."""
+    rest = rest_of_mission(mission, position_m, flown, energy_left_wh=energy_left_wh)
     delivered = delivered_bits(mission, flown)
     per_use = rest.slot_s * rest.bandwidth_hz / rest.num_nodes * rest.num_slots
     offsets = delivered / per_use

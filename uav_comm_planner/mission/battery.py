@@ -1,0 +1,128 @@
+"""The battery in flight: the energy the vehicle has left, what the rest of the mission needs,
+and whether the plan in force is kept, replanned within the energy left, or the mission ended.
+
+The energy left is measured, not predicted: the autopilot's energy consumed (BATTERY_STATUS)
+against the battery's capacity, which is the smaller of the usable energy stated
+(``battery_wh``) and the one the autopilot's own charge remaining implies, consumed over the
+share drawn (:func:`battery_capacity_wh`; a battery smaller than stated, or one whose
+autopilot knows its capacity better, shows there). Of that capacity the reserve is kept and
+the landing after qF paid (:func:`rest_allowance_wh`): what remains is what the rest of the
+horizon, from where the vehicle is to qF, may use.
+
+The rest of the plan in force needs the energy of its legs from the vehicle's position
+through its remaining points to qF, one slot each, by the airframe's model
+(:func:`path_energy_wh`); the cheapest way to qF is taken as the straight line flown at
+uniform speed over the same legs (the start that costs least on an airframe whose power only
+rises with speed, and a flight that always exists: :func:`straight_rest_energy_wh`).
+:func:`battery_decision` then keeps the plan while the energy left flies it, replans with
+:data:`ENERGY_MARGIN` less than the energy left while the straight line fits in that, and
+ends the mission otherwise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Sequence
+
+import numpy as np
+
+from uav_comm_planner.core.energy import Battery, JOULES_PER_WH
+from uav_comm_planner.core.scenario import Scenario
+
+#: A replan for the battery plans with this share less than the energy left, so that the
+#: model's error in flight (within 0.4 % measured on ArduCopter SITL, docs/energy.md) does not
+#: make the next check replan again.
+ENERGY_MARGIN = 0.03
+#: The charge remaining implies a capacity once at least this share of it is drawn: the
+#: autopilot reports it in whole percent, so earlier the implied capacity is too coarse.
+MIN_DRAWN_SHARE = 0.05
+
+KEEP, REPLAN, END = 'keep', 'replan', 'end'
+
+
+def battery_capacity_wh(stated_wh: float, consumed_wh: float, remaining: float) -> float:
+    """The battery's usable energy, Wh: ``stated_wh``, or less when the autopilot's charge
+    ``remaining`` (a share, NaN: unknown) says that ``consumed_wh`` is a larger share of it:
+    ``consumed_wh / (1 - remaining)`` once at least :data:`MIN_DRAWN_SHARE` is drawn."""
+    drawn = 1.0 - remaining
+    if math.isnan(remaining) or drawn < MIN_DRAWN_SHARE or consumed_wh <= 0.0:
+        return stated_wh
+    return min(stated_wh, consumed_wh / drawn)
+
+
+def rest_allowance_wh(battery: Battery, consumed_wh: float, remaining: float,
+                      landing_wh: float) -> tuple[float, float]:
+    """(allowance, capacity), Wh: what the rest of the horizon may use, the capacity
+    (:func:`battery_capacity_wh`) less its reserve, less ``consumed_wh``, less the landing;
+    and that capacity. The allowance may be negative (nothing left for the rest)."""
+    capacity = battery_capacity_wh(battery.usable_wh, consumed_wh, remaining)
+    return capacity * (1.0 - battery.reserve) - consumed_wh - landing_wh, capacity
+
+
+def path_energy_wh(path_m: np.ndarray, scenario: Scenario) -> float:
+    """The propulsion energy of the legs between consecutive points of ``path_m`` (K, 2)
+    metres, each flown at constant velocity over one slot at its airspeed in the scenario's
+    wind, by its airframe, Wh (as :func:`~uav_comm_planner.core.energy.horizon_energy_j`
+    counts a plan's legs)."""
+    path = np.asarray(path_m, dtype=float).reshape(-1, 2)
+    airspeed = np.linalg.norm(np.diff(path, axis=0) / scenario.slot_s - scenario.wind_mps,
+                              axis=1)
+    return float(scenario.airframe.level_power_w(airspeed).sum() * scenario.slot_s
+                 / JOULES_PER_WH)
+
+
+def rest_path(position_m: Sequence[float], rest_q: np.ndarray,
+              goal_m: Sequence[float]) -> np.ndarray:
+    """The vehicle's position, the plan's remaining points (M', 2), qF: (M' + 2, 2)."""
+    return np.vstack([np.reshape(position_m, (1, 2)),
+                      np.reshape(np.asarray(rest_q, dtype=float), (-1, 2)),
+                      np.reshape(goal_m, (1, 2))])
+
+
+def straight_rest_energy_wh(scenario: Scenario, position_m: Sequence[float],
+                            rest_slots: int) -> float:
+    """The energy of the straight line from ``position_m`` to qF at uniform speed over the
+    rest's ``rest_slots`` + 1 legs, Wh."""
+    start = np.asarray(position_m, dtype=float)
+    shares = np.linspace(0.0, 1.0, rest_slots + 2)[:, None]
+    return path_energy_wh(start + shares * (np.asarray(scenario.goal_m, float) - start),
+                          scenario)
+
+
+@dataclass(frozen=True)
+class BatteryDecision:
+    """What the battery says of the plan in force: ``action`` :data:`KEEP`, :data:`REPLAN`
+    (with ``budget_wh``, the energy left less :data:`ENERGY_MARGIN`) or :data:`END`; the
+    figures it was decided on, Wh; ``reason`` in words."""
+
+    action: str
+    allowance_wh: float
+    needed_wh: float
+    least_wh: float
+    budget_wh: float
+    reason: str
+
+
+def battery_decision(allowance_wh: float, needed_wh: float, least_wh: float,
+                     margin: float = ENERGY_MARGIN) -> BatteryDecision:
+    """Keep the plan in force when the energy left flies its rest (``needed_wh`` <=
+    ``allowance_wh``); else replan within ``allowance_wh`` (1 - ``margin``) when the straight
+    line to qF (``least_wh``) fits in that; else end the mission."""
+    budget = allowance_wh * (1.0 - margin)
+    figures = (f'{allowance_wh:.2f} Wh left for the rest after the reserve and the landing, '
+               f'the plan in force needs {needed_wh:.2f} Wh')
+    if needed_wh <= allowance_wh:
+        return BatteryDecision(KEEP, allowance_wh, needed_wh, least_wh, budget,
+                               f'{figures}: kept')
+    if least_wh <= budget:
+        return BatteryDecision(REPLAN, allowance_wh, needed_wh, least_wh, budget,
+                               f'{figures}: replanning the rest within {budget:.2f} Wh')
+    return BatteryDecision(END, allowance_wh, needed_wh, least_wh, budget,
+                           f'{figures} and even the straight line to qF needs '
+                           f'{least_wh:.2f} Wh: the battery cannot reach qF with its reserve')
+
+
+__all__ = ['BatteryDecision', 'END', 'ENERGY_MARGIN', 'KEEP', 'MIN_DRAWN_SHARE', 'REPLAN',
+           'battery_capacity_wh', 'battery_decision', 'path_energy_wh', 'rest_allowance_wh',
+           'rest_path', 'straight_rest_energy_wh']
