@@ -14,9 +14,9 @@ through its remaining points to qF, one slot each, by the airframe's model
 (:func:`path_energy_wh`); the cheapest way to qF is taken as the straight line flown at
 uniform speed over the same legs (the start that costs least on an airframe whose power only
 rises with speed, and a flight that always exists: :func:`straight_rest_energy_wh`).
-:func:`battery_decision` then keeps the plan while the energy left flies it, replans with
-:data:`ENERGY_MARGIN` less than the energy left while the straight line fits in that, and
-ends the mission otherwise.
+:func:`battery_decision` then keeps the plan while the energy left flies it; replans within
+:data:`ENERGY_MARGIN` less than the energy left (less only by what the straight line leaves,
+when that is less) while the straight line fits in it; and ends the mission otherwise.
 """
 
 from __future__ import annotations
@@ -34,6 +34,9 @@ from uav_comm_planner.core.scenario import Scenario
 #: model's error in flight (within 0.4 % measured on ArduCopter SITL, docs/energy.md) does not
 #: make the next check replan again.
 ENERGY_MARGIN = 0.03
+#: ... but never below the straight line's energy by this share more, which the optimiser's
+#: straight-line start then keeps with room.
+LEAST_SLACK = 1e-3
 #: The charge remaining implies a capacity once at least this share of it is drawn: the
 #: autopilot reports it in whole percent, so earlier the implied capacity is too coarse.
 MIN_DRAWN_SHARE = 0.05
@@ -93,8 +96,8 @@ def straight_rest_energy_wh(scenario: Scenario, position_m: Sequence[float],
 @dataclass(frozen=True)
 class BatteryDecision:
     """What the battery says of the plan in force: ``action`` :data:`KEEP`, :data:`REPLAN`
-    (with ``budget_wh``, the energy left less :data:`ENERGY_MARGIN`) or :data:`END`; the
-    figures it was decided on, Wh; ``reason`` in words."""
+    (within ``budget_wh``, :func:`battery_decision`) or :data:`END`; the figures it was
+    decided on, Wh; ``reason`` in words."""
 
     action: str
     allowance_wh: float
@@ -107,15 +110,16 @@ class BatteryDecision:
 def battery_decision(allowance_wh: float, needed_wh: float, least_wh: float,
                      margin: float = ENERGY_MARGIN) -> BatteryDecision:
     """Keep the plan in force when the energy left flies its rest (``needed_wh`` <=
-    ``allowance_wh``); else replan within ``allowance_wh`` (1 - ``margin``) when the straight
-    line to qF (``least_wh``) fits in that; else end the mission."""
-    budget = allowance_wh * (1.0 - margin)
+    ``allowance_wh``); else replan within a budget of ``allowance_wh`` (1 - ``margin``), or
+    of the straight line's ``least_wh`` (1 + :data:`LEAST_SLACK`) when that is more, as long
+    as the budget is within ``allowance_wh``; else end the mission."""
+    budget = max(allowance_wh * (1.0 - margin), least_wh * (1.0 + LEAST_SLACK))
     figures = (f'{allowance_wh:.2f} Wh left for the rest after the reserve and the landing, '
                f'the plan in force needs {needed_wh:.2f} Wh')
     if needed_wh <= allowance_wh:
         return BatteryDecision(KEEP, allowance_wh, needed_wh, least_wh, budget,
                                f'{figures}: kept')
-    if least_wh <= budget:
+    if budget <= allowance_wh:
         return BatteryDecision(REPLAN, allowance_wh, needed_wh, least_wh, budget,
                                f'{figures}: replanning the rest within {budget:.2f} Wh')
     return BatteryDecision(END, allowance_wh, needed_wh, least_wh, budget,
@@ -123,6 +127,7 @@ def battery_decision(allowance_wh: float, needed_wh: float, least_wh: float,
                            f'{least_wh:.2f} Wh: the battery cannot reach qF with its reserve')
 
 
-__all__ = ['BatteryDecision', 'END', 'ENERGY_MARGIN', 'KEEP', 'MIN_DRAWN_SHARE', 'REPLAN',
+__all__ = ['BatteryDecision', 'END', 'ENERGY_MARGIN', 'KEEP', 'LEAST_SLACK', 'MIN_DRAWN_SHARE',
+           'REPLAN',
            'battery_capacity_wh', 'battery_decision', 'path_energy_wh', 'rest_allowance_wh',
            'rest_path', 'straight_rest_energy_wh']

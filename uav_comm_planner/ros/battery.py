@@ -196,11 +196,12 @@ class BatteryWatch:
             'battery_replans': self.replans}
         allowance = self.allowance_wh()
         if allowance is not None:
-            values.update(rest_allowance_wh=f'{allowance[0]:.4f}',
-                          capacity_wh=f'{allowance[1]:.4f}')
-        if self.decision is not None:
-            values.update(rest_needed_wh=f'{self.decision.needed_wh:.4f}',
-                          rest_least_wh=f'{self.decision.least_wh:.4f}',
+            values.update(capacity_wh=f'{allowance[1]:.4f}',
+                          rest_allowance_wh=f'{allowance[0]:.4f}')
+        if self.decision is not None:       # the figures of the latest check, when it was made
+            values.update(checked_allowance_wh=f'{self.decision.allowance_wh:.4f}',
+                          checked_needed_wh=f'{self.decision.needed_wh:.4f}',
+                          checked_least_wh=f'{self.decision.least_wh:.4f}',
                           battery_decision=self.decision.action)
         message = (f'{report.consumed_j / JOULES_PER_WH:.2f} Wh used, '
                    f'{100 * report.remaining:.0f} % left')
