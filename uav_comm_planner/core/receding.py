@@ -34,7 +34,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from uav_comm_planner.core import detour
-from uav_comm_planner.core.energy import JOULES_PER_WH
+from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.feasibility import retimed, within_speed_limit
 from uav_comm_planner.core.model import snr_per_watt, spectral_efficiencies
 from uav_comm_planner.core.optimizer import plan, plan_along, PlanResult, ZoneKeeper
@@ -358,7 +358,8 @@ class RecedingProblem:
 
         The plan in force is one more start (:meth:`start_for`). A warm replan then runs that
         start and the hover start (:data:`WARM_STARTS`) with no screened tours:
-        the plan in force already is the best tour the screening found for these nodes, and
+        the plan in force already is the best tour the screening found for these nodes (under
+        an energy budget, the straight line too), and
         the replan only moves its start to where the UAV is, so continuing it (one SCA step
         per power step, as the default continues its best tour) gives at least what flying on
         with it would, in a few trajectory steps instead of the screening's tours. That
@@ -382,7 +383,11 @@ class RecedingProblem:
         options = options.with_starts(**{PREVIOUS_PLAN_START: start})
         if not self.warm:
             return settings, options
-        return dataclasses.replace(settings or SolverSettings(), starts=WARM_STARTS,
+        # Under an energy budget the straight line is the start that costs least; without it,
+        # a budget the plan in force and hovering exceed would be refused (and the rest
+        # lengthened, which only costs more energy).
+        starts = WARM_STARTS + (('straight',) if scenario.energy_budget_wh is not None else ())
+        return dataclasses.replace(settings or SolverSettings(), starts=starts,
                                    screened_tours=0, keep_path_length=True,
                                    shortlist=WARM_SHORTLIST), options
 
@@ -409,6 +414,12 @@ class RecedingProblem:
                             mission_min_throughput=float(mission_rates.min()))
 
 
+def _over_budget(q: np.ndarray, scenario: Scenario) -> bool:
+    """Whether ``q`` needs more than the scenario's energy budget (False without one)."""
+    return (scenario.energy_budget_wh is not None and horizon_energy_j(
+        q, scenario, scenario.airframe) > scenario.energy_budget_wh * JOULES_PER_WH)
+
+
 def _keeps_zones(q: np.ndarray, scenario: Scenario) -> bool:
     return scenario.zones is None or scenario.zones.empty or ZoneKeeper(scenario).keeps(q)
 
@@ -419,9 +430,10 @@ def receding_problem(mission: Scenario, position_m: Sequence[float], flown: Flow
     """The rest of ``mission`` from ``position_m`` after the slots ``flown``, as a problem for
     the optimiser (module docstring). ``previous_q`` (M - k, 2) metres, the rest of the plan
     being flown, becomes one more start, :func:`rejoined` from ``position_m``, when that keeps
-    the speed limit (and the zones); with ``warm`` (the plan in force serves the same nodes)
-    the replan then continues it (:meth:`RecedingProblem.for_scenario`). Raises the errors of
-    :func:`rest_of_mission` (``energy_left_wh``: the rest's energy budget, measured)."""
+    the speed limit (and the zones); with ``warm`` (the plan in force serves the same nodes,
+    and keeps the rest's energy budget if it has one) the replan then continues it
+    (:meth:`RecedingProblem.for_scenario`). Raises the errors of :func:`rest_of_mission`
+    (``energy_left_wh``: the rest's energy budget, measured)."""
     rest = rest_of_mission(mission, position_m, flown, energy_left_wh=energy_left_wh)
     delivered = delivered_bits(mission, flown)
     per_use = rest.slot_s * rest.bandwidth_hz / rest.num_nodes * rest.num_slots
@@ -429,6 +441,8 @@ def receding_problem(mission: Scenario, position_m: Sequence[float], flown: Flow
     start = None if previous_q is None else rejoined(previous_q, rest.start_m, rest)
     if start is not None and not (within_speed_limit(start, rest) and _keeps_zones(start, rest)):
         start = None
+    if start is not None and _over_budget(start, rest):
+        warm = False        # the plan in force is no tour to continue: search them again
     return RecedingProblem(mission=mission, flown=flown, rest=rest, delivered_bits=delivered,
                            offsets=offsets, previous_start=start,
                            warm=bool(warm) and start is not None)
@@ -437,7 +451,7 @@ def receding_problem(mission: Scenario, position_m: Sequence[float], flown: Flow
 def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
            settings: SolverSettings | None = None, *, planner: Planner = plan,
            previous_q: np.ndarray | None = None, warm: bool = False,
-           **plan_options) -> RecedingPlan:
+           energy_left_wh: float | None = None, **plan_options) -> RecedingPlan:
     """Plan the rest of ``mission`` from ``position_m`` after the slots ``flown``.
 
     Maximises the whole mission's min average throughput under the whole mission's budget
@@ -447,9 +461,11 @@ def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
     continues it instead of screening the tours again (:meth:`RecedingProblem.for_scenario`).
     ``plan_options`` go to ``planner`` (:func:`plan`: ``power_method``,
     ``trajectory_method``). With no flown slot and ``position_m`` = q0 it returns the letter's
-    plan exactly. Raises the errors of :func:`rest_of_mission` and of the planner.
+    plan exactly. ``energy_left_wh``: the rest's energy budget, measured
+    (:func:`rest_of_mission`). Raises the errors of :func:`rest_of_mission` and of the planner.
     """
-    problem = receding_problem(mission, position_m, flown, previous_q=previous_q, warm=warm)
+    problem = receding_problem(mission, position_m, flown, previous_q=previous_q, warm=warm,
+                               energy_left_wh=energy_left_wh)
     settings, options = problem.for_scenario(settings)
     result = planner(problem.rest, settings, **options.keywords(), **plan_options)
     return problem.outcome(result)

@@ -9,11 +9,13 @@ autopilot knows its capacity better, shows there). Of that capacity the reserve 
 the landing after qF paid (:func:`rest_allowance_wh`): what remains is what the rest of the
 horizon, from where the vehicle is to qF, may use.
 
-The rest of the plan in force needs the energy of its legs from the vehicle's position
-through its remaining points to qF, one slot each, by the airframe's model
-(:func:`path_energy_wh`); the cheapest way to qF is taken as the straight line flown at
-uniform speed over the same legs (the start that costs least on an airframe whose power only
-rises with speed, and a flight that always exists: :func:`straight_rest_energy_wh`).
+The rest of the plan in force needs the energy of its legs from the vehicle's position to
+its next point over the time left to it, then through its remaining points to qF, one slot
+each, by the airframe's model (:func:`plan_rest_energy_wh`); the cheapest way to qF is taken
+as the straight line flown at uniform speed over the legs of the rest a replan would plan
+(:func:`~uav_comm_planner.core.receding.rest_of_mission`: from the vehicle's position, one
+slot per leg; the start that costs least on an airframe whose power only rises with speed,
+and a flight that always exists: :func:`straight_rest_energy_wh`).
 :func:`battery_decision` then keeps the plan while the energy left flies it; replans within
 :data:`ENERGY_MARGIN` less than the energy left (less only by what the straight line leaves,
 when that is less) while the straight line fits in it; and ends the mission otherwise.
@@ -28,6 +30,7 @@ from typing import Sequence
 import numpy as np
 
 from uav_comm_planner.core.energy import Battery, JOULES_PER_WH
+from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario
 
 #: A replan for the battery plans with this share less than the energy left, so that the
@@ -83,6 +86,31 @@ def rest_path(position_m: Sequence[float], rest_q: np.ndarray,
                       np.reshape(goal_m, (1, 2))])
 
 
+#: The leg to the next planned point is flown over the time left to it unless that is less
+#: than this share of a slot: then the vehicle is taken to fly on to the point after it.
+SHORTEST_LEG_SHARE = 0.5
+
+
+def plan_rest_energy_wh(result: PlanResult, elapsed_s: float,
+                        position_m: Sequence[float]) -> float:
+    """The energy the plan ``result`` still needs ``elapsed_s`` after its clock started with
+    the vehicle at ``position_m``: to its next point (reached at the end of the current slot)
+    over the time left to it, then its legs as planned to qF, Wh (0 once qF is due)."""
+    scenario = result.scenario
+    points = np.vstack([np.reshape(np.asarray(result.trajectory, float), (-1, 2)),
+                        np.reshape(scenario.goal_m, (1, 2))])
+    delta = scenario.slot_s
+    j = int(math.floor(elapsed_s / delta))
+    left_s = (j + 1) * delta - elapsed_s
+    if left_s < SHORTEST_LEG_SHARE * delta:
+        j, left_s = j + 1, left_s + delta
+    if j >= len(points):
+        return 0.0
+    velocity = (points[j] - np.asarray(position_m, float)) / left_s - scenario.wind_mps
+    first = float(scenario.airframe.level_power_w(np.linalg.norm(velocity))) * left_s
+    return first / JOULES_PER_WH + path_energy_wh(points[j:], scenario)
+
+
 def straight_rest_energy_wh(scenario: Scenario, position_m: Sequence[float],
                             rest_slots: int) -> float:
     """The energy of the straight line from ``position_m`` to qF at uniform speed over the
@@ -129,5 +157,5 @@ def battery_decision(allowance_wh: float, needed_wh: float, least_wh: float,
 
 __all__ = ['BatteryDecision', 'END', 'ENERGY_MARGIN', 'KEEP', 'LEAST_SLACK', 'MIN_DRAWN_SHARE',
            'REPLAN',
-           'battery_capacity_wh', 'battery_decision', 'path_energy_wh', 'rest_allowance_wh',
-           'rest_path', 'straight_rest_energy_wh']
+           'SHORTEST_LEG_SHARE', 'battery_capacity_wh', 'battery_decision', 'path_energy_wh',
+           'plan_rest_energy_wh', 'rest_allowance_wh', 'rest_path', 'straight_rest_energy_wh']

@@ -29,9 +29,8 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from uav_comm_planner.core.energy import JOULES_PER_WH, takeoff_landing_j
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.mission.battery import (battery_decision, BatteryDecision, END,
-                                              ENERGY_MARGIN, path_energy_wh, REPLAN,
-                                              rest_allowance_wh, rest_path,
-                                              straight_rest_energy_wh)
+                                              ENERGY_MARGIN, plan_rest_energy_wh, REPLAN,
+                                              rest_allowance_wh, straight_rest_energy_wh)
 from uav_comm_planner.ros.params import node_battery, PlannerConfig
 from uav_comm_planner.vehicle.mavlink.battery import BatteryReport, in_end_mode
 
@@ -132,8 +131,7 @@ class BatteryWatch:
         self._last_check_s = time_s
         scenario = segment.result.scenario
         position = (latest[1], latest[2])
-        needed = path_energy_wh(rest_path(position, segment.result.trajectory[begun:],
-                                          scenario.goal_m), scenario)
+        needed = plan_rest_energy_wh(segment.result, time_s - segment.start_s, position)
         least = straight_rest_energy_wh(scenario, position, rest_slots)
         self.decision = battery_decision(allowance[0], needed, least)
         if self.decision.action == REPLAN:
