@@ -20,9 +20,8 @@ from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 from uav_comm_planner.mission.battery import (battery_capacity_wh, battery_decision, END,
                                               ENERGY_MARGIN, KEEP, LEAST_SLACK,
                                               MIN_DRAWN_SHARE, path_energy_wh,
-                                              plan_rest_energy_wh, REPLAN,
-                                              rest_allowance_wh, rest_path,
-                                              straight_rest_energy_wh)
+                                              plan_rest_energy_wh, REPLAN, rest_allowance_wh,
+                                              rest_legs, rest_path, straight_rest_energy_wh)
 from uav_comm_planner.ros.params import config_from_parameters
 from uav_comm_planner.vehicle.airframe import airframe_named, default_airframe
 from uav_comm_planner.vehicle.mavlink.battery import (battery_of, BatteryReport, END_MODES,
@@ -233,3 +232,15 @@ def test_the_node_replans_the_rest_within_the_energy_its_battery_report_leaves(h
     level, message, values = h.node.vehicle.battery.status()
     assert values['battery_decision'] == REPLAN and 'replanning the rest within' in message
     assert h.node.vehicle.battery.replans == 1 and not h.node.progress.ended
+
+
+def test_a_rest_that_cannot_reach_qf_in_time_has_the_legs_that_can():
+    """The straight line counts the legs the rest will be lengthened to: ceil(distance /
+    (V delta)) when its own slots are too few (here in still air, V = 30 m/s, delta = 4 s)."""
+    still = MISSION.replace(wind_speed_mps=0.0)
+    assert rest_legs(still, (0.0, 0.0), 30) == 31          # 2000 m in 31 legs: 16 m/s
+    assert rest_legs(still, (0.0, 0.0), 10) == math.ceil(2000.0 / 120.0)
+    assert rest_legs(still, still.goal_m, 3) == 4
+    energy = straight_rest_energy_wh(still, (0.0, 0.0), 10)
+    assert energy == pytest.approx(17 * 4.0 * float(ZENG.level_power_w(2000.0 / 68.0)) / 3600,
+                                   rel=1e-12)

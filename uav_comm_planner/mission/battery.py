@@ -14,8 +14,9 @@ its next point over the time left to it, then through its remaining points to qF
 each, by the airframe's model (:func:`plan_rest_energy_wh`); the cheapest way to qF is taken
 as the straight line flown at uniform speed over the legs of the rest a replan would plan
 (:func:`~uav_comm_planner.core.receding.rest_of_mission`: from the vehicle's position, one
-slot per leg; the start that costs least on an airframe whose power only rises with speed,
-and a flight that always exists: :func:`straight_rest_energy_wh`).
+slot per leg, more when they cannot reach qF in time; the start that costs least on an
+airframe whose power only rises with speed, and a flight that always exists:
+:func:`straight_rest_energy_wh`).
 :func:`battery_decision` then keeps the plan while the energy left flies it; replans within
 :data:`ENERGY_MARGIN` less than the energy left (less only by what the straight line leaves,
 when that is less) while the straight line fits in it; and ends the mission otherwise.
@@ -111,12 +112,25 @@ def plan_rest_energy_wh(result: PlanResult, elapsed_s: float,
     return first / JOULES_PER_WH + path_energy_wh(points[j:], scenario)
 
 
+def rest_legs(scenario: Scenario, position_m: Sequence[float], rest_slots: int) -> int:
+    """The legs of the rest a replan plans from ``position_m``: its ``rest_slots`` + 1, or,
+    when those cannot reach qF at the fastest ground speed towards it, the fewest that can
+    (the rest is lengthened: :func:`~uav_comm_planner.core.receding.lengthened`)."""
+    gap = np.asarray(scenario.goal_m, dtype=float) - np.asarray(position_m, dtype=float)
+    distance = float(np.linalg.norm(gap))
+    if distance == 0.0:
+        return rest_slots + 1
+    step = scenario.fastest_ground_speed_mps(gap / distance) * scenario.slot_s
+    fewest = math.ceil(distance / step * (1 - 1e-12)) if step > 0.0 else rest_slots + 1
+    return max(rest_slots + 1, fewest)
+
+
 def straight_rest_energy_wh(scenario: Scenario, position_m: Sequence[float],
                             rest_slots: int) -> float:
     """The energy of the straight line from ``position_m`` to qF at uniform speed over the
-    rest's ``rest_slots`` + 1 legs, Wh."""
+    legs of the rest (:func:`rest_legs`), Wh."""
     start = np.asarray(position_m, dtype=float)
-    shares = np.linspace(0.0, 1.0, rest_slots + 2)[:, None]
+    shares = np.linspace(0.0, 1.0, rest_legs(scenario, position_m, rest_slots) + 1)[:, None]
     return path_energy_wh(start + shares * (np.asarray(scenario.goal_m, float) - start),
                           scenario)
 
@@ -158,4 +172,5 @@ def battery_decision(allowance_wh: float, needed_wh: float, least_wh: float,
 __all__ = ['BatteryDecision', 'END', 'ENERGY_MARGIN', 'KEEP', 'LEAST_SLACK', 'MIN_DRAWN_SHARE',
            'REPLAN',
            'SHORTEST_LEG_SHARE', 'battery_capacity_wh', 'battery_decision', 'path_energy_wh',
-           'plan_rest_energy_wh', 'rest_allowance_wh', 'rest_path', 'straight_rest_energy_wh']
+           'plan_rest_energy_wh', 'rest_allowance_wh', 'rest_legs', 'rest_path',
+           'straight_rest_energy_wh']

@@ -159,7 +159,8 @@ class BatteryWatch:
     def replan_failed(self, reason: str) -> None:
         """The replan the battery asked for was refused or failed: the mission ends."""
         if not self._node.flight.progress.ended:
-            self.end(f'the rest cannot be planned within the energy left: {reason}')
+            self.end(f'the rest cannot be planned within the energy left ({reason}): the '
+                     f'battery cannot reach qF with its reserve')
 
     def end(self, reason: str) -> None:
         """End the mission: the vehicle told ``battery_action``, the reason said once."""
