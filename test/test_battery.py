@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 import pytest
 
@@ -59,6 +60,12 @@ def test_battery_status_and_sys_status_are_read_with_their_unknowns():
 def test_the_end_modes_are_the_autopilots_names():
     assert in_end_mode('rtl', 'RTL') and in_end_mode('land', 'LAND')
     assert in_end_mode('hold', 'BRAKE') and not in_end_mode('land', 'AUTO')
+    # PX4's heartbeats as pymavlink names them: AUTO.RTL, AUTO.LAND, AUTO.LOITER.
+    px4 = mavlink2.MAV_AUTOPILOT_PX4
+    for action, sub_mode in (('rtl', 5), ('land', 6), ('hold', 3)):
+        custom = (sub_mode << 24) | (4 << 16)       # main mode AUTO
+        beat = mavlink2.MAVLink_heartbeat_message(2, px4, 1, custom, 4, 3)
+        assert in_end_mode(action, mavutil.mode_string_v10(beat))
     assert not in_end_mode('rtl', None)
     assert set(END_MODES) == {'rtl', 'land', 'hold'}
 

@@ -119,9 +119,9 @@ class EndRequest:
             command_end(link, action)
 
 
-#: The heartbeat mode each action puts the vehicle in, by autopilot family.
-END_MODES = {'rtl': ('RTL', 'AUTO.RTL'), 'land': ('LAND', 'AUTO.LAND'),
-             'hold': ('BRAKE', 'AUTO.LOITER')}
+#: The heartbeat mode each action puts the vehicle in, as pymavlink names it (ArduCopter's,
+#: then PX4's: RTL and LAND are both's names, PX4's hold is its AUTO.LOITER).
+END_MODES = {'rtl': ('RTL',), 'land': ('LAND',), 'hold': ('BRAKE', 'LOITER')}
 
 
 def in_end_mode(action: str, mode: str | None) -> bool:
