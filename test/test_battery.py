@@ -23,6 +23,7 @@ from uav_comm_planner.mission.battery import (battery_capacity_wh, battery_decis
                                               MIN_DRAWN_SHARE, path_energy_wh,
                                               plan_rest_energy_wh, REPLAN, rest_allowance_wh,
                                               rest_legs, rest_path, straight_rest_energy_wh)
+from uav_comm_planner.ros.diagnostics import ERROR
 from uav_comm_planner.ros.params import config_from_parameters
 from uav_comm_planner.vehicle.airframe import airframe_named, default_airframe
 from uav_comm_planner.vehicle.mavlink.battery import (battery_of, BatteryReport, END_MODES,
@@ -251,3 +252,44 @@ def test_a_rest_that_cannot_reach_qf_in_time_has_the_legs_that_can():
     energy = straight_rest_energy_wh(still, (0.0, 0.0), 10)
     assert energy == pytest.approx(17 * 4.0 * float(ZENG.level_power_w(2000.0 / 68.0)) / 3600,
                                    rel=1e-12)
+
+
+def test_the_node_ends_a_mission_its_battery_cannot_fly_and_replans_nothing_more(harness):
+    """A report that leaves less than the straight line to qF ends the mission: the reason
+    once (log, diagnostics), the clock's status says it, a new node set is refused with it;
+    ~/replan plans a new mission, which nothing ended."""
+    from std_srvs.srv import Trigger
+
+    from helpers import HORIZON_S, NODES_B, SLOTS
+    stated = 20.0
+    h = harness(airframe='zeng2019', max_speed_mps=30.0, horizon_s=4 * HORIZON_S,
+                num_slots=SLOTS, battery_wh=stated)
+    h.published(1)
+    assert h.call('start', Trigger.Request()).success
+    h.send_pose(0.0, 0.0)
+    h.spin_until(lambda: h.node.flight.track.latest is not None, 'the pose at q0')
+    scenario = h.node.current_plan.result.scenario
+    least = straight_rest_energy_wh(scenario, (0.0, 0.0), SLOTS - 1)
+    landing = takeoff_landing_j(ZENG, scenario.altitude_m)[1] / 3600.0
+    consumed = stated * 0.8 - landing - 0.9 * least     # 90 % of the straight line left
+    h.node.vehicle.battery.add(BatteryReport(h.node.clock_s(), consumed * 3600.0, math.nan,
+                                             12.0, 20.0, 'BATTERY_STATUS'))
+    progress = h.node.progress
+    print(progress.ended)
+    assert h.node.vehicle.battery.decision.action == END
+    assert progress.ended.startswith('battery: mission ended, the vehicle told to land where '
+                                     'it is (land)')
+    assert 'cannot reach qF with its reserve' in progress.ended
+    assert progress.ended in h.node.stats.last_error
+    level, message, values = h.node.vehicle.battery.status()
+    assert (level, message, values['ended_reason']) == (ERROR, progress.ended, progress.ended)
+    assert h.node.diagnostics._clock_status().message == f'mission ended: {progress.ended}'
+    errors = h.node.stats.error_count
+    h.send_nodes(NODES_B)
+    h.spin_until(lambda: h.node.stats.error_count > errors, 'the refusal of the node set')
+    assert h.node.stats.last_error.startswith(f'ground_nodes refused: {progress.ended}; the '
+                                              f'input applies to the next mission')
+    assert h.node.stats.plans_published == 1
+    assert h.call('replan', Trigger.Request()).success
+    h.published(2)
+    assert not h.node.progress.ended and not h.node.progress.started

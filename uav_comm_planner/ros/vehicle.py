@@ -1,6 +1,7 @@
 """The vehicle side of the node: the MAVLink link's events on the executor, the vehicle's
 pose on ``vehicle_pose`` (advertised only while a link runs), every plan uploaded, the
-autopilot's wind estimates, the battery (:mod:`.battery`), and the streamed trajectory (:mod:`.stream`) started and stopped.
+autopilot's wind estimates, the battery (:mod:`.battery`), and the streamed trajectory
+(:mod:`.stream`) started and stopped.
 
 A :class:`VehicleAdapter` takes the node (as tf2_ros's TransformListener does): with
 ``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge`,
