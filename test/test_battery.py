@@ -18,7 +18,8 @@ from uav_comm_planner.core.energy import (Battery, horizon_energy_j, JOULES_PER_
 from uav_comm_planner.core.receding import (flown_energy_wh, FlownSlots, replan,
                                             rest_of_mission)
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
-from uav_comm_planner.mission.battery import (battery_capacity_wh, battery_decision, END,
+from uav_comm_planner.mission.battery import (battery_capacity_wh, battery_decision,
+                                              consumed_wh, END,
                                               ENERGY_MARGIN, KEEP, LEAST_SLACK,
                                               MIN_DRAWN_SHARE, path_energy_wh,
                                               plan_rest_energy_wh, REPLAN, rest_allowance_wh,
@@ -293,3 +294,14 @@ def test_the_node_ends_a_mission_its_battery_cannot_fly_and_replans_nothing_more
     assert h.call('replan', Trigger.Request()).success
     h.published(2)
     assert not h.node.progress.ended and not h.node.progress.started
+
+
+def test_a_report_without_the_energy_counts_the_charge_drawn_of_the_battery_stated():
+    battery = Battery(50.0, 0.2)
+    counted = BatteryReport(1.0, 7200.0, 0.9, 12.0, 30.0, 'BATTERY_STATUS')
+    uncounted = BatteryReport(1.0, math.nan, 0.9, 12.0, 30.0, 'SYS_STATUS')
+    assert consumed_wh(counted, battery) == 2.0
+    assert consumed_wh(uncounted, battery) == pytest.approx(5.0, rel=1e-12)
+    # Its capacity is then the one stated: the charge is read as a share of it.
+    allowance, capacity = rest_allowance_wh(battery, consumed_wh(uncounted, battery), 0.9, 3.0)
+    assert capacity == pytest.approx(50.0) and allowance == pytest.approx(40.0 - 5.0 - 3.0)

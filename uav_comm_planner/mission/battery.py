@@ -33,6 +33,7 @@ import numpy as np
 from uav_comm_planner.core.energy import Battery, JOULES_PER_WH
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.vehicle.mavlink.battery import BatteryReport
 
 #: A replan for the battery plans with this share less than the energy left, so that the
 #: model's error in flight (within 0.4 % measured on ArduCopter SITL, docs/energy.md) does not
@@ -56,6 +57,14 @@ def battery_capacity_wh(stated_wh: float, consumed_wh: float, remaining: float) 
     if math.isnan(remaining) or drawn < MIN_DRAWN_SHARE or consumed_wh <= 0.0:
         return stated_wh
     return min(stated_wh, consumed_wh / drawn)
+
+
+def consumed_wh(report: BatteryReport, battery: Battery) -> float:
+    """The energy ``report`` says the vehicle used, Wh: its energy consumed, or, when it does
+    not count it (PX4, SYS_STATUS), the share of its charge drawn times the battery stated."""
+    if math.isfinite(report.consumed_j):
+        return report.consumed_j / JOULES_PER_WH
+    return battery.usable_wh * (1.0 - report.remaining)
 
 
 def rest_allowance_wh(battery: Battery, consumed_wh: float, remaining: float,
@@ -171,6 +180,7 @@ def battery_decision(allowance_wh: float, needed_wh: float, least_wh: float,
 
 __all__ = ['BatteryDecision', 'END', 'ENERGY_MARGIN', 'KEEP', 'LEAST_SLACK', 'MIN_DRAWN_SHARE',
            'REPLAN',
-           'SHORTEST_LEG_SHARE', 'battery_capacity_wh', 'battery_decision', 'path_energy_wh',
+           'SHORTEST_LEG_SHARE', 'battery_capacity_wh', 'battery_decision', 'consumed_wh',
+           'path_energy_wh',
            'plan_rest_energy_wh', 'rest_allowance_wh', 'rest_legs', 'rest_path',
            'straight_rest_energy_wh']

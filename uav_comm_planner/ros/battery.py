@@ -28,9 +28,10 @@ from diagnostic_msgs.msg import DiagnosticStatus
 
 from uav_comm_planner.core.energy import JOULES_PER_WH, takeoff_landing_j
 from uav_comm_planner.errors import PlannerError
-from uav_comm_planner.mission.battery import (battery_decision, BatteryDecision, END,
-                                              ENERGY_MARGIN, plan_rest_energy_wh, REPLAN,
-                                              rest_allowance_wh, straight_rest_energy_wh)
+from uav_comm_planner.mission.battery import (battery_decision, BatteryDecision,
+                                              consumed_wh, END, ENERGY_MARGIN,
+                                              plan_rest_energy_wh, REPLAN, rest_allowance_wh,
+                                              straight_rest_energy_wh)
 from uav_comm_planner.ros.params import node_battery, PlannerConfig
 from uav_comm_planner.vehicle.mavlink.battery import BatteryReport, in_end_mode
 
@@ -90,10 +91,12 @@ class BatteryWatch:
     def allowance_wh(self) -> tuple[float, float] | None:
         """(allowance, capacity), Wh, for the rest of the mission in force
         (:func:`~uav_comm_planner.mission.battery.rest_allowance_wh`); None without a battery
-        stated, an airframe, a plan or a report that counts the energy."""
+        stated, an airframe, a plan or a report. A report without the energy (PX4's
+        BATTERY_STATUS, SYS_STATUS) counts the charge drawn as that share of the battery
+        stated (:func:`~uav_comm_planner.mission.battery.consumed_wh`)."""
         battery = node_battery(self._node.config.node)
         report = self.latest
-        if battery is None or report is None or math.isnan(report.consumed_j):
+        if battery is None or report is None:
             return None
         plan = self._node.current_plan
         if plan is None:
@@ -102,7 +105,7 @@ class BatteryWatch:
         if scenario.airframe is None:
             return None
         landing_wh = takeoff_landing_j(scenario.airframe, scenario.altitude_m)[1] / JOULES_PER_WH
-        return rest_allowance_wh(battery, report.consumed_j / JOULES_PER_WH, report.remaining,
+        return rest_allowance_wh(battery, consumed_wh(report, battery), report.remaining,
                                  landing_wh)
 
     def budget(self) -> float | None:
