@@ -19,9 +19,9 @@ from uav_comm_planner.core.receding import (flown_energy_wh, FlownSlots, replan,
                                             rest_of_mission)
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 from uav_comm_planner.mission.battery import (battery_capacity_wh, battery_decision,
-                                              consumed_wh, END,
+                                              consumed_wh, drain_ratio, END,
                                               ENERGY_MARGIN, KEEP, LEAST_SLACK,
-                                              MIN_DRAWN_SHARE, path_energy_wh,
+                                              MIN_DRAIN_S, MIN_DRAWN_SHARE, path_energy_wh,
                                               plan_rest_energy_wh, REPLAN, rest_allowance_wh,
                                               rest_legs, rest_path, straight_rest_energy_wh)
 from uav_comm_planner.ros.diagnostics import ERROR
@@ -305,3 +305,19 @@ def test_a_report_without_the_energy_counts_the_charge_drawn_of_the_battery_stat
     # Its capacity is then the one stated: the charge is read as a share of it.
     allowance, capacity = rest_allowance_wh(battery, consumed_wh(uncounted, battery), 0.9, 3.0)
     assert capacity == pytest.approx(50.0) and allowance == pytest.approx(40.0 - 5.0 - 3.0)
+
+
+def test_the_drain_ratio_is_the_battery_s_energy_over_the_model_s_along_the_track():
+    """A track at 8 m/s east then hovering, in MISSION's wind: the model's energy by hand,
+    step by step; the ratio is what the battery gave over it, never below 1, and 1 on a track
+    shorter than MIN_DRAIN_S."""
+    times = np.arange(0.0, 40.01, 0.1)
+    east = np.where(times <= 20.0, 8.0 * times, 160.0)
+    track = np.column_stack([times, east, np.zeros_like(times)])
+    wind = np.asarray(MISSION.wind_mps)
+    first = float(ZENG.level_power_w(np.linalg.norm(np.array([8.0, 0.0]) - wind))) * 20.0
+    second = float(ZENG.level_power_w(np.linalg.norm(wind))) * 20.0
+    model_wh = (first + second) / 3600.0
+    assert drain_ratio(1.07 * model_wh, track, MISSION) == pytest.approx(1.07, rel=1e-6)
+    assert drain_ratio(0.9 * model_wh, track, MISSION) == 1.0
+    assert drain_ratio(5.0, track[times < MIN_DRAIN_S - 1.0], MISSION) == 1.0

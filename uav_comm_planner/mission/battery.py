@@ -17,7 +17,10 @@ as the straight line flown at uniform speed over the legs of the rest a replan w
 slot per leg, more when they cannot reach qF in time; the start that costs least on an
 airframe whose power only rises with speed, and a flight that always exists:
 :func:`straight_rest_energy_wh`).
-:func:`battery_decision` then keeps the plan while the energy left flies it; replans within
+Both are scaled by how much faster than the model the battery drained since the mission's
+clock started (:func:`drain_ratio`, at least 1: a wind stronger than told shows there, though
+not in the plan). :func:`battery_decision` then keeps the plan while the energy left flies it;
+replans within
 :data:`ENERGY_MARGIN` less than the energy left (less only by what the straight line leaves,
 when that is less) while the straight line fits in it; and ends the mission otherwise.
 """
@@ -144,6 +147,28 @@ def straight_rest_energy_wh(scenario: Scenario, position_m: Sequence[float],
                           scenario)
 
 
+#: The flight must have lasted this long (s) before its drain is compared with the model's.
+MIN_DRAIN_S = 20.0
+
+
+def drain_ratio(used_wh: float, track: np.ndarray, scenario: Scenario) -> float:
+    """How much faster than the airframe's model the battery drains: ``used_wh``, what the
+    battery gave along ``track`` (K, 3: t s, x, y m), over the model's energy of the same
+    flight (each step between samples at its airspeed in the scenario's wind); never below 1
+    (the rest is never taken to cost less than the model says), and 1 before the track spans
+    MIN_DRAIN_S. A wind stronger than told, or an airframe heavier than modelled, shows
+    here."""
+    samples = np.asarray(track, dtype=float).reshape(-1, 3)
+    if len(samples) < 2 or samples[-1, 0] - samples[0, 0] < MIN_DRAIN_S:
+        return 1.0
+    seconds = np.diff(samples[:, 0])
+    moving = seconds > 0.0
+    velocity = np.diff(samples[:, 1:], axis=0)[moving] / seconds[moving, None]
+    power = scenario.airframe.level_power_w(np.linalg.norm(velocity - scenario.wind_mps, axis=1))
+    modelled_wh = float(np.sum(power * seconds[moving])) / JOULES_PER_WH
+    return max(1.0, used_wh / modelled_wh) if modelled_wh > 0.0 else 1.0
+
+
 @dataclass(frozen=True)
 class BatteryDecision:
     """What the battery says of the plan in force: ``action`` :data:`KEEP`, :data:`REPLAN`
@@ -180,7 +205,7 @@ def battery_decision(allowance_wh: float, needed_wh: float, least_wh: float,
 
 __all__ = ['BatteryDecision', 'END', 'ENERGY_MARGIN', 'KEEP', 'LEAST_SLACK', 'MIN_DRAWN_SHARE',
            'REPLAN',
-           'SHORTEST_LEG_SHARE', 'battery_capacity_wh', 'battery_decision', 'consumed_wh',
-           'path_energy_wh',
+           'SHORTEST_LEG_SHARE', 'MIN_DRAIN_S', 'battery_capacity_wh', 'battery_decision',
+           'consumed_wh', 'drain_ratio', 'path_energy_wh',
            'plan_rest_energy_wh', 'rest_allowance_wh', 'rest_legs', 'rest_path',
            'straight_rest_energy_wh']

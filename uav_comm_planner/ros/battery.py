@@ -21,6 +21,7 @@ one).
 
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 from typing import Protocol
 
@@ -29,7 +30,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from uav_comm_planner.core.energy import JOULES_PER_WH, takeoff_landing_j
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.mission.battery import (battery_decision, BatteryDecision,
-                                              consumed_wh, END, ENERGY_MARGIN,
+                                              consumed_wh, drain_ratio, END, ENERGY_MARGIN,
                                               plan_rest_energy_wh, REPLAN, rest_allowance_wh,
                                               straight_rest_energy_wh)
 from uav_comm_planner.ros.params import node_battery, PlannerConfig
@@ -43,6 +44,8 @@ END_TRIES = 5
 #: A battery replan asked waits this many replan intervals for its plan before the plan in
 #: force is checked again.
 WAIT_INTERVALS = 3
+#: Battery reports kept for the drain ratio (at 2 Hz, over an hour and a half).
+USED_KEPT = 12_000
 #: What the vehicle is told, in words.
 ACTION_WORDS = {'rtl': 'return to launch', 'land': 'land where it is', 'hold': 'hold'}
 
@@ -78,6 +81,10 @@ class BatteryWatch:
         self._last_check_s = -math.inf
         self._asked: tuple[object, float] | None = None
         self._end_tries = 0
+        #: How much faster than the model the battery drains (:func:`drain_ratio`), and the
+        #: energy used (autopilot s, Wh) at the reports that counted it.
+        self.ratio = 1.0
+        self._used: list[tuple[float, float]] = []
 
     def add(self, report: BatteryReport) -> None:
         """A report from the vehicle: kept (SYS_STATUS only while no BATTERY_STATUS counted the
@@ -86,6 +93,10 @@ class BatteryWatch:
             return
         self._counted = self._counted or not math.isnan(report.consumed_j)
         self.latest = report
+        battery = node_battery(self._node.config.node)
+        if battery is not None:
+            self._used.append((report.time_s, consumed_wh(report, battery)))
+            del self._used[:-USED_KEPT]
         self._check(report.time_s)
 
     def allowance_wh(self) -> tuple[float, float] | None:
@@ -109,10 +120,22 @@ class BatteryWatch:
                                  landing_wh)
 
     def budget(self) -> float | None:
-        """The energy budget of a replan of the rest now: the allowance less ENERGY_MARGIN
-        (None: no measured figure, the mission's own budget holds)."""
+        """The energy budget of a replan of the rest now, as the airframe's model counts it:
+        the allowance less ENERGY_MARGIN, over the drain ratio (None: no measured figure, the
+        mission's own budget holds)."""
         allowance = self.allowance_wh()
-        return None if allowance is None else allowance[0] * (1.0 - ENERGY_MARGIN)
+        return None if allowance is None else allowance[0] * (1.0 - ENERGY_MARGIN) / self.ratio
+
+    def _drain_ratio(self, time_s: float, start_s: float, scenario) -> float:
+        """:func:`~uav_comm_planner.mission.battery.drain_ratio` since ``start_s`` (the
+        mission clock's start): the energy used since then along the UAV's track."""
+        since = [used for used in self._used if used[0] >= start_s]
+        track = self._node.flight.track.samples
+        track = track[(track[:, 0] >= start_s) & (track[:, 0] <= time_s)]
+        if not since or not len(track):
+            return 1.0
+        return drain_ratio(self._used[-1][1] - since[0][1], track[track[:, 0] >= since[0][0]],
+                           scenario)
 
     def _check(self, time_s: float) -> None:
         node = self._node
@@ -134,26 +157,31 @@ class BatteryWatch:
         self._last_check_s = time_s
         scenario = segment.result.scenario
         position = (latest[1], latest[2])
+        self.ratio = self._drain_ratio(time_s, progress.segments[0].start_s, scenario)
         needed = plan_rest_energy_wh(segment.result, time_s - segment.start_s, position)
         least = straight_rest_energy_wh(scenario, position, rest_slots)
-        self.decision = battery_decision(allowance[0], needed, least)
+        self.decision = battery_decision(allowance[0], needed * self.ratio, least * self.ratio)
+        if self.ratio > 1.0:
+            self.decision = replace(self.decision, reason=(
+                f'{self.decision.reason} (the needs at the drain measured, {self.ratio:.3f} '
+                f'times the airframe model\'s)'))
         if self.decision.action == REPLAN:
             self.replans += 1
             self._asked = (node.current_plan, time_s)
             node.get_logger().warning(f'{REASON}: {self.decision.reason}')
-            self._replan(time_s, position)
+            self._replan(time_s, position, self.decision.budget_wh / self.ratio)
         elif self.decision.action == END:
             self.end(self.decision.reason)
 
-    def _replan(self, time_s: float, position: tuple[float, float]) -> None:
-        """Ask for the rest from ``position`` within the energy left; the mission ends when
-        even that request cannot be made (:meth:`~uav_comm_planner.mission.progress.
-        MissionProgress.in_flight` refuses it)."""
+    def _replan(self, time_s: float, position: tuple[float, float], budget_wh: float) -> None:
+        """Ask for the rest from ``position`` within ``budget_wh`` (the model's Wh); the
+        mission ends when even that request cannot be made
+        (:meth:`~uav_comm_planner.mission.progress.MissionProgress.in_flight` refuses it)."""
         node = self._node
         try:
             in_flight = node.flight.progress.in_flight(node.config.scenario, time_s, position,
                                                        node.flight.track,
-                                                       energy_left_wh=self.budget())
+                                                       energy_left_wh=budget_wh)
         except PlannerError as exc:
             self.replan_failed(str(exc))
             return
@@ -195,7 +223,7 @@ class BatteryWatch:
             'remaining_percent': f'{100 * report.remaining:.0f}',
             'voltage_v': f'{report.voltage_v:.3f}', 'current_a': f'{report.current_a:.3f}',
             'battery_action': self._node.config.node.battery_action,
-            'battery_replans': self.replans}
+            'battery_replans': self.replans, 'drain_ratio': f'{self.ratio:.4f}'}
         allowance = self.allowance_wh()
         if allowance is not None:
             values.update(capacity_wh=f'{allowance[1]:.4f}',
