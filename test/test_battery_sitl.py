@@ -258,3 +258,17 @@ def test_a_wind_stronger_than_told_ends_at_qf_with_the_reserve_or_clearly(batter
                        goal_m=[1400.0, 0.0], horizon_s=180.0, num_slots=45,
                        battery_action='rtl')
     check_the_end(f, f.fly(), 'rtl', 0.15)
+
+
+def test_a_battery_that_flies_the_plan_is_kept_to_qf(battery_flight):
+    """The control of the wind flight: the same mission and battery in still air is kept at
+    every check and reaches qF with more than the reserve, the drain as the model says."""
+    f = battery_flight(battery_wh=38.0, battery_reserve=0.15, start_m=[0.0, 0.0],
+                       goal_m=[1400.0, 0.0], horizon_s=180.0, num_slots=45,
+                       battery_action='rtl')
+    figures = check_the_end(f, f.fly(), 'rtl', 0.15)
+    battery = f.node.vehicle.battery
+    print(f'drain ratio {battery.ratio:.4f}; decision {battery.decision.reason}')
+    assert not f.node.progress.ended and battery.replans == 0
+    assert {decision for _, _, decision in figures['checks']} == {'keep'}
+    assert battery.ratio <= 1.03
