@@ -10,7 +10,9 @@ With a battery stated (``battery_wh``), an airframe and a mission whose clock ru
 replan of the rest plans with the energy the battery has left for it, measured
 (:meth:`BatteryWatch.budget`, :mod:`uav_comm_planner.mission.battery`), and at most
 once every ``replan_interval_s`` of autopilot time the watch checks the plan in force against
-it (:func:`~uav_comm_planner.mission.battery.battery_decision`): kept while the energy left
+it, its needs scaled by how much faster than the airframe's model the battery drained since
+the clock started (:func:`~uav_comm_planner.mission.battery.drain_ratio`,
+:func:`~uav_comm_planner.mission.battery.battery_decision`): kept while the energy left
 flies its rest; replanned within the energy left when the straight line to qF still fits in
 it; otherwise, or when that replan fails, the mission ends: the vehicle is told
 ``battery_action`` (rtl, land or hold, asked again at each mode report that is not it, up to
