@@ -12,6 +12,7 @@ is autopilot time (``time_boot_ms``), never the wall clock.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import json
 import os
 from pathlib import Path
 import shutil
@@ -119,6 +120,8 @@ class Sitl:
                 self.process.wait(10)
 
 
+#: The frame model file of a SITL started with its own frame keys.
+FRAME_FILE = 'frame.json'
 #: What ArduCopter SITL prints once its MAVLink port listens.
 LISTENING = b'Waiting for connection'
 START_ATTEMPTS = 3
@@ -126,19 +129,25 @@ START_ATTEMPTS = 3
 
 def start_sitl(folder: Path, home: Home, *, speedup: int = SPEEDUP,
                binary: str | os.PathLike | None = None, timeout_s: float = 60.0,
-               instances: tuple[int, int] = (10, 59)) -> Sitl:
+               instances: tuple[int, int] = (10, 59), frame: dict | None = None) -> Sitl:
     """Start ArduCopter in ``folder`` (wiped parameters, ArduPilot's copter defaults) on an
     instance number within ``instances`` (first, last) and return once its MAVLink port
     listens; a start that fails (a port taken meanwhile) is tried again on another
-    instance."""
+    instance. ``frame``: keys of ArduPilot's frame model (libraries/SITL/SIM_Frame.cpp, e.g.
+    ``battCapacityAh``) that replace the ``+`` quad's, written to ``frame.json`` in ``folder``
+    (the SITL reads the file by a path relative to its working folder)."""
     binary = sitl_binary(binary)
     if binary is None:
         raise VehicleLinkError(why_not_runnable())
     defaults = binary.parent / 'copter.parm'
     log_path = folder / 'sitl.log'
+    model = '+'
+    if frame:
+        (folder / FRAME_FILE).write_text(json.dumps(frame))
+        model = f'+:{FRAME_FILE}'
     for attempt in range(START_ATTEMPTS):
         instance = free_instance(*instances)
-        command = [str(binary), '--model', '+', '--speedup', str(speedup), '-w',
+        command = [str(binary), '--model', model, '--speedup', str(speedup), '-w',
                    f'-I{instance}',
                    '--home', f'{home.latitude_deg},{home.longitude_deg},{home.altitude_m},0']
         if defaults.is_file():

@@ -20,6 +20,7 @@ from uav_comm_planner.errors import InfeasibleHorizonError, MissionTooFarError
 from uav_comm_planner.mission.pipeline import plan_mission
 from uav_comm_planner.mission.progress import off_plan, planned_position
 from uav_comm_planner.mission.request import InFlight, MissionRequest
+from uav_comm_planner.ros.battery import BatteryWatch
 from uav_comm_planner.ros.flight import MissionFlight, OFF_PLAN_CONFIRM_S, SOURCE_TELEMETRY
 from uav_comm_planner.ros.params import NodeSettings, PlannerConfig
 from uav_comm_planner.tools import cli
@@ -176,6 +177,7 @@ class StandInNode:
         self.config = PlannerConfig(SCENARIO, SolverSettings(compute_baselines=False),
                                     NodeSettings(vehicle_aware=False))
         self.vehicle = StandInVehicle()
+        self.vehicle.battery = BatteryWatch(self)
         self.submitted: list[tuple[str, object]] = []
         self.refused: list[str] = []
 

@@ -22,6 +22,7 @@ from uav_comm_planner.core.receding import (FlownSlots, PREVIOUS_PLAN_START, rec
 from uav_comm_planner.mission.pipeline import plan_mission
 from uav_comm_planner.mission.progress import planned_position
 from uav_comm_planner.mission.request import InFlight, MissionRequest
+from uav_comm_planner.ros.battery import BatteryWatch
 from uav_comm_planner.ros.flight import MissionFlight
 from uav_comm_planner.ros.params import NodeSettings, PlannerConfig
 from uav_comm_planner.errors import InfeasibleHorizonError
@@ -331,6 +332,7 @@ class StandInNode:
     def __init__(self, scenario) -> None:
         self.config = PlannerConfig(scenario, SETTINGS, NodeSettings(vehicle_aware=False))
         self.vehicle = StandInVehicle()
+        self.vehicle.battery = BatteryWatch(self)
         self.submitted: list[InFlight] = []
 
     def get_logger(self):

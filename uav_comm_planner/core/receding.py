@@ -34,7 +34,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from uav_comm_planner.core import detour
-from uav_comm_planner.core.energy import JOULES_PER_WH
+from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.feasibility import retimed, within_speed_limit
 from uav_comm_planner.core.model import snr_per_watt, spectral_efficiencies
 from uav_comm_planner.core.optimizer import plan, plan_along, PlanResult, ZoneKeeper
@@ -124,11 +124,13 @@ def delivered_bits(mission: Scenario, flown: FlownSlots) -> np.ndarray:
     return mission.slot_s * mission.bandwidth_hz / mission.num_nodes * bits_per_use
 
 
-def rest_of_mission(mission: Scenario, position_m: Sequence[float],
-                    flown: FlownSlots) -> Scenario:
+def rest_of_mission(mission: Scenario, position_m: Sequence[float], flown: FlownSlots, *,
+                    energy_left_wh: float | None = None) -> Scenario:
     """The remaining M - k slots from ``position_m`` (:func:`clear_start`) to qF, same
     delta, with the budget left, and the energy budget left (:func:`flown_energy_wh`) when the
-    mission has one.
+    mission has one; ``energy_left_wh``, when given, is the energy budget of the rest instead
+    (measured: what the vehicle's battery has left for it, :mod:`uav_comm_planner.mission.
+    battery`), whether or not the mission had one.
 
     Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when no slot remains or
     qF is out of reach, :class:`~uav_comm_planner.errors.InvalidScenarioError` when the
@@ -148,6 +150,8 @@ def rest_of_mission(mission: Scenario, position_m: Sequence[float],
         return mission
     changes = dict(start_m=clear_start(mission, position_m), num_slots=remaining,
                    horizon_s=remaining * mission.slot_s, power_budget_w=budget_left)
+    if energy_left_wh is not None:
+        return _with_energy_left(mission, changes, energy_left_wh, flown)
     if mission.energy_budget_wh is None:
         return mission.replace(**changes)
     used_wh = flown_energy_wh(mission, flown)
@@ -162,6 +166,21 @@ def rest_of_mission(mission: Scenario, position_m: Sequence[float],
             f'the energy budget left is too little for the rest: {used_wh:.4g} of '
             f'{mission.energy_budget_wh:.4g} Wh used in {flown.num_slots} slots; {exc}') \
             from None
+
+
+def _with_energy_left(mission: Scenario, changes: dict, energy_left_wh: float,
+                      flown: FlownSlots) -> Scenario:
+    """The rest (``changes`` to ``mission``) with the energy budget ``energy_left_wh``."""
+    if not energy_left_wh > 0.0:
+        raise InfeasibleHorizonError(
+            f'no energy is left for the rest: {energy_left_wh:.4g} Wh after {flown.num_slots} '
+            f'slots; land, or start a new mission')
+    try:
+        return mission.replace(**changes, energy_budget_wh=energy_left_wh)
+    except InfeasibleHorizonError as exc:
+        raise InfeasibleHorizonError(
+            f'the energy left, {energy_left_wh:.4g} Wh after {flown.num_slots} slots, is too '
+            f'little for the rest; {exc}') from None
 
 
 def flown_energy_wh(mission: Scenario, flown: FlownSlots) -> float:
@@ -339,7 +358,8 @@ class RecedingProblem:
 
         The plan in force is one more start (:meth:`start_for`). A warm replan then runs that
         start and the hover start (:data:`WARM_STARTS`) with no screened tours:
-        the plan in force already is the best tour the screening found for these nodes, and
+        the plan in force already is the best tour the screening found for these nodes (under
+        an energy budget, the straight line too), and
         the replan only moves its start to where the UAV is, so continuing it (one SCA step
         per power step, as the default continues its best tour) gives at least what flying on
         with it would, in a few trajectory steps instead of the screening's tours. That
@@ -363,7 +383,11 @@ class RecedingProblem:
         options = options.with_starts(**{PREVIOUS_PLAN_START: start})
         if not self.warm:
             return settings, options
-        return dataclasses.replace(settings or SolverSettings(), starts=WARM_STARTS,
+        # Under an energy budget the straight line is the start that costs least; without it,
+        # a budget the plan in force and hovering exceed would be refused (and the rest
+        # lengthened, which only costs more energy).
+        starts = WARM_STARTS + (('straight',) if scenario.energy_budget_wh is not None else ())
+        return dataclasses.replace(settings or SolverSettings(), starts=starts,
                                    screened_tours=0, keep_path_length=True,
                                    shortlist=WARM_SHORTLIST), options
 
@@ -390,26 +414,35 @@ class RecedingProblem:
                             mission_min_throughput=float(mission_rates.min()))
 
 
+def _over_budget(q: np.ndarray, scenario: Scenario) -> bool:
+    """Whether ``q`` needs more than the scenario's energy budget (False without one)."""
+    return (scenario.energy_budget_wh is not None and horizon_energy_j(
+        q, scenario, scenario.airframe) > scenario.energy_budget_wh * JOULES_PER_WH)
+
+
 def _keeps_zones(q: np.ndarray, scenario: Scenario) -> bool:
     return scenario.zones is None or scenario.zones.empty or ZoneKeeper(scenario).keeps(q)
 
 
 def receding_problem(mission: Scenario, position_m: Sequence[float], flown: FlownSlots, *,
-                     previous_q: np.ndarray | None = None,
-                     warm: bool = False) -> RecedingProblem:
+                     previous_q: np.ndarray | None = None, warm: bool = False,
+                     energy_left_wh: float | None = None) -> RecedingProblem:
     """The rest of ``mission`` from ``position_m`` after the slots ``flown``, as a problem for
     the optimiser (module docstring). ``previous_q`` (M - k, 2) metres, the rest of the plan
     being flown, becomes one more start, :func:`rejoined` from ``position_m``, when that keeps
-    the speed limit (and the zones); with ``warm`` (the plan in force serves the same nodes)
-    the replan then continues it (:meth:`RecedingProblem.for_scenario`). Raises the errors of
-    :func:`rest_of_mission`."""
-    rest = rest_of_mission(mission, position_m, flown)
+    the speed limit (and the zones); with ``warm`` (the plan in force serves the same nodes,
+    and keeps the rest's energy budget if it has one) the replan then continues it
+    (:meth:`RecedingProblem.for_scenario`). Raises the errors of :func:`rest_of_mission`
+    (``energy_left_wh``: the rest's energy budget, measured)."""
+    rest = rest_of_mission(mission, position_m, flown, energy_left_wh=energy_left_wh)
     delivered = delivered_bits(mission, flown)
     per_use = rest.slot_s * rest.bandwidth_hz / rest.num_nodes * rest.num_slots
     offsets = delivered / per_use
     start = None if previous_q is None else rejoined(previous_q, rest.start_m, rest)
     if start is not None and not (within_speed_limit(start, rest) and _keeps_zones(start, rest)):
         start = None
+    if start is not None and _over_budget(start, rest):
+        warm = False        # the plan in force is no tour to continue: search them again
     return RecedingProblem(mission=mission, flown=flown, rest=rest, delivered_bits=delivered,
                            offsets=offsets, previous_start=start,
                            warm=bool(warm) and start is not None)
@@ -418,7 +451,7 @@ def receding_problem(mission: Scenario, position_m: Sequence[float], flown: Flow
 def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
            settings: SolverSettings | None = None, *, planner: Planner = plan,
            previous_q: np.ndarray | None = None, warm: bool = False,
-           **plan_options) -> RecedingPlan:
+           energy_left_wh: float | None = None, **plan_options) -> RecedingPlan:
     """Plan the rest of ``mission`` from ``position_m`` after the slots ``flown``.
 
     Maximises the whole mission's min average throughput under the whole mission's budget
@@ -428,9 +461,11 @@ def replan(mission: Scenario, position_m: Sequence[float], flown: FlownSlots,
     continues it instead of screening the tours again (:meth:`RecedingProblem.for_scenario`).
     ``plan_options`` go to ``planner`` (:func:`plan`: ``power_method``,
     ``trajectory_method``). With no flown slot and ``position_m`` = q0 it returns the letter's
-    plan exactly. Raises the errors of :func:`rest_of_mission` and of the planner.
+    plan exactly. ``energy_left_wh``: the rest's energy budget, measured
+    (:func:`rest_of_mission`). Raises the errors of :func:`rest_of_mission` and of the planner.
     """
-    problem = receding_problem(mission, position_m, flown, previous_q=previous_q, warm=warm)
+    problem = receding_problem(mission, position_m, flown, previous_q=previous_q, warm=warm,
+                               energy_left_wh=energy_left_wh)
     settings, options = problem.for_scenario(settings)
     result = planner(problem.rest, settings, **options.keywords(), **plan_options)
     return problem.outcome(result)

@@ -174,7 +174,8 @@ def _plan_rest(request: MissionRequest, planner: Planner, options: PlanOptions
     attempts = 0
     while True:
         problem = receding_problem(mission, rest.position_m, rest.flown,
-                                   previous_q=rest.previous_q, warm=rest.warm)
+                                   previous_q=rest.previous_q, warm=rest.warm,
+                                   energy_left_wh=rest.energy_left_wh)
         policy = WARM_REPLAN if problem.warm else FIRST_PLAN
         try:
             result, vehicle_plan = _plan_scenario(request, problem.rest,

@@ -146,12 +146,14 @@ class MissionProgress:
 
     ``segments[-1]`` is the plan in force (or waiting for its q0). ``mission`` is the whole
     mission's scenario as last planned (the node set and budget of the latest plan);
-    ``mission_id`` tells this mission from any other begun before or after it.
+    ``mission_id`` tells this mission from any other begun before or after it; ``ended`` why
+    the mission was ended before its last slot ('' while it was not): it is then over.
     """
 
     mission: Scenario | None = None
     segments: list[Segment] = field(default_factory=list)
     mission_id: int = 0
+    ended: str = ''
 
     @property
     def started(self) -> bool:
@@ -198,19 +200,21 @@ class MissionProgress:
         return FlownSlots(np.hstack(power), np.vstack(positions))
 
     def in_flight(self, scenario: Scenario, time_s: float, position_m: tuple[float, float],
-                  track: PoseTrack | None) -> InFlight:
+                  track: PoseTrack | None, *, energy_left_wh: float | None = None) -> InFlight:
         """What a replan of the rest of this mission from ``position_m`` at ``time_s`` needs
         (``scenario``: the mission's parameters now, lengthened to the mission's slots so
         far): the slots flown (positions from ``track``), the rest of the optimiser's plan in
         force as a start, warm when that plan serves ``scenario``'s nodes. Raises the errors
         of :func:`~uav_comm_planner.core.receding.rest_of_mission` when the rest cannot be
-        planned (the horizon over, the budget spent, qF out of reach even lengthened)."""
+        planned (the horizon over, the budget spent, qF out of reach even lengthened);
+        ``energy_left_wh``: the rest's energy budget as the battery measures it."""
         slots = self.mission.num_slots
         mission = with_slots(scenario, slots)
         segment = self.current
         begun = segment.slots_begun(time_s) if segment.start_s is not None else 0
         flown = self.flown_slots(time_s, mission.ground_nodes_m, track)
-        rest_of_mission(lengthened(mission, position_m, flown), position_m, flown)
+        rest_of_mission(lengthened(mission, position_m, flown), position_m, flown,
+                        energy_left_wh=energy_left_wh)
         planned = segment.optimised
         same_nodes = np.array_equal(np.asarray(planned.scenario.ground_nodes_m, float),
                                     np.asarray(mission.ground_nodes_m, float))
@@ -218,7 +222,7 @@ class MissionProgress:
             position_m=(float(position_m[0]), float(position_m[1])), flown=flown,
             previous_q=np.array(planned.trajectory[begun:], dtype=float),
             mission_id=self.mission_id, segment=len(self.segments) - 1, slots_kept=begun,
-            mission_slots=slots, warm=same_nodes)
+            mission_slots=slots, warm=same_nodes, energy_left_wh=energy_left_wh)
 
     def cut(self, now_s: float) -> int:
         """End the plan in force after its slots begun by ``now_s``; returns the mission's
@@ -251,10 +255,12 @@ class MissionProgress:
         return True
 
     def over(self, now_s: float) -> bool:
-        """Whether every slot of the mission has begun."""
+        """Whether every slot of the mission has begun, or the mission was ended."""
         segment = self.current
         if segment is None or self.mission is None or segment.start_s is None:
             return False
+        if self.ended:
+            return True
         return segment.first_slot + segment.slots_begun(now_s) >= self.mission.num_slots \
             and segment.slots_begun(now_s) >= segment.num_slots
 

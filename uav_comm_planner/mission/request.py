@@ -107,7 +107,9 @@ class InFlight:
     mission's slots so far when an earlier replan lengthened it (0: the scenario's own);
     warm: the plan in force serves the same nodes, so the replan continues it instead of
     screening the tours again
-    (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`).
+    (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`); energy_left_wh:
+    the energy the vehicle's battery has left for the rest, measured (None: the mission's
+    energy budget less the model's energy of the flown legs, if it has one).
     """
 
     position_m: tuple[float, float]
@@ -118,6 +120,7 @@ class InFlight:
     slots_kept: int
     mission_slots: int = 0
     warm: bool = False
+    energy_left_wh: float | None = None
 
     def mission(self, scenario: Scenario) -> Scenario:
         """``scenario`` as long as the mission in flight is (lengthened by earlier replans)."""

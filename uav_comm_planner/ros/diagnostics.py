@@ -13,7 +13,11 @@ vehicle:
 - ``vehicle link``: off without ``mavlink_url``; else the telemetry's age, the mission item,
   the uploads verified, the last link error (ERROR while the link is down), whether the link
   is up, the vehicle's mode, the telemetry gaps said and the planning frame's origin;
-- ``mission clock``: waiting for the UAV at q0, running (slot, time left) or over.
+- ``mission clock``: waiting for the UAV at q0, running (slot, time left) or over;
+- ``battery``: the vehicle's latest battery report (energy used, charge left, voltage,
+  current), and with ``battery_wh`` the energy left for the rest against what the plan in
+  force needs (:mod:`uav_comm_planner.ros.battery`): OK, WARN while a replan for the battery
+  is asked, ERROR once the battery ended the mission, with the reason.
 
 A message is one line and is never shortened: the reason of a refusal ends with its fix.
 """
@@ -44,6 +48,7 @@ DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
 PLANNER = 'planner'
 VEHICLE_LINK = 'vehicle link'
 MISSION_CLOCK = 'mission clock'
+BATTERY = 'battery'
 #: Telemetry older than this (node clock seconds) makes the link status WARN.
 TELEMETRY_TIMEOUT_S = 3.0
 
@@ -138,6 +143,7 @@ class NodeDiagnostics:
                               message, {**values, **self._refusal}),
             self._link_status(),
             self._clock_status(),
+            self._battery_status(),
         ]
         self._publisher.publish(DiagnosticArray(header=Header(stamp=time_msg(node.now_ns())),
                                                 status=statuses))
@@ -173,6 +179,14 @@ class NodeDiagnostics:
                                   f'verified')
         return diagnostic_status(name, url, level, message, values)
 
+    def _battery_status(self) -> DiagnosticStatus:
+        node = self._node
+        level, message, values = node.vehicle.battery.status()
+        if not node.vehicle.linked:
+            level, message = OK, 'off: parameter mavlink_url is empty'
+        return diagnostic_status(self._name(BATTERY), node.get_fully_qualified_name(), level,
+                                 message, values)
+
     def _clock_status(self) -> DiagnosticStatus:
         node = self._node
         progress = node.flight.progress
@@ -191,7 +205,9 @@ class NodeDiagnostics:
             values.update({'slot': slot, 'mission_slots': mission.num_slots,
                            'plans': len(progress.segments),
                            'nodes': nodes_text(mission.ground_nodes_m)})
-            if progress.over(now_s):
+            if progress.ended:
+                message = f'mission ended: {progress.ended}'
+            elif progress.over(now_s):
                 message = f'mission over: all {mission.num_slots} slots begun'
             else:
                 left_s = (mission.num_slots - slot) * segment.result.scenario.slot_s
@@ -202,5 +218,5 @@ class NodeDiagnostics:
                                  OK, message, values)
 
 
-__all__ = ['DIAGNOSTICS_QOS', 'MISSION_CLOCK', 'NodeDiagnostics', 'PERIOD_S', 'PLANNER',
+__all__ = ['BATTERY', 'DIAGNOSTICS_QOS', 'MISSION_CLOCK', 'NodeDiagnostics', 'PERIOD_S', 'PLANNER',
            'TELEMETRY_TIMEOUT_S', 'TOPIC_DIAGNOSTICS', 'VEHICLE_LINK', 'diagnostic_status']

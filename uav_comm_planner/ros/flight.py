@@ -207,11 +207,11 @@ class MissionFlight:
 
     def _refuse_late(self, reason: str) -> None:
         mission = self.progress.mission
-        self._node.refuse(reason, f'{reason} refused: every slot of the mission in flight has '
-                                  f'begun ({mission.num_slots} of {mission.num_slots}), so '
-                                  f'there is nothing left to replan and the vehicle flies on to '
-                                  f'qF; the input applies to the next mission (~/replan plans '
-                                  f'one from start_m now)',
+        why = self.progress.ended or (f'every slot of the mission in flight has begun '
+                                      f'({mission.num_slots} of {mission.num_slots}), so there '
+                                      f'is nothing left to replan and the vehicle flies on to qF')
+        self._node.refuse(reason, f'{reason} refused: {why}; the input applies to the next '
+                                  f'mission (~/replan plans one from start_m now)',
                           nodes=nodes_text(mission.ground_nodes_m))
 
     def request_plan(self, reason: str) -> None:
@@ -222,9 +222,10 @@ class MissionFlight:
 
     def _request_rest(self, reason: str, time_s: float, position: tuple[float, float]) -> None:
         """Replan the rest of the mission in flight from ``position`` at ``time_s``."""
+        energy_left_wh = self._node.vehicle.battery.budget()
         try:
             in_flight = self.progress.in_flight(self._node.config.scenario, time_s, position,
-                                                self.track)
+                                                self.track, energy_left_wh=energy_left_wh)
         except PlannerError as exc:
             mission = with_slots(self._node.config.scenario, self.progress.mission.num_slots)
             self._node.refuse(reason, f'{reason} refused: {exc}',

@@ -59,6 +59,7 @@ from uav_comm_planner.core.optimizer import plan
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.mission.pipeline import Planner
 from uav_comm_planner.mission.request import InFlight, MissionRequest
+from uav_comm_planner.ros.battery import REASON as BATTERY
 from uav_comm_planner.ros.binding import ParameterBinding
 from uav_comm_planner.ros.diagnostics import NodeDiagnostics
 from uav_comm_planner.ros.flight import MissionFlight, SOURCE_TELEMETRY
@@ -256,8 +257,9 @@ class PlannerNode(Node):
             request = outcome.request
             if outcome.cancelled:
                 self.stats.plans_cancelled += 1
-                self.get_logger().info(f'plan for {request.reason} given up for a newer '
-                                       f'request')
+                self.get_logger().info(f'plan for {request.reason} given up for a newer request')
+            elif outcome.plan is None and request.reason == BATTERY:
+                self.vehicle.battery.replan_failed(outcome.error)
             elif outcome.plan is None:
                 self.refuse(request.reason, f'planning failed ({request.reason}); the last '
                                             f'good plan stays published: {outcome.error}',

@@ -36,6 +36,7 @@ from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.flyable import check_speed
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
 from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.mavlink.battery import BATTERY_ACTIONS
 from uav_comm_planner.vehicle.mavlink.files import MISSION_FORMATS
 from uav_comm_planner.vehicle.mavlink.guided import STREAM_FALLBACKS
 from uav_comm_planner.vehicle.mavlink.items import MISSION_ENDS
@@ -46,7 +47,8 @@ from uav_comm_planner.vehicle.mavlink.urls import parse_link_url
 FLIGHT_MODES = ('mission', 'stream')
 #: Node settings that take one of a few names, and the names.
 CHOICES = {'mission_end': MISSION_ENDS, 'mission_firmware': tuple(FIRMWARES),
-           'flight_mode': FLIGHT_MODES, 'stream_fallback': STREAM_FALLBACKS}
+           'flight_mode': FLIGHT_MODES, 'stream_fallback': STREAM_FALLBACKS,
+           'battery_action': BATTERY_ACTIONS}
 
 ParameterValue = typing.Union[bool, int, float, str, list]
 
@@ -105,6 +107,7 @@ class NodeSettings:
     energy_budget_wh: float = 0.0
     battery_wh: float = 0.0
     battery_reserve: float = DEFAULT_RESERVE
+    battery_action: str = 'land'
 
     def __post_init__(self) -> None:
         if not isinstance(self.vehicle_aware, bool):
@@ -283,6 +286,8 @@ DESCRIPTIONS = {
                   'reserve, takeoff and landing; 0: not stated (the energy is still reported, '
                   "against ArduCopter's default battery)",
     'battery_reserve': 'share of the battery kept at landing',
+    'battery_action': 'with battery_wh and a link, what the vehicle is told when the battery '
+                      'left cannot reach qF with the reserve: rtl, land (where it is) or hold',
     'vehicle_max_speed_mps': 'waypoint speed of the vehicle (WPNAV_SPEED / 100, MPC_XY_CRUISE; '
                              'm/s); a vehicle_* limit not set explicitly comes from '
                              'vehicle_params_file, else the firmware\'s default (PX4: 5 m/s, '
@@ -307,7 +312,7 @@ OUTPUT_ONLY = frozenset({
     'frame_id', 'mission_file', 'home_latitude_deg', 'home_longitude_deg', 'home_altitude_m',
     'mission_end', 'mission_firmware', 'mavlink_url', 'replan_distance_m', 'replan_delay_s',
     'replan_interval_s', 'flight_mode', 'stream_fallback', 'wind_time_constant_s',
-    'wind_replan_mps', 'home_distance_limit_m'})
+    'wind_replan_mps', 'home_distance_limit_m', 'battery_action'})
 
 #: Inclusive (low, high) limits shown to tools; the dataclasses check the exact domain.
 RANGES = {

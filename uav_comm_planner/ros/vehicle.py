@@ -1,6 +1,7 @@
 """The vehicle side of the node: the MAVLink link's events on the executor, the vehicle's
 pose on ``vehicle_pose`` (advertised only while a link runs), every plan uploaded, the
-autopilot's wind estimates, and the streamed trajectory (:mod:`.stream`) started and stopped.
+autopilot's wind estimates, the battery (:mod:`.battery`), and the streamed trajectory
+(:mod:`.stream`) started and stopped.
 
 A :class:`VehicleAdapter` takes the node (as tf2_ros's TransformListener does): with
 ``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge`,
@@ -31,6 +32,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.ros.battery import BatteryWatch
 from uav_comm_planner.ros.handoff import ExecutorHandoff
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.ros.planning import PlanOutcome
@@ -38,6 +40,7 @@ from uav_comm_planner.ros.vehicle_state import VehicleState
 from uav_comm_planner.ros.wind import WindTracker
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.mavlink.battery import BatteryReport
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, StreamJob, TargetStream
 from uav_comm_planner.vehicle.mavlink.items import MissionItem, NAV_WAYPOINT, Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.telemetry import (Event, HomeReport, LinkEvent,
@@ -97,6 +100,7 @@ class VehicleAdapter(VehicleState):
         self._node = node
         #: The autopilot's wind estimate, smoothed and published (:mod:`.wind`).
         self.wind = WindTracker(node)
+        self.battery = BatteryWatch(node)     # reported and acted on (:mod:`.battery`)
         #: The streamed trajectory on the link's thread (None without a link).
         self.stream: TargetStream | None = None
         #: Stream events seen: 'started', 'stopped' messages, in order (for tests).
@@ -121,10 +125,6 @@ class VehicleAdapter(VehicleState):
     @property
     def linked(self) -> bool:
         return self._bridge is not None
-
-    def telemetry_age_s(self, now_ns: int) -> float | None:
-        """Seconds on the node's clock since the latest position (None before any)."""
-        return None if self._position_ns is None else (now_ns - self._position_ns) / 1e9
 
     def connect(self, output: NodeSettings, explicit: Collection[str] = ()) -> None:
         """(Re)start the link for ``output.mavlink_url`` (none when empty); the frame's origin
@@ -256,6 +256,8 @@ class VehicleAdapter(VehicleState):
                 self.mission_item = event.seq
             elif isinstance(event, ModeReport):
                 self._on_mode(event)
+            elif isinstance(event, BatteryReport):
+                self.battery.add(event)
             elif isinstance(event, HomeReport):
                 self._on_home(event)
             elif isinstance(event, LinkEvent):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import Callable
 
+from uav_comm_planner.ros.battery import BatteryWatch
 from uav_comm_planner.ros.planning import PlanOutcome
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink.items import Q0_SEQ
@@ -29,6 +30,9 @@ class VehicleState:
     _node: object
     _report: Callable[[str, bool], None]
     _bridge: VehicleBridge | None
+    _position_ns: int | None
+    battery: BatteryWatch
+    stream: object
 
     def _init_uploads(self) -> None:
         self._pending_tag: int | None = None
@@ -100,6 +104,20 @@ class VehicleState:
     def _on_mode(self, event: ModeReport) -> None:
         self.mode = event.mode
         self._node.get_logger().info(f'vehicle mode {event.mode}')
+        self.battery.on_mode(event.mode)
+
+    def telemetry_age_s(self, now_ns: int) -> float | None:
+        """Seconds on the node's clock since the latest position (None before any)."""
+        return None if self._position_ns is None else (now_ns - self._position_ns) / 1e9
+
+    def end_mission(self, action: str) -> None:
+        """Tell the vehicle to end its mission by ``action`` (rtl, land, hold; a stream
+        running stops first)."""
+        if self._bridge is None:
+            return
+        if self.stream is not None and self.stream.active:
+            self.stop_stream('the battery ended the mission')
+        self._bridge.ending.ask(action)
 
     def _on_home(self, event: HomeReport) -> None:
         home = event.home

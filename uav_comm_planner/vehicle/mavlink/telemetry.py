@@ -5,12 +5,15 @@ daemon thread, never on the caller's: it connects (waiting for a heartbeat, agai
 link), asks for GLOBAL_POSITION_INT and MISSION_CURRENT at ``rate_hz`` (autopilot time) and
 for HOME_POSITION, turns each position into the planning frame through ``home`` and hands the
 caller :class:`Position`, :class:`MissionProgressReport`, :class:`ModeReport`,
-:class:`HomeReport` and :class:`LinkEvent` objects through ``on_event``, which must be quick
+:class:`HomeReport`, :class:`LinkEvent` and the battery's
+:class:`~uav_comm_planner.vehicle.mavlink.battery.BatteryReport` (BATTERY_STATUS, asked at
+its own rate, and SYS_STATUS) objects through ``on_event``, which must be quick
 and thread-safe (a queue push). Uploads are queued with :meth:`VehicleBridge.upload`; the
 newest waiting mission replaces an older one that has not started. An upload is verified by
 reading the mission back (:func:`~uav_comm_planner.vehicle.mavlink.link.upload_and_verify`)
 and, when asked, followed by MISSION_SET_CURRENT so that a vehicle in flight goes on from that
-item instead of restarting. A mission whose home or first waypoint is farther than
+item instead of restarting. ``VehicleBridge.ending`` sends the vehicle home, down or into its
+hold mode from the thread. A mission whose home or first waypoint is farther than
 ``home_limit_m`` from the vehicle's home (or position) is refused before it is uploaded
 (:mod:`.home`); one queued before the vehicle has told either waits for it.
 
@@ -53,6 +56,8 @@ from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError, VehicleLinkLostError
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
+from uav_comm_planner.vehicle.mavlink.battery import (battery_of, BatteryReport, EndRequest,
+                                                      request_battery)
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, TargetStream
 from uav_comm_planner.vehicle.mavlink.home import (HOME_DISTANCE_LIMIT_M, home_of,
                                                    mission_far_from_vehicle, position_of,
@@ -86,6 +91,8 @@ SET_CURRENT_TIMEOUT_S = 1.0
 SET_CURRENT_TRIES = 5
 #: Wind estimates asked of the autopilot (per second of autopilot time).
 WIND_RATE_HZ = 2.0
+#: Messages handed on at the time of the latest position: the wind, the battery.
+TIMED_MESSAGES = frozenset({'WIND', 'WIND_COV', 'BATTERY_STATUS', 'SYS_STATUS'})
 
 
 @dataclass(frozen=True)
@@ -150,7 +157,7 @@ class Wind:
 
 
 Event = (Position | MissionProgressReport | ModeReport | HomeReport | LinkEvent | Wind
-         | StreamEvent)
+         | StreamEvent | BatteryReport)
 
 #: Heartbeat modes in which the vehicle flies its mission or the node's targets.
 MISSION_MODES = frozenset({'AUTO', 'GUIDED', 'MISSION', 'OFFBOARD'})
@@ -166,12 +173,13 @@ class _Upload:
 
 def request_telemetry(link, rate_hz: float = TELEMETRY_RATE_HZ) -> None:
     """Ask the autopilot for GLOBAL_POSITION_INT and MISSION_CURRENT at ``rate_hz`` (per second
-    of autopilot time)."""
+    of autopilot time), and for BATTERY_STATUS at its own rate."""
     for message_id in (MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
                        MAV.MAVLINK_MSG_ID_MISSION_CURRENT):
         link.mav.command_long_send(link.target_system, link.target_component,
                                    MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id,
                                    1e6 / rate_hz, 0, 0, 0, 0, 0)
+    request_battery(link)
 
 
 #: The wind estimates asked for: ArduPilot's WIND (168), PX4's WIND_COV (231).
@@ -233,7 +241,7 @@ class VehicleBridge:
         self._home_limit_m = home_limit_m
         self._lock = threading.Lock()
         self._waiting: _Upload | None = None
-        self._stop = threading.Event()
+        self._stop, self.ending = threading.Event(), EndRequest()
         #: What the vehicle told of itself: its home, its latest latitude and longitude.
         self.vehicle_home: Home | None = None
         self._vehicle_position: tuple[float, float] | None = None
@@ -299,6 +307,7 @@ class VehicleBridge:
             if self.vehicle_home is None and now - asked >= HOME_REQUEST_S:
                 request_home(link)
                 asked = now
+            self.ending.send(link)
             job = self._next_job()
             if job is None and self._waiting is not None:
                 if waiting_since is None:
@@ -329,8 +338,8 @@ class VehicleBridge:
             if kind == 'BAD_DATA' or message.get_srcSystem() != link.target_system:
                 continue
             heard = time.monotonic()
-            if kind in ('WIND', 'WIND_COV'):
-                clock.wind(message)
+            if kind in TIMED_MESSAGES:
+                clock.timed(message)
             elif kind == 'HEARTBEAT':
                 if self.stream is not None:
                     self.stream.on_heartbeat(message)
@@ -450,8 +459,13 @@ class _ConnectionClock:
                 self._on_event(replace(self._held, time_s=time_s))
         return time_s
 
-    def wind(self, message) -> None:
-        """A WIND or WIND_COV message: handed on at the latest position's time, or held."""
+    def timed(self, message) -> None:
+        """A message of :data:`TIMED_MESSAGES`: a battery's report handed on at the latest
+        position's time; a WIND or WIND_COV message too, or held before the first."""
+        if message.get_type() in ('BATTERY_STATUS', 'SYS_STATUS'):
+            if (report := battery_of(message, self.time_s)) is not None:
+                self._on_event(report)
+            return
         wind = wind_of(message, self.time_s)
         if wind is not None and self._timed:
             self._on_event(wind)
