@@ -107,7 +107,12 @@ class InFlight:
     mission's slots so far when an earlier replan lengthened it (0: the scenario's own);
     warm: the plan in force serves the same nodes, so the replan continues it instead of
     screening the tours again
-    (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`).
+    (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`). A stream that
+    caught up the plan in force after a gap (:mod:`uav_comm_planner.mission.catch_up`) gives
+    ``caught_up``, the rest's points (M - k, 2) as it flies them (planned with the power
+    optimal for them, no trajectory step), ``restated``, (k, 2) positions of the plan in
+    force's slots where the vehicle was instead of where it was planned (NaN: as planned),
+    and ``start_s``, when the rest's clock starts (the end of the slot in progress).
     """
 
     position_m: tuple[float, float]
@@ -118,6 +123,9 @@ class InFlight:
     slots_kept: int
     mission_slots: int = 0
     warm: bool = False
+    caught_up: np.ndarray | None = None
+    restated: np.ndarray | None = None
+    start_s: float | None = None
 
     def mission(self, scenario: Scenario) -> Scenario:
         """``scenario`` as long as the mission in flight is (lengthened by earlier replans)."""

@@ -43,7 +43,7 @@ the vehicle alone.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import threading
 import time
 from typing import Callable
@@ -51,10 +51,12 @@ from typing import Callable
 import numpy as np
 from pymavlink import mavutil
 
+from uav_comm_planner.core.catch_up import (catch_up, CATCH_UP_SPEED_SHARE, CatchUp,
+                                            ground_speed)
 from uav_comm_planner.vehicle.firmware import firmware_of_autopilot, FIRMWARES, StreamModes
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, Home
 from uav_comm_planner.vehicle.mavlink.link import vehicle_seq
-from uav_comm_planner.vehicle.stream import StreamReference
+from uav_comm_planner.vehicle.stream import STREAM_SPEED_MARGIN, StreamReference
 
 MAV = mavutil.mavlink
 #: ArduCopter's flight modes of a stream (HEARTBEAT custom_mode).
@@ -91,19 +93,64 @@ class StreamEvent:
 
     kind: str
     message: str
+    #: A 'caught up' event: the job streamed from now on, and the autopilot time of the last
+    #: target before the gap (where the vehicle held).
+    job: 'StreamJob | None' = None
+    lost_s: float | None = None
 
 
 @dataclass(frozen=True)
 class StreamJob:
     """A reference to stream from autopilot time ``t0_s`` at ``altitude_m`` above home;
     ``resume_item(elapsed_s)`` gives the mission item AUTO goes on from (ArduPilot numbering,
-    home is 0)."""
+    home is 0) at ``elapsed_s`` of the reference's time; ``catch_up`` maps the clock's
+    elapsed time to the reference's after the vehicle lost time (None: the same)."""
 
     reference: StreamReference
     t0_s: float
     altitude_m: float
     fallback: str
     resume_item: Callable[[float], int]
+    catch_up: CatchUp | None = None
+
+    def reference_s(self, elapsed_s: float) -> float:
+        """The reference's time at ``elapsed_s`` seconds of the clock after t0."""
+        if self.catch_up is None:
+            return elapsed_s
+        return float(self.catch_up.reference_time(elapsed_s))
+
+    def state(self, elapsed_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The target (2,) position, velocity and acceleration ``elapsed_s`` after t0: the
+        reference's, flown faster while catching up (velocity times the rate d tau / d e,
+        acceleration times its square, within the reference's acceleration bound)."""
+        position, velocity, accel = (value[0] for value in
+                                     self.reference.state(self.reference_s(elapsed_s)))
+        if self.catch_up is None:
+            return position, velocity, accel
+        rate = float(self.catch_up.rate(elapsed_s)[0])
+        accel = accel * rate ** 2
+        size, bound = float(np.linalg.norm(accel)), self.reference.bounds.accel_mpss
+        return position, velocity * rate, accel * min(1.0, bound / size) if size else accel
+
+    def caught_up(self, held_s: float, now_s: float) -> tuple['StreamJob | None', str]:
+        """After a gap in the targets from autopilot time ``held_s`` (the last one sent, where
+        the vehicle held) to ``now_s``: this job catching up on its own path
+        (:mod:`uav_comm_planner.core.catch_up`) at :data:`~uav_comm_planner.core.catch_up.
+        CATCH_UP_SPEED_SHARE` of the reference's speed (and airspeed), and a line saying
+        so; None and the reason when the lost time cannot be made up before qF."""
+        bounds, reference = self.reference.bounds, self.reference
+        speed = ground_speed(
+            CATCH_UP_SPEED_SHARE * bounds.speed_mps / (1 + STREAM_SPEED_MARGIN), bounds.wind_mps,
+            None if bounds.airspeed_mps is None else CATCH_UP_SPEED_SHARE * bounds.airspeed_mps)
+        found = catch_up(lambda tau: reference.state(tau)[0], reference.duration_s,
+                         self.reference_s(held_s - self.t0_s), now_s - self.t0_s, speed)
+        gap = f'no target reached the vehicle for {now_s - held_s:.1f} s (the link was down)'
+        if found is None:
+            return None, f'{gap}; the lost time cannot be made up before qF'
+        return replace(self, catch_up=found), (
+            f'stream caught up: {gap}; the vehicle flies on from where it held, '
+            f'{found.lag_s:.1f} s behind, and makes the time up by '
+            f'{found.caught_s:.1f} s after q0')
 
 
 @dataclass(frozen=True)
@@ -116,11 +163,41 @@ class _Stop:
     mission: object
 
 
-class TargetStream:
+class _ModeWatch:
+    """The vehicle's flight mode as its heartbeat shows it, and a fallback's mode asked again
+    (link thread) until the heartbeat shows it."""
+
+    def __init__(self) -> None:
+        self._mode: int | None = None
+        self._mode_asked_s = -float('inf')
+        self._pending_mode: str | None = None
+        self._pending_tries = 0
+
+    def on_heartbeat(self, message) -> None:
+        """The vehicle's HEARTBEAT: its flight mode."""
+        if message.base_mode & MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            self._mode = int(message.custom_mode)
+
+    def _confirm_fallback(self, link, time_s: float) -> None:
+        """Ask the fallback's mode again until the heartbeat shows it (a few times)."""
+        if self._pending_mode is None:
+            return
+        if self._mode == stream_modes(link).modes[self._pending_mode] \
+                or self._pending_tries >= MODE_TRIES:
+            self._pending_mode = None
+            return
+        if time_s - self._mode_asked_s >= MODE_RETRY_S:
+            set_mode(link, self._pending_mode)
+            self._mode_asked_s = time_s
+            self._pending_tries += 1
+
+
+class TargetStream(_ModeWatch):
     """Streams a :class:`StreamJob` on the link's thread (module docstring); ``on_event``
     receives every :class:`StreamEvent` (quick and thread-safe)."""
 
     def __init__(self, home: Home, on_event: Callable[[StreamEvent], None]) -> None:
+        super().__init__()
         self.home = home
         #: The vehicle's own home (HOME_POSITION), for targets above mean sea level.
         self.vehicle_home: Home | None = None
@@ -128,13 +205,8 @@ class TargetStream:
         self._lock = threading.Lock()
         self._job: StreamJob | None = None
         self._stopping: _Stop | None = None
-        self._fresh = False
-        self._mode: int | None = None
-        self._guided_seen = False
-        self._mode_asked_s = -float('inf')
+        self._fresh = self._guided_seen = False
         self._last_sent_s: float | None = None
-        self._pending_mode: str | None = None
-        self._pending_tries = 0
         self._follow_tries = 0
         self._started_s: float | None = None
         #: Targets sent since the stream started (for tests and diagnostics).
@@ -186,11 +258,6 @@ class TargetStream:
             self._fall_back(link, job, time_s - job.t0_s, stop.reason,
                             resume_seq=stop.resume_seq if verified else None)
 
-    def on_heartbeat(self, message) -> None:
-        """The vehicle's HEARTBEAT: its flight mode."""
-        if message.base_mode & MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-            self._mode = int(message.custom_mode)
-
     def tick(self, link, time_s: float) -> None:
         """Link thread, at every position report (autopilot time ``time_s``): one target, a
         mode change, or the fallback."""
@@ -213,12 +280,11 @@ class TargetStream:
         modes = stream_modes(link)
         follow = modes.modes[modes.follow]
         elapsed = time_s - job.t0_s
-        if reason is None and elapsed > job.reference.duration_s + SETTLE_S:
+        if reason is None and job.reference_s(elapsed) > job.reference.duration_s + SETTLE_S:
             reason = 'the plan reached qF'
         if reason is None and self._last_sent_s is not None \
                 and time_s - self._last_sent_s > STREAM_GAP_S:
-            reason = (f'no target reached the vehicle for {time_s - self._last_sent_s:.1f} s '
-                      f'(the link was down)')
+            job, reason = self._catch_up(job, time_s)
         if reason is None and self._guided_seen and self._mode != follow:
             self._end(f'stream stopped: the vehicle left {modes.follow} (mode '
                       f'{_mode_label(modes, self._mode)}); it is left as it is')
@@ -250,19 +316,6 @@ class TargetStream:
         self.targets_sent += 1
         self._last_sent_s = time_s
 
-    def _confirm_fallback(self, link, time_s: float) -> None:
-        """Ask the fallback's mode again until the heartbeat shows it (a few times)."""
-        if self._pending_mode is None:
-            return
-        if self._mode == stream_modes(link).modes[self._pending_mode] \
-                or self._pending_tries >= MODE_TRIES:
-            self._pending_mode = None
-            return
-        if time_s - self._mode_asked_s >= MODE_RETRY_S:
-            set_mode(link, self._pending_mode)
-            self._mode_asked_s = time_s
-            self._pending_tries += 1
-
     def close(self, link) -> None:
         """Link thread, before the link closes: a stream still running falls back now, and the
         heartbeat is awaited (at most CLOSING_WAIT_S) so that the mode is set before the link
@@ -293,7 +346,8 @@ class TargetStream:
         modes = stream_modes(link)
         if resume_seq is not None or job.fallback == 'auto':
             seq = resume_seq if resume_seq is not None else job.resume_item(
-                elapsed_s if elapsed_s is not None else job.reference.duration_s)
+                job.reference_s(elapsed_s) if elapsed_s is not None
+                else job.reference.duration_s)
             seq = vehicle_seq(link, seq)
             link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
             name, what = modes.resume, f'back in {modes.resume} from mission item {seq}'
@@ -304,6 +358,16 @@ class TargetStream:
         self._mode_asked_s = -float('inf') if elapsed_s is None else job.t0_s + elapsed_s
         self._end(f'stream stopped ({reason}): the vehicle is {what}', kind=kind)
         return modes.modes[name]
+
+    def _catch_up(self, job: StreamJob, time_s: float) -> tuple[StreamJob, str | None]:
+        """After a gap in the targets: ``job`` caught up (said once), or why the stream stops."""
+        caught, message = job.caught_up(self._last_sent_s, time_s)
+        if caught is None:
+            return job, message
+        with self._lock:
+            self._job = caught if self._job is job else self._job
+        self._emit(StreamEvent('caught up', message, job=caught, lost_s=self._last_sent_s))
+        return caught, None
 
     def _end(self, message: str, *, kind: str = 'stopped') -> None:
         with self._lock:
@@ -323,7 +387,7 @@ def send_target(link, job: StreamJob, elapsed_s: float, home: Home,
     and longitude through the planning frame's ``home``, the plan's altitude above the
     vehicle's home (above mean sea level where the vehicle takes only that exactly and its
     ``vehicle_home`` is known), velocity and acceleration north-east-down."""
-    position, velocity, accel = (value[0] for value in job.reference.state(elapsed_s))
+    position, velocity, accel = job.state(elapsed_s)
     latitude, longitude, _ = enu_to_geodetic(np.array([position[0]]), np.array([position[1]]),
                                              0.0, home)
     frame, altitude = MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, job.altitude_m

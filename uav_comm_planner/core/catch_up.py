@@ -1,0 +1,121 @@
+"""Catching up a timed path after the vehicle lost time on it (a held link, a pause).
+
+A timed path p(tau) (the streamed reference, tau seconds from q0) is flown on a clock e (the
+same seconds from q0). A vehicle that stopped at p(tau0) while the clock ran on to e0 > tau0 is
+lag = e0 - tau0 seconds behind. It catches up by flying the same path, every point of it in
+order, faster where the path is slower than the vehicle can fly: from (e0, tau0), each step
+d tau of the path takes
+
+    d e = max(min(d tau, |d p| / V), d tau / MAX_RATE)
+
+of the clock (V the ground speed the vehicle holds along that step, at most the path's own
+pace, a hover passed in 1 / MAX_RATE of its time), until the lag is gone; from there on
+e = tau, the path's own time. The map e -> tau(e) is a :class:`CatchUp`; the path's
+velocity is flown times d tau / d e, its acceleration times its square (within the
+vehicle's acceleration). When the lag is not gone by the path's end, the path cannot be
+caught up (None).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Callable, Sequence
+
+import numpy as np
+
+#: A hover (no motion) is passed this many times faster than planned, not in no time, so
+#: that the map's rate stays finite.
+MAX_RATE = 20.0
+#: Samples of the path per second of its time.
+SAMPLES_PER_S = 20.0
+#: A share of the vehicle's ground speed the catch-up asks for: the rest is margin for a wind
+#: the plan was not told and for the corners.
+CATCH_UP_SPEED_SHARE = 0.9
+
+
+@dataclass(frozen=True)
+class CatchUp:
+    """The path's time ``reference_s`` (K,) at clock times ``clock_s`` (K,), both increasing,
+    from the resumption (clock_s[0], the path held at reference_s[0]) to the moment the lag is
+    gone (clock_s[-1] == reference_s[-1]); before it the path is held, after it e = tau."""
+
+    clock_s: np.ndarray
+    reference_s: np.ndarray
+
+    @property
+    def lag_s(self) -> float:
+        """The time lost at the resumption, seconds."""
+        return float(self.clock_s[0] - self.reference_s[0])
+
+    @property
+    def caught_s(self) -> float:
+        """The clock time at which the lag is gone."""
+        return float(self.clock_s[-1])
+
+    def reference_time(self, elapsed_s: float | np.ndarray) -> np.ndarray:
+        """tau at clock times ``elapsed_s``: held before the resumption, e after the catch-up."""
+        e = np.asarray(elapsed_s, dtype=float)
+        inside = np.interp(e, self.clock_s, self.reference_s)
+        return np.where(e >= self.clock_s[-1], e, inside)
+
+    def rate(self, elapsed_s: float | np.ndarray) -> np.ndarray:
+        """d tau / d e at clock times ``elapsed_s``: 0 before the resumption, 1 after."""
+        e = np.atleast_1d(np.asarray(elapsed_s, dtype=float))
+        slopes = np.diff(self.reference_s) / np.diff(self.clock_s)
+        piece = np.clip(np.searchsorted(self.clock_s, e, side='right') - 1, 0, len(slopes) - 1)
+        rate = slopes[piece]
+        rate = np.where(e < self.clock_s[0], 0.0, rate)
+        return np.where(e >= self.clock_s[-1], 1.0, rate)
+
+
+def ground_speed(speed_mps: float, wind_mps: Sequence[float] = (0.0, 0.0),
+                 airspeed_mps: float | None = None) -> Callable[[np.ndarray], np.ndarray]:
+    """The fastest ground speed along unit directions d (K, 2): ``speed_mps``, and in wind w
+    with an ``airspeed_mps`` A the speed v with ||v d - w|| = A when that is less,
+    v = d . w + sqrt(A^2 - ||w||^2 + (d . w)^2)."""
+    wind = np.asarray(wind_mps, dtype=float)
+
+    def along(directions: np.ndarray) -> np.ndarray:
+        fastest = np.full(len(directions), float(speed_mps))
+        if airspeed_mps is None:
+            return fastest
+        tail = directions @ wind
+        root = np.sqrt(np.maximum(airspeed_mps ** 2 - wind @ wind + tail ** 2, 0.0))
+        return np.minimum(fastest, np.maximum(tail + root, 0.0))
+    return along
+
+
+def catch_up(position_at: Callable[[np.ndarray], np.ndarray], duration_s: float,
+             held_s: float, resumed_s: float,
+             speed_along: Callable[[np.ndarray], np.ndarray]) -> CatchUp | None:
+    """How the path ``position_at(tau)`` ((K,) -> (K, 2) metres, tau in [0, ``duration_s``]),
+    held at tau = ``held_s`` until the clock read ``resumed_s``, is caught up by a vehicle
+    whose ground speed along a direction is ``speed_along`` (:func:`ground_speed`) (module
+    docstring); None when the lag is not gone by the path's end."""
+    held_s = min(max(float(held_s), 0.0), float(duration_s))
+    lag = float(resumed_s) - held_s
+    if lag <= 0.0:
+        return CatchUp(np.array([resumed_s, resumed_s + 1e-9]),
+                       np.array([resumed_s, resumed_s + 1e-9]))
+    count = max(int(math.ceil((duration_s - held_s) * SAMPLES_PER_S)), 1) + 1
+    tau = np.linspace(held_s, duration_s, count)
+    step_tau = np.diff(tau)
+    moves = np.diff(position_at(tau), axis=0)
+    lengths = np.linalg.norm(moves, axis=1)
+    directions = moves / np.where(lengths > 0.0, lengths, 1.0)[:, None]
+    speeds = np.maximum(speed_along(directions), 1e-9)
+    step_clock = np.maximum(np.minimum(step_tau, lengths / speeds), step_tau / MAX_RATE)
+    left = lag - np.cumsum(step_tau - step_clock)
+    gone = np.flatnonzero(left <= 0.0)
+    if len(gone) == 0:
+        return None
+    last = int(gone[0])
+    # The last step ends exactly on the path's own time.
+    behind = np.maximum(left[:last + 1], 0.0)
+    clock = np.concatenate([[float(resumed_s)], tau[1:last + 2] + behind])
+    return CatchUp(clock, tau[:last + 2].copy())
+
+
+__all__ = ['CATCH_UP_SPEED_SHARE', 'CatchUp', 'MAX_RATE', 'SAMPLES_PER_S', 'catch_up',
+           'ground_speed']
