@@ -106,6 +106,11 @@ def test_the_stream_flies_its_own_path_from_where_the_vehicle_held_faster(refere
     assert caught.reference_s(e[-1] + 0.1) == pytest.approx(caught.catch_up.caught_s, abs=0.1)
     after = caught.catch_up.caught_s + 1.0
     assert caught.state(after)[0] == pytest.approx(reference.state(after)[0][0])
+    # A vehicle that flew on past the last target before it held (ArduCopter follows it for
+    # GUID_TIMEOUT) is taken up where it is, not flown back.
+    on, _ = job.caught_up(120.0, 140.0, reference.state(23.0)[0][0] + 0.3)
+    assert on.state(40.0)[0] == pytest.approx(reference.state(23.0)[0][0], abs=0.5)
+    assert on.catch_up.lag_s == pytest.approx(17.0, abs=0.1)
     # Too little of the plan left to make the time up: the stream stops as before.
     late, why = job.caught_up(100.0 + reference.duration_s - 5.0, 100.0 + reference.duration_s)
     assert late is None and 'cannot be made up' in why

@@ -84,6 +84,9 @@ POS_VEL_ACCEL_MASK = (MAV.POSITION_TARGET_TYPEMASK_YAW_IGNORE
                       | MAV.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
 #: Heartbeats in this long after a stream starts may show a mode asked before (autopilot s).
 MODE_SETTLE_S = 1.5
+#: After a gap in the targets the vehicle is looked for this far along the reference past the
+#: last target (seconds of it): GUID_TIMEOUT (STREAM_GAP_S) of flight on, and braking.
+HOLD_SEARCH_S = 2.0 * STREAM_GAP_S
 
 
 @dataclass(frozen=True)
@@ -132,18 +135,28 @@ class StreamJob:
         size, bound = float(np.linalg.norm(accel)), self.reference.bounds.accel_mpss
         return position, velocity * rate, accel * min(1.0, bound / size) if size else accel
 
-    def caught_up(self, held_s: float, now_s: float) -> tuple['StreamJob | None', str]:
-        """After a gap in the targets from autopilot time ``held_s`` (the last one sent, where
-        the vehicle held) to ``now_s``: this job catching up on its own path
-        (:mod:`uav_comm_planner.core.catch_up`) at :data:`~uav_comm_planner.core.catch_up.
-        CATCH_UP_SPEED_SHARE` of the reference's speed (and airspeed), and a line saying
-        so; None and the reason when the lost time cannot be made up before qF."""
+    def caught_up(self, held_s: float, now_s: float,
+                  position_m: np.ndarray | None = None) -> tuple['StreamJob | None', str]:
+        """After a gap in the targets from autopilot time ``held_s`` (the last one sent) to
+        ``now_s``: this job catching up on its own path (:mod:`uav_comm_planner.core.
+        catch_up`) at :data:`~uav_comm_planner.core.catch_up.CATCH_UP_SPEED_SHARE` of the
+        reference's speed (and airspeed), from where the vehicle held, and a line saying so;
+        None and the reason when the lost time cannot be made up before qF. The vehicle held
+        at ``position_m`` (east, north metres; None: at the last target): ArduCopter flies its
+        last target on at its velocity for GUID_TIMEOUT before it holds, so the path is
+        taken up at its point nearest the vehicle within :data:`HOLD_SEARCH_S` after the last
+        target, not behind it."""
         bounds, reference = self.reference.bounds, self.reference
         speed = ground_speed(
             CATCH_UP_SPEED_SHARE * bounds.speed_mps / (1 + STREAM_SPEED_MARGIN), bounds.wind_mps,
             None if bounds.airspeed_mps is None else CATCH_UP_SPEED_SHARE * bounds.airspeed_mps)
-        found = catch_up(lambda tau: reference.state(tau)[0], reference.duration_s,
-                         self.reference_s(held_s - self.t0_s), now_s - self.t0_s, speed)
+        last = self.reference_s(held_s - self.t0_s)
+        if position_m is not None:
+            window = np.linspace(last, min(last + HOLD_SEARCH_S, reference.duration_s), 200)
+            gaps = np.linalg.norm(reference.state(window)[0] - np.asarray(position_m), axis=1)
+            last = float(window[int(np.argmin(gaps))])
+        found = catch_up(lambda tau: reference.state(tau)[0], reference.duration_s, last,
+                         now_s - self.t0_s, speed)
         gap = f'no target reached the vehicle for {now_s - held_s:.1f} s (the link was down)'
         if found is None:
             return None, f'{gap}; the lost time cannot be made up before qF'
@@ -207,6 +220,9 @@ class TargetStream(_ModeWatch):
         self._stopping: _Stop | None = None
         self._fresh = self._guided_seen = False
         self._last_sent_s: float | None = None
+        #: The vehicle's latest position, (2,) east-north metres in the frame of ``home``
+        #: (the link sets it before each tick; None: not known).
+        self.position_m: np.ndarray | None = None
         self._follow_tries = 0
         self._started_s: float | None = None
         #: Targets sent since the stream started (for tests and diagnostics).
@@ -361,7 +377,7 @@ class TargetStream(_ModeWatch):
 
     def _catch_up(self, job: StreamJob, time_s: float) -> tuple[StreamJob, str | None]:
         """After a gap in the targets: ``job`` caught up (said once), or why the stream stops."""
-        caught, message = job.caught_up(self._last_sent_s, time_s)
+        caught, message = job.caught_up(self._last_sent_s, time_s, self.position_m)
         if caught is None:
             return job, message
         with self._lock:
@@ -420,5 +436,5 @@ def _mode_label(modes: StreamModes, custom_mode: int | None) -> str:
     return names.get(custom_mode, str(custom_mode))
 
 
-__all__ = ['COPTER_MODES', 'PX4_MODES', 'STREAM_FALLBACKS', 'STREAM_GAP_S', 'StreamEvent',
-           'StreamJob', 'TargetStream', 'send_target', 'set_mode', 'stream_modes']
+__all__ = ['COPTER_MODES', 'HOLD_SEARCH_S', 'PX4_MODES', 'STREAM_FALLBACKS', 'STREAM_GAP_S',
+           'StreamEvent', 'StreamJob', 'TargetStream', 'send_target', 'set_mode', 'stream_modes']
