@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from uav_comm_planner import paper_scenario
-from uav_comm_planner.core.catch_up import catch_up, CATCH_UP_SPEED_SHARE, ground_speed, MAX_RATE
+from uav_comm_planner.core.catch_up import (catch_up, CATCH_UP_SPEED_SHARE, ground_speed,
+                                            MAX_RATE, turn_speeds)
 from uav_comm_planner.core.optimizer import plan_along
 from uav_comm_planner.core.receding import delivered_bits
 from uav_comm_planner.mission.catch_up import caught_up_rest
@@ -67,6 +68,23 @@ def test_a_hover_is_passed_at_the_greatest_rate_and_a_path_too_short_is_not_caug
     assert float(none.reference_time(50.0)) == 50.0
 
 
+def test_a_turn_is_caught_up_no_faster_than_the_vehicle_turns():
+    # A circle of radius 50 m flown at 2 m/s: kappa = 1 / 50, so 2.5 m/s/s of turning allows
+    # sqrt(2.5 * 50) = 11.18 m/s; with 10 m/s available the vehicle flies 10, with 5 m/s/s
+    # the turn allows 15.8.
+    def circle(tau):
+        angle = 2.0 * np.asarray(tau, dtype=float) / 50.0
+        return 50.0 * np.column_stack([np.cos(angle), np.sin(angle)])
+    points = circle(np.linspace(0.0, 10.0, 201))
+    assert turn_speeds(points, 2.5) == pytest.approx(np.full(200, math.sqrt(125.0)), rel=1e-3)
+    slow = catch_up(circle, 200.0, 20.0, 30.0, ground_speed(20.0), accel_mpss=2.5)
+    # At sqrt(125) against the plan's 2 the lag of 10 s goes when
+    # 40 + 11.18 (e - 30) = 2 e: e = (11.18 * 30 - 40) / 9.18.
+    speed = math.sqrt(125.0)
+    assert slow.caught_s == pytest.approx((speed * 30.0 - 40.0) / (speed - 2.0), abs=0.06)
+    assert np.all(np.isinf(turn_speeds(np.column_stack([np.arange(5.0), np.zeros(5)]), 1.0)))
+
+
 @pytest.mark.parametrize('heading_deg', [0.0, 45.0, 90.0, 180.0, 270.0])
 def test_the_ground_speed_in_wind_keeps_the_airspeed_exactly(heading_deg):
     wind = np.array([-6.0, 1.0])
@@ -95,7 +113,8 @@ def test_the_stream_flies_its_own_path_from_where_the_vehicle_held_faster(refere
     speeds = np.array([np.linalg.norm(caught.state(t)[1]) for t in e])
     own = np.array([np.linalg.norm(reference.state(caught.reference_s(t))[1][0]) for t in e])
     assert np.all(speeds >= own * (1 - 1e-9))
-    assert np.all(speeds <= np.maximum(own, speed) * 1.02)
+    # (within the map's steps, 1 / SAMPLES_PER_S of the reference, where its speed changes)
+    assert np.all(speeds <= np.maximum(own, speed) * 1.05)
     assert np.any(speeds > own * 1.5)                   # faster where it can
     # The targets' velocity is their positions' rate of change.
     steps = np.diff(np.vstack([caught.state(t)[0] for t in e]), axis=0) / (e[1] - e[0])

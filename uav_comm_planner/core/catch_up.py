@@ -8,9 +8,10 @@ d tau of the path takes
 
     d e = max(min(d tau, |d p| / V), d tau / MAX_RATE)
 
-of the clock (V the ground speed the vehicle holds along that step, at most the path's own
-pace, a hover passed in 1 / MAX_RATE of its time), until the lag is gone; from there on
-e = tau, the path's own time. The map e -> tau(e) is a :class:`CatchUp`; the path's
+of the clock (V the ground speed the vehicle holds along that step, and in a turn no more than
+the speed whose turning acceleration the vehicle has; no step slower than the path's own pace,
+a hover passed in 1 / MAX_RATE of its time), until the lag is gone; from there on e = tau, the
+path's own time. The map e -> tau(e) is a :class:`CatchUp`; the path's
 velocity is flown times d tau / d e, its acceleration times its square (within the
 vehicle's acceleration). When the lag is not gone by the path's end, the path cannot be
 caught up (None).
@@ -86,13 +87,36 @@ def ground_speed(speed_mps: float, wind_mps: Sequence[float] = (0.0, 0.0),
     return along
 
 
+def turn_speeds(points: np.ndarray, accel_mpss: float) -> np.ndarray:
+    """The fastest speed (K - 1,) on each step of the sampled path ``points`` (K, 2) that
+    keeps the turning acceleration v^2 kappa within ``accel_mpss``, kappa the curvature of the
+    circle through the step's points and their neighbours (the larger at its two ends;
+    straight: no limit)."""
+    before, here, after = points[:-2], points[1:-1], points[2:]
+    a = np.linalg.norm(here - before, axis=1)
+    b = np.linalg.norm(after - here, axis=1)
+    c = np.linalg.norm(after - before, axis=1)
+    d1, d2 = here - before, after - here
+    cross = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    spans = a * b * c
+    curvature = np.where(spans > 1e-12, 2.0 * cross / np.where(spans > 1e-12, spans, 1.0), 0.0)
+    ends = np.concatenate([[0.0], curvature, [0.0]])
+    step = np.maximum(ends[:-1], ends[1:])
+    with np.errstate(divide='ignore'):
+        return np.where(step > 0.0, np.sqrt(accel_mpss / np.where(step > 0.0, step, 1.0)),
+                        np.inf)
+
+
 def catch_up(position_at: Callable[[np.ndarray], np.ndarray], duration_s: float,
              held_s: float, resumed_s: float,
-             speed_along: Callable[[np.ndarray], np.ndarray]) -> CatchUp | None:
+             speed_along: Callable[[np.ndarray], np.ndarray], *,
+             accel_mpss: float | None = None) -> CatchUp | None:
     """How the path ``position_at(tau)`` ((K,) -> (K, 2) metres, tau in [0, ``duration_s``]),
     held at tau = ``held_s`` until the clock read ``resumed_s``, is caught up by a vehicle
-    whose ground speed along a direction is ``speed_along`` (:func:`ground_speed`) (module
-    docstring); None when the lag is not gone by the path's end."""
+    whose ground speed along a direction is ``speed_along`` (:func:`ground_speed`), and in
+    turns at most the speed whose turning acceleration is ``accel_mpss`` (:func:`turn_speeds`;
+    None: no such limit) (module docstring); None when the lag is not gone by the path's
+    end."""
     held_s = min(max(float(held_s), 0.0), float(duration_s))
     lag = float(resumed_s) - held_s
     if lag <= 0.0:
@@ -101,10 +125,14 @@ def catch_up(position_at: Callable[[np.ndarray], np.ndarray], duration_s: float,
     count = max(int(math.ceil((duration_s - held_s) * SAMPLES_PER_S)), 1) + 1
     tau = np.linspace(held_s, duration_s, count)
     step_tau = np.diff(tau)
-    moves = np.diff(position_at(tau), axis=0)
+    points = position_at(tau)
+    moves = np.diff(points, axis=0)
     lengths = np.linalg.norm(moves, axis=1)
     directions = moves / np.where(lengths > 0.0, lengths, 1.0)[:, None]
-    speeds = np.maximum(speed_along(directions), 1e-9)
+    speeds = speed_along(directions)
+    if accel_mpss is not None and count > 2:
+        speeds = np.minimum(speeds, turn_speeds(points, accel_mpss))
+    speeds = np.maximum(speeds, 1e-9)
     step_clock = np.maximum(np.minimum(step_tau, lengths / speeds), step_tau / MAX_RATE)
     left = lag - np.cumsum(step_tau - step_clock)
     gone = np.flatnonzero(left <= 0.0)
@@ -118,4 +146,4 @@ def catch_up(position_at: Callable[[np.ndarray], np.ndarray], duration_s: float,
 
 
 __all__ = ['CATCH_UP_SPEED_SHARE', 'CatchUp', 'MAX_RATE', 'SAMPLES_PER_S', 'catch_up',
-           'ground_speed']
+           'ground_speed', 'turn_speeds']

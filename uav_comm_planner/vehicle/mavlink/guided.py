@@ -140,7 +140,8 @@ class StreamJob:
         """After a gap in the targets from autopilot time ``held_s`` (the last one sent) to
         ``now_s``: this job catching up on its own path (:mod:`uav_comm_planner.core.
         catch_up`) at :data:`~uav_comm_planner.core.catch_up.CATCH_UP_SPEED_SHARE` of the
-        reference's speed (and airspeed), from where the vehicle held, and a line saying so;
+        reference's speed (and airspeed) and acceleration in turns, from where the vehicle
+        held, and a line saying so;
         None and the reason when the lost time cannot be made up before qF. The vehicle held
         at ``position_m`` (east, north metres; None: at the last target): ArduCopter flies its
         last target on at its velocity for GUID_TIMEOUT before it holds, so the path is
@@ -156,7 +157,8 @@ class StreamJob:
             gaps = np.linalg.norm(reference.state(window)[0] - np.asarray(position_m), axis=1)
             last = float(window[int(np.argmin(gaps))])
         found = catch_up(lambda tau: reference.state(tau)[0], reference.duration_s, last,
-                         now_s - self.t0_s, speed)
+                         now_s - self.t0_s, speed,
+                         accel_mpss=CATCH_UP_SPEED_SHARE * bounds.accel_mpss)
         gap = f'no target reached the vehicle for {now_s - held_s:.1f} s (the link was down)'
         if found is None:
             return None, f'{gap}; the lost time cannot be made up before qF'
