@@ -136,6 +136,15 @@ def test_a_gap_in_the_targets_holds_and_a_pilot_taking_over_ends_the_stream(refe
     stream.tick(link, end)
     assert 'link was down' in events[-1].message and 'BRAKE' in events[-1].message
     assert 'cannot be made up' in events[-1].message
+    # A vehicle that left the streamed mode meanwhile (PX4's failsafe) is not caught up.
+    events.clear()
+    stream.start(StreamJob(reference, 0.0, 100.0, 'hold', lambda elapsed_s: 3))
+    stream.on_heartbeat(heartbeat('GUIDED'))
+    stream.tick(link, 1.0)
+    stream.on_heartbeat(heartbeat('BRAKE'))
+    stream.tick(link, 1.0 + STREAM_GAP_S + 0.5)
+    assert [event.kind for event in events] == ['stopped']
+    assert 'link was down' in events[-1].message and not stream.active
     assert link.modes[-1] == COPTER_MODES['BRAKE'] and link.currents == []
 
     events.clear()

@@ -159,7 +159,7 @@ class StreamJob:
         found = catch_up(lambda tau: reference.state(tau)[0], reference.duration_s, last,
                          now_s - self.t0_s, speed,
                          accel_mpss=CATCH_UP_SPEED_SHARE * bounds.accel_mpss)
-        gap = f'no target reached the vehicle for {now_s - held_s:.1f} s (the link was down)'
+        gap = _gap(held_s, now_s)
         if found is None:
             return None, f'{gap}; the lost time cannot be made up before qF'
         return replace(self, catch_up=found), (
@@ -302,7 +302,7 @@ class TargetStream(_ModeWatch):
             reason = 'the plan reached qF'
         if reason is None and self._last_sent_s is not None \
                 and time_s - self._last_sent_s > STREAM_GAP_S:
-            job, reason = self._catch_up(job, time_s)
+            job, reason = self._catch_up(job, time_s, follow)
         if reason is None and self._guided_seen and self._mode != follow:
             self._end(f'stream stopped: the vehicle left {modes.follow} (mode '
                       f'{_mode_label(modes, self._mode)}); it is left as it is')
@@ -377,8 +377,12 @@ class TargetStream(_ModeWatch):
         self._end(f'stream stopped ({reason}): the vehicle is {what}', kind=kind)
         return modes.modes[name]
 
-    def _catch_up(self, job: StreamJob, time_s: float) -> tuple[StreamJob, str | None]:
-        """After a gap in the targets: ``job`` caught up (said once), or why the stream stops."""
+    def _catch_up(self, job: StreamJob, time_s: float,
+                  follow: int) -> tuple[StreamJob, str | None]:
+        """After a gap in the targets: ``job`` caught up (said once) while the vehicle is still
+        in the ``follow`` mode (PX4's failsafe takes it out), or why the stream stops."""
+        if self._mode != follow:
+            return job, _gap(self._last_sent_s, time_s)
         caught, message = job.caught_up(self._last_sent_s, time_s, self.position_m)
         if caught is None:
             return job, message
@@ -430,6 +434,11 @@ def set_mode(link, mode: str) -> None:
     into MAV_CMD_DO_SET_MODE(base mode, main mode, sub mode) itself."""
     link.mav.set_mode_send(link.target_system, MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
                            stream_modes(link).modes[mode])
+
+
+def _gap(held_s: float, now_s: float) -> str:
+    """What a gap in the targets from autopilot time ``held_s`` to ``now_s`` was."""
+    return f'no target reached the vehicle for {now_s - held_s:.1f} s (the link was down)'
 
 
 def _mode_label(modes: StreamModes, custom_mode: int | None) -> str:
