@@ -5,6 +5,7 @@ targets while catching up (a recording link), and the plan in force restated aft
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 from helpers import two_node_stream_reference
 import numpy as np
@@ -15,11 +16,14 @@ from uav_comm_planner.core.catch_up import (catch_up, CATCH_UP_SPEED_SHARE, grou
                                             MAX_RATE, turn_speeds)
 from uav_comm_planner.core.optimizer import plan_along
 from uav_comm_planner.core.receding import delivered_bits
+from uav_comm_planner.core.scenario import SolverSettings
 from uav_comm_planner.mission.catch_up import caught_up_rest
 from uav_comm_planner.mission.policy import plan_for_vehicle
-from uav_comm_planner.mission.progress import MissionProgress, PoseTrack
+from uav_comm_planner.mission.progress import MissionProgress, off_plan, PoseTrack
+from uav_comm_planner.ros.flight import MissionFlight, SOURCE_TELEMETRY
+from uav_comm_planner.ros.params import NodeSettings, PlannerConfig
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mavlink.guided import StreamJob
+from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, StreamJob
 from uav_comm_planner.vehicle.stream import stream_reference
 
 #: The plan of ``helpers.two_node_stream_reference``.
@@ -185,3 +189,73 @@ def test_the_plan_in_force_is_restated_where_the_vehicle_held_and_where_it_catch
     assert when == pytest.approx(slot_s * np.arange(1, result.scenario.num_slots + 1))
     assert points[:10] == pytest.approx(np.asarray(result.trajectory)[:10])
     assert points[begun:] == pytest.approx(rest.caught_up)
+
+
+class _Logger:
+    def info(self, message: str) -> None:
+        pass
+
+
+class _StandInNode:
+    """What MissionFlight asks of its node: a link, and the replans it submits recorded."""
+
+    def __init__(self, scenario) -> None:
+        self.config = PlannerConfig(scenario, SolverSettings(compute_baselines=False),
+                                    NodeSettings(vehicle_aware=False))
+        self.vehicle = SimpleNamespace(linked=True, upload_pending=False, mode='GUIDED',
+                                       speed_mps=0.0, flying_mission=True)
+        self.submitted: list[tuple[str, object]] = []
+
+    def get_logger(self) -> _Logger:
+        return _Logger()
+
+    def submit(self, reason: str, in_flight=None) -> None:
+        self.submitted.append((reason, in_flight))
+
+    def refuse(self, request: str, message: str, *, nodes=None) -> None:
+        pass                # a position that jumps (the stand-in's vehicle does) is refused
+
+    def clock_s(self) -> float:
+        return 0.0
+
+
+def test_the_node_asks_for_the_caught_up_rest_and_replans_nothing_meanwhile(reference):
+    result = plan_for_vehicle(TWO_NODES, VehicleLimits()).flown
+    node = _StandInNode(TWO_NODES)
+    flight = MissionFlight(node)
+    flight.progress.begin(TWO_NODES, result)
+    flight.progress.start_clock(0.0)
+    for t in np.round(np.arange(0.1, 41.0, 0.1), 6):          # on the plan until 41 s
+        flight.on_position(float(t), *reference.state(t)[0][0], source=SOURCE_TELEMETRY,
+                           height_m=100.0)
+    # The link back at 61.5 s, the vehicle held 3 s of path past the last target: 20 s late,
+    # off the plan by time, but the first positions after a gap wait as any others do.
+    held = reference.state(44.0)[0][0]
+    for t in (61.5, 61.6, 61.7):
+        flight.on_position(t, *held, source=SOURCE_TELEMETRY, height_m=100.0)
+    assert node.submitted == []
+    job = StreamJob(reference, 0.0, 100.0, 'auto', lambda elapsed_s: 3)
+    caught, message = job.caught_up(41.0, 61.5, held)
+    flight.on_catch_up(StreamEvent('caught up', message, job=caught, lost_s=41.0))
+    (reason, rest), = node.submitted
+    assert 'caught up' in reason and rest.caught_up is not None and rest.start_s == 64.0
+    # Taken over as the node takes it: in force from the end of the slot in progress, when
+    # the vehicle, flying the catch-up, is still short of the rest's q0: no replan till then,
+    # nor while the rest is planned.
+    rest_plan = plan_along(TWO_NODES.replace(num_slots=len(rest.caught_up),
+                                             horizon_s=4.0 * len(rest.caught_up),
+                                             start_m=rest.position_m),
+                           rest.caught_up, name='caught up')
+    assert flight.progress.take_over(rest.mission_id, rest.segment, rest.slots_kept,
+                                     TWO_NODES, rest_plan, restated=rest.restated)
+    flight.progress.current.start_s = rest.start_s
+    # Still at its hold until the rest's slot (ArduCopter accelerating), off the rest's path.
+    assert off_plan(rest_plan, 0.0, held, distance_m=20.0, delay_s=5.0)
+    for t in np.round(np.arange(61.8, 63.95, 0.1), 6):
+        flight.on_position(float(t), *held, source=SOURCE_TELEMETRY, height_m=100.0)
+    assert len(node.submitted) == 1
+    # Flying the catch-up, the vehicle is on the rest's plan once it is in force.
+    for t in np.round(np.arange(64.0, 90.0, 0.1), 6):
+        flight.on_position(float(t), *caught.state(float(t))[0], source=SOURCE_TELEMETRY,
+                           height_m=100.0)
+    assert len(node.submitted) == 1
