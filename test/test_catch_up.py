@@ -82,10 +82,13 @@ def test_a_turn_is_caught_up_no_faster_than_the_vehicle_turns():
     points = circle(np.linspace(0.0, 10.0, 201))
     assert turn_speeds(points, 2.5) == pytest.approx(np.full(200, math.sqrt(125.0)), rel=1e-3)
     slow = catch_up(circle, 200.0, 20.0, 30.0, ground_speed(20.0), accel_mpss=2.5)
-    # At sqrt(125) against the plan's 2 the lag of 10 s goes when
-    # 40 + 11.18 (e - 30) = 2 e: e = (11.18 * 30 - 40) / 9.18.
+    # From rest at 2.5 m/s/s to V = sqrt(125) (V / 2.5 s, V^2 / 5 m), then at V against the
+    # plan's 2 m/s: the lag of 10 s goes when 40 + V^2 / 5 + V (e - 30 - V / 2.5) = 2 e.
     speed = math.sqrt(125.0)
-    assert slow.caught_s == pytest.approx((speed * 30.0 - 40.0) / (speed - 2.0), abs=0.06)
+    assert slow.caught_s == pytest.approx(
+        (speed * (30.0 + speed / 2.5) - 40.0 - speed ** 2 / 5.0) / (speed - 2.0), abs=0.1)
+    # The first second: from rest, 2.5 m/s/s: 1.25 m along the circle, tau 20 + 1.25 / 2.
+    assert float(slow.reference_time(31.0)) == pytest.approx(20.625, abs=0.03)
     assert np.all(np.isinf(turn_speeds(np.column_stack([np.arange(5.0), np.zeros(5)]), 1.0)))
 
 
@@ -116,7 +119,12 @@ def test_the_stream_flies_its_own_path_from_where_the_vehicle_held_faster(refere
     e = np.linspace(40.0, caught.catch_up.caught_s - 0.1, 200)
     speeds = np.array([np.linalg.norm(caught.state(t)[1]) for t in e])
     own = np.array([np.linalg.norm(reference.state(caught.reference_s(t))[1][0]) for t in e])
-    assert np.all(speeds >= own * (1 - 1e-9))
+    # From rest at the acceleration; then never slower than the reference.
+    ramp = e - 40.0 < (reference.bounds.speed_mps
+                       / (CATCH_UP_SPEED_SHARE * reference.bounds.accel_mpss))
+    assert np.all(speeds[ramp] <= CATCH_UP_SPEED_SHARE * reference.bounds.accel_mpss
+                  * (e[ramp] - 40.0) * 1.05 + 1.0)
+    assert np.all(speeds[~ramp] >= own[~ramp] * (1 - 1e-9))
     # (within the map's steps, 1 / SAMPLES_PER_S of the reference, where its speed changes)
     assert np.all(speeds <= np.maximum(own, speed) * 1.05)
     assert np.any(speeds > own * 1.5)                   # faster where it can
@@ -199,9 +207,9 @@ class _Logger:
 class _StandInNode:
     """What MissionFlight asks of its node: a link, and the replans it submits recorded."""
 
-    def __init__(self, scenario) -> None:
+    def __init__(self, scenario, **settings) -> None:
         self.config = PlannerConfig(scenario, SolverSettings(compute_baselines=False),
-                                    NodeSettings(vehicle_aware=False))
+                                    NodeSettings(vehicle_aware=False, **settings))
         self.vehicle = SimpleNamespace(linked=True, upload_pending=False, mode='GUIDED',
                                        speed_mps=0.0, flying_mission=True)
         self.submitted: list[tuple[str, object]] = []
@@ -219,9 +227,13 @@ class _StandInNode:
         return 0.0
 
 
+#: Off the plan this far, the stand-in node replans (the parameter's default is 20 m).
+REPLAN_DISTANCE_M = 5.0
+
+
 def test_the_node_asks_for_the_caught_up_rest_and_replans_nothing_meanwhile(reference):
     result = plan_for_vehicle(TWO_NODES, VehicleLimits()).flown
-    node = _StandInNode(TWO_NODES)
+    node = _StandInNode(TWO_NODES, replan_distance_m=REPLAN_DISTANCE_M)
     flight = MissionFlight(node)
     flight.progress.begin(TWO_NODES, result)
     flight.progress.start_clock(0.0)
@@ -249,8 +261,8 @@ def test_the_node_asks_for_the_caught_up_rest_and_replans_nothing_meanwhile(refe
     assert flight.progress.take_over(rest.mission_id, rest.segment, rest.slots_kept,
                                      TWO_NODES, rest_plan, restated=rest.restated)
     flight.progress.current.start_s = rest.start_s
-    # Still at its hold until the rest's slot (ArduCopter accelerating), off the rest's path.
-    assert off_plan(rest_plan, 0.0, held, distance_m=20.0, delay_s=5.0)
+    # Still at its hold until the rest's slot (the mode taken late), off the rest's path.
+    assert off_plan(rest_plan, 0.0, held, distance_m=REPLAN_DISTANCE_M, delay_s=5.0)
     for t in np.round(np.arange(61.8, 63.95, 0.1), 6):
         flight.on_position(float(t), *held, source=SOURCE_TELEMETRY, height_m=100.0)
     assert len(node.submitted) == 1

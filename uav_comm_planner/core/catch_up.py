@@ -6,14 +6,15 @@ lag = e0 - tau0 seconds behind. It catches up by flying the same path, every poi
 order, faster where the path is slower than the vehicle can fly: from (e0, tau0), each step
 d tau of the path takes
 
-    d e = max(min(d tau, |d p| / V), d tau / MAX_RATE)
+    d e = max(|d p| / v, d tau / MAX_RATE),  v = min(max(V, |d p| / d tau), sqrt(2 A s))
 
 of the clock (V the ground speed the vehicle holds along that step, and in a turn no more than
-the speed whose turning acceleration the vehicle has; no step slower than the path's own pace,
-a hover passed in 1 / MAX_RATE of its time), until the lag is gone; from there on e = tau, the
-path's own time. The map e -> tau(e) is a :class:`CatchUp`; the path's
-velocity is flown times d tau / d e, its acceleration times its square (within the
-vehicle's acceleration). When the lag is not gone by the path's end, the path cannot be
+the speed whose turning acceleration A the vehicle has; no step slower than the path's own
+pace but the first ones, where the vehicle gathers speed from rest at A over the distance s
+from its hold, the step's mean speed on that ramp; a hover passed in 1 / MAX_RATE of its
+time), until the lag is gone; from there on e = tau, the path's own time. The map
+e -> tau(e) is a :class:`CatchUp`; the path's velocity is flown times d tau / d e, its
+acceleration times its square (within the vehicle's acceleration). When the lag is not gone by the path's end, the path cannot be
 caught up (None).
 """
 
@@ -113,9 +114,10 @@ def catch_up(position_at: Callable[[np.ndarray], np.ndarray], duration_s: float,
              accel_mpss: float | None = None) -> CatchUp | None:
     """How the path ``position_at(tau)`` ((K,) -> (K, 2) metres, tau in [0, ``duration_s``]),
     held at tau = ``held_s`` until the clock read ``resumed_s``, is caught up by a vehicle
-    whose ground speed along a direction is ``speed_along`` (:func:`ground_speed`), and in
-    turns at most the speed whose turning acceleration is ``accel_mpss`` (:func:`turn_speeds`;
-    None: no such limit) (module docstring); None when the lag is not gone by the path's
+    whose ground speed along a direction is ``speed_along`` (:func:`ground_speed`), and with
+    ``accel_mpss`` in turns at most the speed whose turning acceleration that is
+    (:func:`turn_speeds`) and from rest at the hold no faster than that acceleration gives
+    (None: neither limit) (module docstring); None when the lag is not gone by the path's
     end."""
     held_s = min(max(float(held_s), 0.0), float(duration_s))
     lag = float(resumed_s) - held_s
@@ -132,8 +134,14 @@ def catch_up(position_at: Callable[[np.ndarray], np.ndarray], duration_s: float,
     speeds = speed_along(directions)
     if accel_mpss is not None and count > 2:
         speeds = np.minimum(speeds, turn_speeds(points, accel_mpss))
+    # Never slower than the path's own pace, but from rest no faster than the acceleration
+    # takes the vehicle over the distance from its hold.
+    speeds = np.maximum(speeds, lengths / step_tau)
+    if accel_mpss is not None:          # the mean speed of the step, exactly, on the ramp
+        reach = np.sqrt(2.0 * accel_mpss * np.concatenate([[0.0], np.cumsum(lengths)]))
+        speeds = np.minimum(speeds, (reach[:-1] + reach[1:]) / 2.0)
     speeds = np.maximum(speeds, 1e-9)
-    step_clock = np.maximum(np.minimum(step_tau, lengths / speeds), step_tau / MAX_RATE)
+    step_clock = np.maximum(lengths / speeds, step_tau / MAX_RATE)
     left = lag - np.cumsum(step_tau - step_clock)
     gone = np.flatnonzero(left <= 0.0)
     if len(gone) == 0:
