@@ -14,8 +14,8 @@ pace but the first ones, where the vehicle gathers speed from rest at A over the
 from its hold, the step's mean speed on that ramp; a hover passed in 1 / MAX_RATE of its
 time), until the lag is gone; from there on e = tau, the path's own time. The map
 e -> tau(e) is a :class:`CatchUp`; the path's velocity is flown times d tau / d e, its
-acceleration times its square (within the vehicle's acceleration). When the lag is not gone by the path's end, the path cannot be
-caught up (None).
+acceleration times its square (within the vehicle's acceleration). When the lag is not gone
+by the path's end, the path cannot be caught up (None).
 """
 
 from __future__ import annotations
