@@ -17,13 +17,13 @@ from uav_comm_planner.core.catch_up import (catch_up, CATCH_UP_SPEED_SHARE, grou
 from uav_comm_planner.core.optimizer import plan_along
 from uav_comm_planner.core.receding import delivered_bits
 from uav_comm_planner.core.scenario import SolverSettings
-from uav_comm_planner.mission.catch_up import caught_up_rest
+from uav_comm_planner.mission.catch_up import caught_up_rest, where_held
 from uav_comm_planner.mission.policy import plan_for_vehicle
 from uav_comm_planner.mission.progress import MissionProgress, off_plan, PoseTrack
 from uav_comm_planner.ros.flight import MissionFlight, SOURCE_TELEMETRY
 from uav_comm_planner.ros.params import NodeSettings, PlannerConfig
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, StreamJob
+from uav_comm_planner.vehicle.mavlink.guided import STREAM_GAP_S, StreamEvent, StreamJob
 from uav_comm_planner.vehicle.stream import stream_reference
 
 #: The plan of ``helpers.two_node_stream_reference``.
@@ -145,6 +145,16 @@ def test_the_stream_flies_its_own_path_from_where_the_vehicle_held_faster(refere
     # Too little of the plan left to make the time up: the stream stops as before.
     late, why = job.caught_up(100.0 + reference.duration_s - 5.0, 100.0 + reference.duration_s)
     assert late is None and 'cannot be made up' in why
+
+
+def test_where_a_held_vehicle_was_follows_its_last_target_then_holds_up_to_the_tracks_end():
+    track = PoseTrack()
+    track.add(10.0, 0.0, 0.0)
+    track.add(30.0, 30.0, 40.0)                 # found 50 m on after the gap
+    where = where_held(track, np.array([10.0, 11.5, 13.0, 20.0, 30.0, 31.0]))
+    assert STREAM_GAP_S == 3.0
+    assert where == pytest.approx(np.array([[0.0, 0.0], [15.0, 20.0], [30.0, 40.0],
+                                            [30.0, 40.0], [30.0, 40.0], [30.0, 40.0]]))
 
 
 def test_the_plan_in_force_is_restated_where_the_vehicle_held_and_where_it_catches_up(

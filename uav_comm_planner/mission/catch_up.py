@@ -82,14 +82,14 @@ def where_held(track: PoseTrack, times_s: np.ndarray) -> np.ndarray:
     track's samples either side of each time, it went on from the one before for at most
     :data:`~uav_comm_planner.vehicle.mavlink.guided.STREAM_GAP_S` (ArduCopter follows its last
     target that long, GUID_TIMEOUT) to where the one after found it, and held there; a time
-    with samples close on both sides is where they put it."""
+    with samples close on both sides is where they put it, a time at or past the track's ends
+    where its sample there puts it."""
     before_t, before_m, after_t, after_m, inside = track.around(times_s)
-    if not inside.all():
-        raise ValueError('where_held: a time outside the track')
     reach = np.minimum(after_t - before_t, STREAM_GAP_S)
     share = np.clip((np.asarray(times_s, dtype=float) - before_t) / np.maximum(reach, 1e-9),
                     0.0, 1.0)[:, None]
-    return before_m + share * (after_m - before_m)
+    return np.where(inside[:, None], before_m + share * (after_m - before_m),
+                    track.at(times_s)[0])
 
 
 __all__ = ['caught_up_rest', 'where_held']

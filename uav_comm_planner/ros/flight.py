@@ -179,8 +179,13 @@ class MissionFlight(_RefusalReports):
         """The stream caught up the plan in force after a gap: its rest restated as flown
         (:mod:`uav_comm_planner.mission.catch_up`), in force at once once planned."""
         job = event.job
-        rest = caught_up_rest(self.progress, self.track, self._node.config.scenario,
-                              job.reference, job.catch_up, t0_s=job.t0_s, lost_s=event.lost_s)
+        try:
+            rest = caught_up_rest(self.progress, self.track, self._node.config.scenario,
+                                  job.reference, job.catch_up, t0_s=job.t0_s,
+                                  lost_s=event.lost_s)
+        except (PlannerError, ArithmeticError, ValueError) as exc:
+            self._node.refuse('stream caught up', f'the caught-up plan is not stated: {exc}')
+            return              # the stream flies on; the plan in force is checked as ever
         if rest is not None:
             self._catch_up = (job.t0_s + float(job.catch_up.clock_s[0]), rest.mission_id,
                               rest.segment)
