@@ -121,9 +121,7 @@ def plan_mission(request: MissionRequest, *, planner: Planner = plan,
         receding = None
     else:
         result, vehicle_plan, receding = _plan_rest(request, planner, options)
-    # A caught-up rest is flown by the stream on the mission the vehicle holds: no items.
-    caught_up = request.in_flight is not None and request.in_flight.caught_up is not None
-    items = _items(request, vehicle_plan or result) if request.items and not caught_up else {}
+    items = _items(request, vehicle_plan or result) if request.items else {}
     return MissionPlan(request, result, vehicle_plan, receding, **items)
 
 
