@@ -17,7 +17,8 @@ until the time is made up. What the mission then promises is stated again here, 
   whole mission's budget left (one power step with the data delivered so far,
   :func:`~uav_comm_planner.core.optimizer.plan_along`); it is in force from that moment, with
   no upload (the vehicle holds the plan's own mission, whose path the stream flies, for a
-  fallback) and no stop of the stream.
+  fallback; the rest's own items are built, for a link made again) and no stop of the
+  stream.
 """
 
 from __future__ import annotations
