@@ -108,6 +108,36 @@ def turn_speeds(points: np.ndarray, accel_mpss: float) -> np.ndarray:
                         np.inf)
 
 
+def accelerated(wanted: np.ndarray, pace: np.ndarray, lengths: np.ndarray,
+                accel_mpss: float) -> np.ndarray:
+    """The mean speed (K,) of each of K steps of ``lengths`` (K,) metres: at most ``wanted``
+    (K,), reached from rest at the first step's start and changed between steps at no more
+    than ``accel_mpss`` over their lengths (a forward pass for the speeding up, a backward one
+    for the slowing down), and never below the path's own ``pace`` (K,) once the speed has
+    come up to it (the path's own speed changes within the acceleration already)."""
+    count = len(wanted)
+    end = np.empty(count)
+    mean = np.empty(count)
+    floor = np.zeros(count)
+    previous, ramping = 0.0, True
+    for k in range(count):
+        reach = math.sqrt(previous ** 2 + 2.0 * accel_mpss * lengths[k])
+        speed = min(wanted[k], reach)
+        ramping = ramping and speed < pace[k]
+        floor[k] = 0.0 if ramping else pace[k]
+        end[k] = max(speed, floor[k])
+        mean[k] = (previous + end[k]) / 2.0 if end[k] >= reach else end[k]
+        previous = end[k]
+    following = end[-1] if count else 0.0
+    for k in range(count - 2, -1, -1):
+        reach = math.sqrt(following ** 2 + 2.0 * accel_mpss * lengths[k + 1])
+        if end[k] > reach:
+            end[k] = max(reach, floor[k])
+            mean[k] = min(mean[k], end[k])
+        following = end[k]
+    return mean
+
+
 def catch_up(position_at: Callable[[np.ndarray], np.ndarray], duration_s: float,
              held_s: float, resumed_s: float,
              speed_along: Callable[[np.ndarray], np.ndarray], *,
@@ -134,12 +164,9 @@ def catch_up(position_at: Callable[[np.ndarray], np.ndarray], duration_s: float,
     speeds = speed_along(directions)
     if accel_mpss is not None and count > 2:
         speeds = np.minimum(speeds, turn_speeds(points, accel_mpss))
-    # Never slower than the path's own pace, but from rest no faster than the acceleration
-    # takes the vehicle over the distance from its hold.
-    speeds = np.maximum(speeds, lengths / step_tau)
-    if accel_mpss is not None:          # the mean speed of the step, exactly, on the ramp
-        reach = np.sqrt(2.0 * accel_mpss * np.concatenate([[0.0], np.cumsum(lengths)]))
-        speeds = np.minimum(speeds, (reach[:-1] + reach[1:]) / 2.0)
+    pace = lengths / step_tau
+    speeds = (np.maximum(speeds, pace) if accel_mpss is None
+              else accelerated(np.maximum(speeds, pace), pace, lengths, accel_mpss))
     speeds = np.maximum(speeds, 1e-9)
     step_clock = np.maximum(lengths / speeds, step_tau / MAX_RATE)
     left = lag - np.cumsum(step_tau - step_clock)
@@ -154,4 +181,4 @@ def catch_up(position_at: Callable[[np.ndarray], np.ndarray], duration_s: float,
 
 
 __all__ = ['CATCH_UP_SPEED_SHARE', 'CatchUp', 'MAX_RATE', 'SAMPLES_PER_S', 'catch_up',
-           'ground_speed', 'turn_speeds']
+           'accelerated', 'ground_speed', 'turn_speeds']
