@@ -152,7 +152,8 @@ class MissionFlight(_RefusalReports):
             if _at_start(node.vehicle, segment.result.scenario, (x_m, y_m), height_m, source):
                 self.start_clock(time_s, f'the UAV holds q0 ({source})')
             return
-        if self.progress.over(time_s) or time_s < segment.start_s:
+        if self.progress.over(time_s) or 0.0 < segment.start_s - time_s <= \
+                segment.result.scenario.slot_s:
             return              # over, or a caught-up rest not in force before its slot
         output = node.config.node
         elapsed = time_s - segment.start_s
