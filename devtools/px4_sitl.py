@@ -39,7 +39,7 @@ from uav_comm_planner.vehicle.mavlink.files import read_mission_file
 from uav_comm_planner.vehicle.mavlink.items import NAV_WAYPOINT, Q0_SEQ
 from uav_comm_planner.vehicle.mavlink.link import connect
 from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu
-from uav_comm_planner.vehicle.mavlink.upload import upload_file
+from uav_comm_planner.vehicle.mavlink.upload import upload_files
 
 MAV = mavutil.mavlink
 logger = logging.getLogger(__name__)
@@ -178,12 +178,13 @@ UPLOAD_ATTEMPTS = 5
 _UPLOADS = threading.Lock()
 
 
-def upload_with_retries(mission: Path, url: str) -> None:
-    """:func:`upload_file` until PX4 holds the mission, at most UPLOAD_ATTEMPTS times."""
+def upload_with_retries(mission: Path, url: str, fence: Path | None = None) -> None:
+    """:func:`upload_files` (the ``fence`` file's fence first, when given) until PX4 holds
+    the mission, at most UPLOAD_ATTEMPTS times."""
     for attempt in range(UPLOAD_ATTEMPTS):
         try:
             with _UPLOADS:
-                upload_file(mission, url, connect_timeout_s=60.0)
+                upload_files(url, mission=mission, fence=fence, connect_timeout_s=60.0)
             return
         except VehicleLinkError:
             if attempt == UPLOAD_ATTEMPTS - 1:
@@ -265,12 +266,17 @@ def record_mission(link, home: Home, *, last_item: int, timeout_s: float) -> Fli
     ask_positions(link)
     times, latitudes_e7, longitudes_e7, altitudes_mm = [], [], [], []
     reached: dict[int, float] = {}
+    modes: set[int] = set()
     clock_s = started_s = None
     while last_item not in reached or clock_s < reached[last_item] + RECORD_AFTER_S:
-        message = link.recv_match(type=['GLOBAL_POSITION_INT', 'MISSION_ITEM_REACHED'],
-                                  blocking=True, timeout=10.0)
+        message = link.recv_match(type=['GLOBAL_POSITION_INT', 'MISSION_ITEM_REACHED',
+                                        'HEARTBEAT'], blocking=True, timeout=10.0)
         if message is None:
             raise VehicleLinkError('PX4 went silent during the flight')
+        if message.get_type() == 'HEARTBEAT':
+            if link.probably_vehicle_heartbeat(message):
+                modes.add(int(message.custom_mode))
+            continue
         if message.get_type() == 'MISSION_ITEM_REACHED':
             if clock_s is not None:
                 reached.setdefault(message.seq, clock_s)
@@ -290,7 +296,8 @@ def record_mission(link, home: Home, *, last_item: int, timeout_s: float) -> Fli
                                f'{times[int(gaps.argmax())]:.1f} s (autopilot time): the machine '
                                f'is too loaded for this speed-up')
     east, north, up = global_position_enu(latitudes_e7, longitudes_e7, altitudes_mm, home)
-    return FlightRecord(np.array(times), np.column_stack([east, north]), up, reached)
+    return FlightRecord(np.array(times), np.column_stack([east, north]), up, reached,
+                        modes=frozenset(modes))
 
 
 def reached_by_row(items, reached: dict[int, float]) -> dict[int, float]:
@@ -322,12 +329,13 @@ def q0_reached_s(items, reached: dict[int, float]) -> float:
 
 def fly_px4_mission(vehicle_plan: VehiclePlan, mission: Path, folder: Path, *, instance: int,
                     home: Home = PX4_HOME, parameters: dict[str, float] | None = None,
-                    speedup: float = PX4_SPEEDUP,
-                    script: str | os.PathLike | None = None) -> SitlFlight:
+                    speedup: float = PX4_SPEEDUP, script: str | os.PathLike | None = None,
+                    fence: Path | None = None) -> SitlFlight:
     """Fly the mission file ``mission`` (made from ``vehicle_plan`` for PX4 and ``home``) on a
     fresh PX4 SITL and hold the flight against the plan.
 
-    The file is uploaded and read back with :func:`upload_file`; PX4 keeps no home row, so
+    The file is uploaded and read back with :func:`upload_files` (after the fence of the
+    file ``fence``, when given: PX4 enforces it by GF_ACTION); PX4 keeps no home row, so
     the file's row k is PX4's item k - 1. The plan's clock starts when the hold at q0 starts:
     PX4 reports q0 reached when its hold ends (:func:`q0_reached_s`). A PX4 that does not
     take off (:class:`TakeoffError`) is stopped and the flight flown again on a fresh one, at
@@ -338,7 +346,8 @@ def fly_px4_mission(vehicle_plan: VehiclePlan, mission: Path, folder: Path, *, i
         try:
             record = _record_flight(items, mission, folder / f'attempt{attempt + 1}', home,
                                     vehicle_plan.ideal.scenario, instance=instance,
-                                    parameters=parameters, speedup=speedup, script=script)
+                                    parameters=parameters, speedup=speedup, script=script,
+                                    fence=fence)
             break
         except TakeoffError as exc:
             if attempt == FLIGHT_ATTEMPTS - 1:
@@ -355,7 +364,7 @@ def fly_px4_mission(vehicle_plan: VehiclePlan, mission: Path, folder: Path, *, i
 
 def _record_flight(items, mission: Path, folder: Path, home: Home, scenario: Scenario, *,
                    instance: int, parameters: dict[str, float] | None, speedup: float,
-                   script: str | os.PathLike | None) -> FlightRecord:
+                   script: str | os.PathLike | None, fence: Path | None = None) -> FlightRecord:
     """One flight of ``mission`` on a fresh PX4 SITL in ``folder``, recorded (PX4's item
     numbers in ``reached``)."""
     last_waypoint = max(i for i, item in enumerate(items) if item.command == NAV_WAYPOINT)
@@ -367,7 +376,7 @@ def _record_flight(items, mission: Path, folder: Path, home: Home, scenario: Sce
         link = connect(url, timeout_s=60.0)
         quiet_streams(link)
         link.close()                 # the upload opens the port itself
-        upload_with_retries(mission, url)
+        upload_with_retries(mission, url, fence)
         link = connect(url, timeout_s=60.0)
         try:
             link.port.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)

@@ -127,8 +127,24 @@ def test_a_gap_in_the_targets_holds_and_a_pilot_taking_over_ends_the_stream(refe
     stream.start(StreamJob(reference, 0.0, 100.0, 'hold', lambda elapsed_s: 3))
     stream.on_heartbeat(heartbeat('GUIDED'))
     stream.tick(link, 1.0)
-    stream.tick(link, 1.0 + STREAM_GAP_S + 0.5)          # the link was down meanwhile
+    # The link was down meanwhile, early in the plan: the stream catches it up, on.
+    stream.tick(link, 1.0 + STREAM_GAP_S + 0.5)
+    assert events[0].kind == 'caught up' and 'link was down' in events[0].message
+    assert stream.active and len(link.targets) == 2 and link.modes == []
+    # Down again until too little of the plan is left to make the time up: held.
+    end = reference.duration_s - 1.0
+    stream.tick(link, end)
     assert 'link was down' in events[-1].message and 'BRAKE' in events[-1].message
+    assert 'cannot be made up' in events[-1].message
+    # A vehicle that left the streamed mode meanwhile (PX4's failsafe) is not caught up.
+    events.clear()
+    stream.start(StreamJob(reference, 0.0, 100.0, 'hold', lambda elapsed_s: 3))
+    stream.on_heartbeat(heartbeat('GUIDED'))
+    stream.tick(link, 1.0)
+    stream.on_heartbeat(heartbeat('BRAKE'))
+    stream.tick(link, 1.0 + STREAM_GAP_S + 0.5)
+    assert [event.kind for event in events] == ['stopped']
+    assert 'link was down' in events[-1].message and not stream.active
     assert link.modes[-1] == COPTER_MODES['BRAKE'] and link.currents == []
 
     events.clear()

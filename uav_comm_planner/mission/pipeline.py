@@ -26,7 +26,8 @@ from pathlib import Path
 import time
 from typing import Callable
 
-from uav_comm_planner.core.optimizer import plan, PlanResult, prepare_zones, stop_checker
+from uav_comm_planner.core.optimizer import (plan, plan_along, PlanResult, prepare_zones,
+                                             stop_checker)
 from uav_comm_planner.core.plan_options import PlanOptions
 from uav_comm_planner.core.receding import (lengthened, receding_problem, RecedingPlan,
                                             RecedingProblem)
@@ -47,6 +48,8 @@ from uav_comm_planner.vehicle.mavlink.items import build_mission_items, MissionI
 #: ``planner(scenario, settings, **options) -> PlanResult``, with the keywords of the core's
 #: plan() (``should_stop``, ``offsets``, ``extra_starts``).
 Planner = Callable[..., PlanResult]
+#: The start name of a rest of mission that a stream caught up.
+CAUGHT_UP = 'caught up'
 
 
 @dataclass(frozen=True)
@@ -170,6 +173,8 @@ def _plan_rest(request: MissionRequest, planner: Planner, options: PlanOptions
     continues the plan in force (:data:`~uav_comm_planner.mission.policy.WARM_REPLAN`)."""
     began = time.perf_counter()
     rest = request.in_flight
+    if rest.caught_up is not None:
+        return _caught_up(request, began)
     mission = lengthened(rest.mission(request.planned_scenario), rest.position_m, rest.flown)
     attempts = 0
     while True:
@@ -198,6 +203,20 @@ def _plan_rest(request: MissionRequest, planner: Planner, options: PlanOptions
         return result, vehicle_plan, problem.outcome(result)
 
 
+def _caught_up(request: MissionRequest, began: float
+               ) -> tuple[PlanResult, None, RecedingPlan]:
+    """The rest of a mission in flight as a stream that caught up the plan in force flies it
+    (:mod:`uav_comm_planner.mission.catch_up`): its points as they are, the power optimal
+    for them with the data delivered so far; no vehicle timing (the stream keeps the time)."""
+    rest = request.in_flight
+    problem = receding_problem(rest.mission(request.planned_scenario), rest.position_m,
+                               rest.flown)
+    result = plan_along(problem.rest, rest.caught_up, request.settings, name=CAUGHT_UP,
+                        offsets=problem.offsets)
+    result = replace(result, solve_time_s=time.perf_counter() - began)
+    return result, None, problem.outcome(result)
+
+
 def _items(request: MissionRequest, planned: VehiclePlan | PlanResult) -> dict:
     """``items`` and ``fence`` (or ``items_error``) of a :class:`MissionPlan` for
     ``request``."""
@@ -222,4 +241,4 @@ def _items(request: MissionRequest, planned: VehiclePlan | PlanResult) -> dict:
     return {'items': items, 'fence': fence}
 
 
-__all__ = ['MissionPlan', 'Planner', 'plan_mission']
+__all__ = ['CAUGHT_UP', 'MissionPlan', 'Planner', 'plan_mission']

@@ -110,7 +110,9 @@ class Segment:
     result: the plan as flown; start_s: when its clock started (the UAV at its q0), None
     while it waits for that; slots_kept: how many of its slots count (all until a replan cuts
     it); planned: the optimiser's plan that ``result`` flies (a vehicle-aware plan's ideal
-    plan; None: ``result`` itself), whose rest a replan continues.
+    plan; None: ``result`` itself), whose rest a replan continues; restated: (K, 2) positions
+    that stand for its first K slots' points where the vehicle could not fly them (a stream
+    held by a lost link: where it held), NaN where the plan's point stands.
     """
 
     result: PlanResult
@@ -118,6 +120,7 @@ class Segment:
     start_s: float | None = None
     slots_kept: int | None = None
     planned: PlanResult | None = None
+    restated: np.ndarray | None = None
 
     @property
     def optimised(self) -> PlanResult:
@@ -138,6 +141,16 @@ class Segment:
     def slot_times_s(self, slots: int) -> np.ndarray:
         """Clock times of this plan's first ``slots`` waypoints: start + m delta, (slots,)."""
         return self.start_s + self.result.scenario.slot_s * np.arange(1, slots + 1)
+
+    def points(self, slots: int) -> np.ndarray:
+        """The points in force of this plan's first ``slots`` slots (slots, 2): its own, or
+        the :attr:`restated` ones."""
+        points = np.array(self.result.trajectory[:slots], dtype=float)
+        if self.restated is not None:
+            rows = min(slots, len(self.restated))
+            mine = self.restated[:rows]
+            points[:rows] = np.where(np.isfinite(mine), mine, points[:rows])
+        return points
 
 
 @dataclass
@@ -186,12 +199,16 @@ class MissionProgress:
             if begun == 0 or segment.start_s is None:
                 continue
             result = segment.result
-            planned = np.asarray(result.trajectory[:begun], dtype=float)
+            planned = np.array(result.trajectory[:begun], dtype=float)
             if track is not None:
                 times = segment.slot_times_s(begun)
                 tracked, known = track.at(times)
                 planned = np.where(known[:, None], tracked,
                                    across_gaps(result, segment.start_s, times, planned, track))
+            if segment.restated is not None:
+                rows = min(begun, len(segment.restated))
+                mine = segment.restated[:rows]
+                planned[:rows] = np.where(np.isfinite(mine), mine, planned[:rows])
             power.append(power_for_nodes(result.scenario.ground_nodes_m,
                                          result.power[:, :begun], nodes))
             positions.append(planned)
@@ -241,9 +258,11 @@ class MissionProgress:
         self.segments.append(Segment(result, first_slot, planned=planned))
 
     def take_over(self, mission_id: int, segment: int, slots_kept: int, mission: Scenario,
-                  result: PlanResult, *, planned: PlanResult | None = None) -> bool:
+                  result: PlanResult, *, planned: PlanResult | None = None,
+                  restated: np.ndarray | None = None) -> bool:
         """A replan asked while plan number ``segment`` of mission ``mission_id`` was in force
-        takes over after that plan's first ``slots_kept`` slots. False, and nothing changes,
+        takes over after that plan's first ``slots_kept`` slots (``restated``: where some
+        of them were flown instead, :attr:`Segment.restated`). False, and nothing changes,
         when the mission is another by now or a later plan has started already."""
         if (mission_id != self.mission_id or not 0 <= segment < len(self.segments)
                 or any(later.start_s is not None for later in self.segments[segment + 1:])):
@@ -251,6 +270,8 @@ class MissionProgress:
         del self.segments[segment + 1:]
         kept = self.segments[segment]
         kept.slots_kept = slots_kept
+        if restated is not None:
+            kept.restated = np.asarray(restated, dtype=float)
         self.follow_with(mission, result, kept.first_slot + slots_kept, planned=planned)
         return True
 
@@ -263,6 +284,16 @@ class MissionProgress:
             return True
         return segment.first_slot + segment.slots_begun(now_s) >= self.mission.num_slots \
             and segment.slots_begun(now_s) >= segment.num_slots
+
+    def points_in_force(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every kept slot's point in force (K, 2) (:meth:`Segment.points`) and its clock
+        time (K,), in mission order."""
+        kept = [(segment, segment.num_slots) for segment in self.segments
+                if segment.start_s is not None]
+        if not kept:
+            return np.zeros((0, 2)), np.zeros(0)
+        return (np.vstack([segment.points(count) for segment, count in kept]),
+                np.concatenate([segment.slot_times_s(count) for segment, count in kept]))
 
     def schedule(self) -> tuple[np.ndarray, list[tuple[Segment, int]]]:
         """The power of every slot kept so far, mapped onto the last plan's nodes: (N, K)

@@ -109,7 +109,12 @@ class InFlight:
     screening the tours again
     (:meth:`~uav_comm_planner.core.receding.RecedingProblem.for_scenario`); energy_left_wh:
     the energy the vehicle's battery has left for the rest, measured (None: the mission's
-    energy budget less the model's energy of the flown legs, if it has one).
+    energy budget less the model's energy of the flown legs, if it has one). A stream that
+    caught up the plan in force after a gap (:mod:`uav_comm_planner.mission.catch_up`) gives
+    ``caught_up``, the rest's points (M - k, 2) as it flies them (planned with the power
+    optimal for them, no trajectory step), ``restated``, (k, 2) positions of the plan in
+    force's slots where the vehicle was instead of where it was planned (NaN: as planned),
+    and ``start_s``, when the rest's clock starts (the end of the slot in progress).
     """
 
     position_m: tuple[float, float]
@@ -121,6 +126,9 @@ class InFlight:
     mission_slots: int = 0
     warm: bool = False
     energy_left_wh: float | None = None
+    caught_up: np.ndarray | None = None
+    restated: np.ndarray | None = None
+    start_s: float | None = None
 
     def mission(self, scenario: Scenario) -> Scenario:
         """``scenario`` as long as the mission in flight is (lengthened by earlier replans)."""

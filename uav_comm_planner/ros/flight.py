@@ -20,14 +20,16 @@ import time
 from typing import Protocol
 
 from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.mission.catch_up import caught_up_rest
 from uav_comm_planner.mission.plausible import PositionGate
 from uav_comm_planner.mission.progress import (MissionProgress, off_plan, planned_position,
-                                               PoseTrack)
+                                               PoseTrack, TRACK_GAP_S)
 from uav_comm_planner.mission.request import InFlight, with_slots
 from uav_comm_planner.ros.messages import nodes_text
 from uav_comm_planner.ros.params import PlannerConfig
 from uav_comm_planner.ros.planning import PlanOutcome
 from uav_comm_planner.ros.vehicle import VehicleAdapter
+from uav_comm_planner.vehicle.mavlink.guided import StreamEvent
 
 #: The UAV is at q0, and the mission clock starts, within this distance of it (metres);
 #: ArduCopter counts a waypoint reached within WPNAV_RADIUS, 2 m by default.
@@ -43,6 +45,9 @@ REFUSAL_REPORT_S = 1.0
 #: Samples off the plan replan only once the last sample on it is this old (mission clock
 #: seconds): a stream must stay off the plan this long, a lone pose replans at once.
 OFF_PLAN_CONFIRM_S = 1.0
+#: A caught-up rest being planned keeps the off-plan replans away for at most this many
+#: slots of autopilot time.
+CATCH_UP_WAIT_SLOTS = 5
 
 
 class FlightHost(Protocol):
@@ -60,20 +65,51 @@ class FlightHost(Protocol):
     def clock_s(self) -> float: ...
 
 
-class MissionFlight:
-    """The mission of ``node`` in flight (module docstring)."""
+class _RefusalReports:
+    """Refused position samples, counted, and reported in one line per source at most once
+    every :data:`REFUSAL_REPORT_S` (wall clock) with the count since the last line."""
 
     def __init__(self, node: FlightHost) -> None:
         self._node = node
-        self.progress = MissionProgress()
-        self.track = PoseTrack()
-        self.gate = PositionGate()
         #: Position samples refused by the plausibility check so far.
         self.positions_refused = 0
         self._unreported: dict[str, int] = {}
         self._reported_at: dict[str, float] = {}
+
+    def _refuse_position(self, source: str, reason: str) -> None:
+        self.positions_refused += 1
+        self._unreported[source] = self._unreported.get(source, 0) + 1
+        now = time.monotonic()
+        if now - self._reported_at.get(source, -math.inf) < REFUSAL_REPORT_S:
+            return
+        count = self._unreported.pop(source)
+        self._reported_at[source] = now
+        more = f' ({count} samples refused since the last report)' if count > 1 else ''
+        self._node.refuse(source, f'{source} refused: {reason}{more}')
+
+    def _refuse_late(self, mission, reason: str, ended: str | None = None) -> None:
+        """Refuse ``reason``: the mission ended (``ended``, its reason) or every slot of
+        ``mission`` in flight has begun."""
+        why = ended or (f'every slot of the mission in flight has begun ({mission.num_slots} '
+                        f'of {mission.num_slots}), so there is nothing left to replan and the '
+                        f'vehicle flies on to qF')
+        self._node.refuse(reason, f'{reason} refused: {why}; the input applies to the next '
+                                  f'mission (~/replan plans one from start_m now)',
+                          nodes=nodes_text(mission.ground_nodes_m))
+
+
+class MissionFlight(_RefusalReports):
+    """The mission of ``node`` in flight (module docstring)."""
+
+    def __init__(self, node: FlightHost) -> None:
+        super().__init__(node)
+        self.progress = MissionProgress()
+        self.track = PoseTrack()
+        self.gate = PositionGate()
         self._last_pose_replan_s = -math.inf
         self._on_plan_s = -math.inf
+        #: The autopilot time a caught-up rest was asked at, and of which plan in force.
+        self._catch_up: tuple[float, int, int] | None = None
 
     def on_position(self, time_s: float, x_m: float, y_m: float, *, source: str,
                     height_m: float | None = None) -> bool:
@@ -103,36 +139,29 @@ class MissionFlight:
         speed = max(config.scenario.max_speed_mps, cruise if math.isfinite(cruise) else 0.0)
         return speed + config.scenario.wind_speed_mps
 
-    def _refuse_position(self, source: str, reason: str) -> None:
-        self.positions_refused += 1
-        self._unreported[source] = self._unreported.get(source, 0) + 1
-        now = time.monotonic()
-        if now - self._reported_at.get(source, -math.inf) < REFUSAL_REPORT_S:
-            return
-        count = self._unreported.pop(source)
-        self._reported_at[source] = now
-        more = f' ({count} samples refused since the last report)' if count > 1 else ''
-        self._node.refuse(source, f'{source} refused: {reason}{more}')
-
     def _take_position(self, time_s: float, x_m: float, y_m: float, *, source: str,
                        height_m: float | None) -> None:
         node = self._node
+        latest = self.track.latest
         self.track.add(time_s, x_m, y_m)
+        if latest is not None and time_s - latest[0] > TRACK_GAP_S:
+            self._on_plan_s = time_s        # after a gap in the telemetry the wait restarts
         segment = self.progress.current
         if segment is None:
             return
         if segment.start_s is None:
-            if self._at_start(segment.result.scenario, (x_m, y_m), height_m, source):
+            if _at_start(node.vehicle, segment.result.scenario, (x_m, y_m), height_m, source):
                 self.start_clock(time_s, f'the UAV holds q0 ({source})')
             return
-        if self.progress.over(time_s):
-            return
+        if self.progress.over(time_s) or 0.0 < segment.start_s - time_s <= \
+                segment.result.scenario.slot_s:
+            return              # over, or a caught-up rest not in force before its slot
         output = node.config.node
         elapsed = time_s - segment.start_s
         left_s = (self.progress.mission.num_slots - segment.first_slot
                   - segment.slots_begun(time_s)) * segment.result.scenario.slot_s
-        if left_s < output.replan_interval_s:
-            return              # too late in the mission for a replan to be flown
+        if left_s < output.replan_interval_s or self._catching_up(time_s):
+            return              # too late for a replan to be flown, or a caught-up one comes
         reason = off_plan(segment.result, elapsed, (x_m, y_m),
                           distance_m=output.replan_distance_m, delay_s=output.replan_delay_s)
         if not reason:
@@ -148,19 +177,31 @@ class MissionFlight:
         node.get_logger().info(f'{source}: the UAV is {reason}; replanning the rest')
         self._request_rest(source, time_s, (x_m, y_m))
 
-    def _at_start(self, scenario, position: tuple[float, float], height_m: float | None,
-                  source: str) -> bool:
-        """Whether the sample starts the plan's clock (module docstring)."""
-        vehicle = self._node.vehicle
-        horizontal = math.dist(scenario.start_m, position)
-        if not vehicle.linked:
-            climb = 0.0 if height_m is None else height_m - scenario.altitude_m
-            return math.hypot(horizontal, climb) <= START_RADIUS_M
-        return (not vehicle.upload_pending and height_m is not None
-                and source == SOURCE_TELEMETRY and vehicle.flying_mission
-                and horizontal <= START_RADIUS_M
-                and abs(height_m - scenario.altitude_m) <= START_HEIGHT_M
-                and vehicle.speed_mps <= HOLD_SPEED_MPS)
+    def on_catch_up(self, event: StreamEvent) -> None:
+        """The stream caught up the plan in force after a gap: its rest restated as flown
+        (:mod:`uav_comm_planner.mission.catch_up`), in force at once once planned."""
+        job = event.job
+        try:
+            rest = caught_up_rest(self.progress, self.track, self._node.config.scenario,
+                                  job.reference, job.catch_up, t0_s=job.t0_s,
+                                  lost_s=event.lost_s)
+        except (PlannerError, ArithmeticError, ValueError) as exc:
+            self._node.refuse('stream caught up', f'the caught-up plan is not stated: {exc}')
+            return              # the stream flies on; the plan in force is checked as ever
+        if rest is not None:
+            self._catch_up = (job.t0_s + float(job.catch_up.clock_s[0]), rest.mission_id,
+                              rest.segment)
+            self._node.submit('the stream caught up the plan in force', rest)
+
+    def _catching_up(self, time_s: float) -> bool:
+        """Whether a caught-up rest of the plan in force is being planned (for at most
+        :data:`CATCH_UP_WAIT_SLOTS` slots): the vehicle, behind the plan meanwhile, is not off
+        it."""
+        asked = self._catch_up
+        return (asked is not None and (asked[1], asked[2]) == (self.progress.mission_id,
+                                                               len(self.progress.segments) - 1)
+                and 0.0 <= time_s - asked[0]
+                <= CATCH_UP_WAIT_SLOTS * self.progress.current.result.scenario.slot_s)
 
     def start_clock(self, time_s: float, why: str) -> None:
         """Start the plan's clock at ``time_s``; with ``flight_mode`` stream and a link, the
@@ -191,7 +232,7 @@ class MissionFlight:
         refused, with the reason (``~/replan`` plans a new mission)."""
         now = self._node.clock_s()
         if self.progress.started and self.progress.over(now):
-            self._refuse_late(reason)
+            self._refuse_late(self.progress.mission, reason, self.progress.ended)
             return
         if not self.running(now):
             self.request_plan(reason)
@@ -204,15 +245,6 @@ class MissionFlight:
             elapsed = now - segment.start_s if segment.start_s is not None else 0.0
             position = tuple(planned_position(segment.result, elapsed))
         self._request_rest(reason, now, position)
-
-    def _refuse_late(self, reason: str) -> None:
-        mission = self.progress.mission
-        why = self.progress.ended or (f'every slot of the mission in flight has begun '
-                                      f'({mission.num_slots} of {mission.num_slots}), so there '
-                                      f'is nothing left to replan and the vehicle flies on to qF')
-        self._node.refuse(reason, f'{reason} refused: {why}; the input applies to the next '
-                                  f'mission (~/replan plans one from start_m now)',
-                          nodes=nodes_text(mission.ground_nodes_m))
 
     def request_plan(self, reason: str) -> None:
         """Plan the whole mission from ``start_m`` with the current parameters; a mission in
@@ -245,10 +277,14 @@ class MissionFlight:
         mission = outcome.receding.mission
         before = self.progress.mission
         if not self.progress.take_over(rest.mission_id, rest.segment, rest.slots_kept,
-                                       mission, outcome.result, planned=planned):
+                                       mission, outcome.result, planned=planned,
+                                       restated=rest.restated):
             node.get_logger().info(f'{request.reason}: a newer plan is flown already; this '
                                    f'replan is dropped')
             return False
+        if rest.start_s is not None:        # caught up: the stream flies it from then
+            self.progress.current.start_s = rest.start_s
+            return True
         if before is not None and mission.num_slots > before.num_slots:
             node.get_logger().warning(
                 f'{request.reason}: the rest cannot keep qF in time; the mission is lengthened '
@@ -262,5 +298,20 @@ class MissionFlight:
         return True
 
 
-__all__ = ['FlightHost', 'HOLD_SPEED_MPS', 'MissionFlight', 'OFF_PLAN_CONFIRM_S',
+def _at_start(vehicle: VehicleAdapter, scenario, position: tuple[float, float],
+              height_m: float | None, source: str) -> bool:
+    """Whether the sample starts the plan's clock (module docstring)."""
+    horizontal = math.dist(scenario.start_m, position)
+    if not vehicle.linked:
+        climb = 0.0 if height_m is None else height_m - scenario.altitude_m
+        return math.hypot(horizontal, climb) <= START_RADIUS_M
+    return (not vehicle.upload_pending and height_m is not None
+            and source == SOURCE_TELEMETRY and vehicle.flying_mission
+            and horizontal <= START_RADIUS_M
+            and abs(height_m - scenario.altitude_m) <= START_HEIGHT_M
+            and vehicle.speed_mps <= HOLD_SPEED_MPS)
+
+
+__all__ = ['CATCH_UP_WAIT_SLOTS', 'FlightHost', 'HOLD_SPEED_MPS', 'MissionFlight',
+           'OFF_PLAN_CONFIRM_S',
            'REFUSAL_REPORT_S', 'SOURCE_TELEMETRY', 'START_HEIGHT_M', 'START_RADIUS_M']

@@ -167,6 +167,9 @@ class VehicleAdapter(VehicleState):
         """A new plan in force: upload it; with ``flight_mode`` stream, make its reference too.
         A stream running stops: the new plan starts from its own q0, which the vehicle flies to
         in AUTO (a replan in flight from its q0 item) as a mission's."""
+        rest = outcome.request.mission.in_flight
+        if rest is not None and rest.caught_up is not None:
+            return      # the stream flies it, on the mission the vehicle holds for a fallback
         if outcome.request.output.flight_mode == 'stream':
             self.prepare_stream(outcome, limits)
         streaming = self.stream is not None and self.stream.active
@@ -268,18 +271,25 @@ class VehicleAdapter(VehicleState):
                 self._stream_reported += 1
                 self.stream_events.append(event.message)
                 self._report(event.message, event.kind == 'error')
+                if event.kind == 'caught up':
+                    self._node.flight.on_catch_up(event)
 
     def _publish_pose(self, event: Position) -> None:
-        if self._pose is None:      # a position the link sent before it was stopped
-            return
-        message = PoseStamped()
-        message.header.frame_id = self._frame_id()
-        message.header.stamp = self._node.get_clock().now().to_msg()
-        message.pose.position.x = event.east_m
-        message.pose.position.y = event.north_m
-        message.pose.position.z = event.up_m
-        message.pose.orientation.w = 1.0
-        self._pose.publish(message)
+        if self._pose is not None:      # else a position the link sent before it was stopped
+            self._pose.publish(_pose_message(event, self._frame_id(),
+                                             self._node.get_clock().now().to_msg()))
+
+
+def _pose_message(event: Position, frame_id: str, stamp) -> PoseStamped:
+    """The vehicle's position ``event`` as a pose in ``frame_id`` at ``stamp``."""
+    message = PoseStamped()
+    message.header.frame_id = frame_id
+    message.header.stamp = stamp
+    message.pose.position.x = event.east_m
+    message.pose.position.y = event.north_m
+    message.pose.position.z = event.up_m
+    message.pose.orientation.w = 1.0
+    return message
 
 
 def _enu(item: MissionItem, home: Home) -> np.ndarray:

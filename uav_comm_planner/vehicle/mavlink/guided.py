@@ -43,7 +43,7 @@ the vehicle alone.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import threading
 import time
 from typing import Callable
@@ -51,10 +51,12 @@ from typing import Callable
 import numpy as np
 from pymavlink import mavutil
 
+from uav_comm_planner.core.catch_up import (catch_up, CATCH_UP_SPEED_SHARE, CatchUp,
+                                            ground_speed)
 from uav_comm_planner.vehicle.firmware import firmware_of_autopilot, FIRMWARES, StreamModes
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, Home
 from uav_comm_planner.vehicle.mavlink.link import vehicle_seq
-from uav_comm_planner.vehicle.stream import StreamReference
+from uav_comm_planner.vehicle.stream import STREAM_SPEED_MARGIN, StreamReference
 
 MAV = mavutil.mavlink
 #: ArduCopter's flight modes of a stream (HEARTBEAT custom_mode).
@@ -82,6 +84,9 @@ POS_VEL_ACCEL_MASK = (MAV.POSITION_TARGET_TYPEMASK_YAW_IGNORE
                       | MAV.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
 #: Heartbeats in this long after a stream starts may show a mode asked before (autopilot s).
 MODE_SETTLE_S = 1.5
+#: After a gap in the targets the vehicle is looked for this far along the reference past the
+#: last target (seconds of it): GUID_TIMEOUT (STREAM_GAP_S) of flight on, and braking.
+HOLD_SEARCH_S = 2.0 * STREAM_GAP_S
 
 
 @dataclass(frozen=True)
@@ -91,19 +96,76 @@ class StreamEvent:
 
     kind: str
     message: str
+    #: A 'caught up' event: the job streamed from now on, and the autopilot time of the last
+    #: target before the gap (where the vehicle held).
+    job: 'StreamJob | None' = None
+    lost_s: float | None = None
 
 
 @dataclass(frozen=True)
 class StreamJob:
     """A reference to stream from autopilot time ``t0_s`` at ``altitude_m`` above home;
     ``resume_item(elapsed_s)`` gives the mission item AUTO goes on from (ArduPilot numbering,
-    home is 0)."""
+    home is 0) at ``elapsed_s`` of the reference's time; ``catch_up`` maps the clock's
+    elapsed time to the reference's after the vehicle lost time (None: the same)."""
 
     reference: StreamReference
     t0_s: float
     altitude_m: float
     fallback: str
     resume_item: Callable[[float], int]
+    catch_up: CatchUp | None = None
+
+    def reference_s(self, elapsed_s: float) -> float:
+        """The reference's time at ``elapsed_s`` seconds of the clock after t0."""
+        if self.catch_up is None:
+            return elapsed_s
+        return float(self.catch_up.reference_time(elapsed_s))
+
+    def state(self, elapsed_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The target (2,) position, velocity and acceleration ``elapsed_s`` after t0: the
+        reference's, flown faster while catching up (velocity times the rate d tau / d e,
+        acceleration times its square, within the reference's acceleration bound)."""
+        position, velocity, accel = (value[0] for value in
+                                     self.reference.state(self.reference_s(elapsed_s)))
+        if self.catch_up is None:
+            return position, velocity, accel
+        rate = float(self.catch_up.rate(elapsed_s)[0])
+        accel = accel * rate ** 2
+        size, bound = float(np.linalg.norm(accel)), self.reference.bounds.accel_mpss
+        return position, velocity * rate, accel * min(1.0, bound / size) if size else accel
+
+    def caught_up(self, held_s: float, now_s: float,
+                  position_m: np.ndarray | None = None) -> tuple['StreamJob | None', str]:
+        """After a gap in the targets from autopilot time ``held_s`` (the last one sent) to
+        ``now_s``: this job catching up on its own path (:mod:`uav_comm_planner.core.
+        catch_up`) at :data:`~uav_comm_planner.core.catch_up.CATCH_UP_SPEED_SHARE` of the
+        reference's speed (and airspeed) and acceleration in turns, from where the vehicle
+        held, and a line saying so;
+        None and the reason when the lost time cannot be made up before qF. The vehicle held
+        at ``position_m`` (east, north metres; None: at the last target): ArduCopter flies its
+        last target on at its velocity for GUID_TIMEOUT before it holds, so the path is
+        taken up at its point nearest the vehicle within :data:`HOLD_SEARCH_S` after the last
+        target, not behind it."""
+        bounds, reference = self.reference.bounds, self.reference
+        speed = ground_speed(
+            CATCH_UP_SPEED_SHARE * bounds.speed_mps / (1 + STREAM_SPEED_MARGIN), bounds.wind_mps,
+            None if bounds.airspeed_mps is None else CATCH_UP_SPEED_SHARE * bounds.airspeed_mps)
+        last = self.reference_s(held_s - self.t0_s)
+        if position_m is not None:
+            window = np.linspace(last, min(last + HOLD_SEARCH_S, reference.duration_s), 200)
+            gaps = np.linalg.norm(reference.state(window)[0] - np.asarray(position_m), axis=1)
+            last = float(window[int(np.argmin(gaps))])
+        found = catch_up(lambda tau: reference.state(tau)[0], reference.duration_s, last,
+                         now_s - self.t0_s, speed,
+                         accel_mpss=CATCH_UP_SPEED_SHARE * bounds.accel_mpss)
+        gap = _gap(held_s, now_s)
+        if found is None:
+            return None, f'{gap}; the lost time cannot be made up before qF'
+        return replace(self, catch_up=found), (
+            f'stream caught up: {gap}; the vehicle flies on from where it held, '
+            f'{found.lag_s:.1f} s behind, and makes the time up by '
+            f'{found.caught_s:.1f} s after q0')
 
 
 @dataclass(frozen=True)
@@ -116,11 +178,41 @@ class _Stop:
     mission: object
 
 
-class TargetStream:
+class _ModeWatch:
+    """The vehicle's flight mode as its heartbeat shows it, and a fallback's mode asked again
+    (link thread) until the heartbeat shows it."""
+
+    def __init__(self) -> None:
+        self._mode: int | None = None
+        self._mode_asked_s = -float('inf')
+        self._pending_mode: str | None = None
+        self._pending_tries = 0
+
+    def on_heartbeat(self, message) -> None:
+        """The vehicle's HEARTBEAT: its flight mode."""
+        if message.base_mode & MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            self._mode = int(message.custom_mode)
+
+    def _confirm_fallback(self, link, time_s: float) -> None:
+        """Ask the fallback's mode again until the heartbeat shows it (a few times)."""
+        if self._pending_mode is None:
+            return
+        if self._mode == stream_modes(link).modes[self._pending_mode] \
+                or self._pending_tries >= MODE_TRIES:
+            self._pending_mode = None
+            return
+        if time_s - self._mode_asked_s >= MODE_RETRY_S:
+            set_mode(link, self._pending_mode)
+            self._mode_asked_s = time_s
+            self._pending_tries += 1
+
+
+class TargetStream(_ModeWatch):
     """Streams a :class:`StreamJob` on the link's thread (module docstring); ``on_event``
     receives every :class:`StreamEvent` (quick and thread-safe)."""
 
     def __init__(self, home: Home, on_event: Callable[[StreamEvent], None]) -> None:
+        super().__init__()
         self.home = home
         #: The vehicle's own home (HOME_POSITION), for targets above mean sea level.
         self.vehicle_home: Home | None = None
@@ -128,13 +220,11 @@ class TargetStream:
         self._lock = threading.Lock()
         self._job: StreamJob | None = None
         self._stopping: _Stop | None = None
-        self._fresh = False
-        self._mode: int | None = None
-        self._guided_seen = False
-        self._mode_asked_s = -float('inf')
+        self._fresh = self._guided_seen = False
         self._last_sent_s: float | None = None
-        self._pending_mode: str | None = None
-        self._pending_tries = 0
+        #: The vehicle's latest position, (2,) east-north metres in the frame of ``home``
+        #: (the link sets it before each tick; None: not known).
+        self.position_m: np.ndarray | None = None
         self._follow_tries = 0
         self._started_s: float | None = None
         #: Targets sent since the stream started (for tests and diagnostics).
@@ -186,11 +276,6 @@ class TargetStream:
             self._fall_back(link, job, time_s - job.t0_s, stop.reason,
                             resume_seq=stop.resume_seq if verified else None)
 
-    def on_heartbeat(self, message) -> None:
-        """The vehicle's HEARTBEAT: its flight mode."""
-        if message.base_mode & MAV.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-            self._mode = int(message.custom_mode)
-
     def tick(self, link, time_s: float) -> None:
         """Link thread, at every position report (autopilot time ``time_s``): one target, a
         mode change, or the fallback."""
@@ -213,12 +298,11 @@ class TargetStream:
         modes = stream_modes(link)
         follow = modes.modes[modes.follow]
         elapsed = time_s - job.t0_s
-        if reason is None and elapsed > job.reference.duration_s + SETTLE_S:
+        if reason is None and job.reference_s(elapsed) > job.reference.duration_s + SETTLE_S:
             reason = 'the plan reached qF'
         if reason is None and self._last_sent_s is not None \
                 and time_s - self._last_sent_s > STREAM_GAP_S:
-            reason = (f'no target reached the vehicle for {time_s - self._last_sent_s:.1f} s '
-                      f'(the link was down)')
+            job, reason = self._catch_up(job, time_s, follow)
         if reason is None and self._guided_seen and self._mode != follow:
             self._end(f'stream stopped: the vehicle left {modes.follow} (mode '
                       f'{_mode_label(modes, self._mode)}); it is left as it is')
@@ -250,19 +334,6 @@ class TargetStream:
         self.targets_sent += 1
         self._last_sent_s = time_s
 
-    def _confirm_fallback(self, link, time_s: float) -> None:
-        """Ask the fallback's mode again until the heartbeat shows it (a few times)."""
-        if self._pending_mode is None:
-            return
-        if self._mode == stream_modes(link).modes[self._pending_mode] \
-                or self._pending_tries >= MODE_TRIES:
-            self._pending_mode = None
-            return
-        if time_s - self._mode_asked_s >= MODE_RETRY_S:
-            set_mode(link, self._pending_mode)
-            self._mode_asked_s = time_s
-            self._pending_tries += 1
-
     def close(self, link) -> None:
         """Link thread, before the link closes: a stream still running falls back now, and the
         heartbeat is awaited (at most CLOSING_WAIT_S) so that the mode is set before the link
@@ -293,7 +364,8 @@ class TargetStream:
         modes = stream_modes(link)
         if resume_seq is not None or job.fallback == 'auto':
             seq = resume_seq if resume_seq is not None else job.resume_item(
-                elapsed_s if elapsed_s is not None else job.reference.duration_s)
+                job.reference_s(elapsed_s) if elapsed_s is not None
+                else job.reference.duration_s)
             seq = vehicle_seq(link, seq)
             link.mav.mission_set_current_send(link.target_system, link.target_component, seq)
             name, what = modes.resume, f'back in {modes.resume} from mission item {seq}'
@@ -304,6 +376,20 @@ class TargetStream:
         self._mode_asked_s = -float('inf') if elapsed_s is None else job.t0_s + elapsed_s
         self._end(f'stream stopped ({reason}): the vehicle is {what}', kind=kind)
         return modes.modes[name]
+
+    def _catch_up(self, job: StreamJob, time_s: float,
+                  follow: int) -> tuple[StreamJob, str | None]:
+        """After a gap in the targets: ``job`` caught up (said once) while the vehicle is still
+        in the ``follow`` mode (PX4's failsafe takes it out), or why the stream stops."""
+        if self._mode != follow:
+            return job, _gap(self._last_sent_s, time_s)
+        caught, message = job.caught_up(self._last_sent_s, time_s, self.position_m)
+        if caught is None:
+            return job, message
+        with self._lock:
+            self._job = caught if self._job is job else self._job
+        self._emit(StreamEvent('caught up', message, job=caught, lost_s=self._last_sent_s))
+        return caught, None
 
     def _end(self, message: str, *, kind: str = 'stopped') -> None:
         with self._lock:
@@ -323,7 +409,7 @@ def send_target(link, job: StreamJob, elapsed_s: float, home: Home,
     and longitude through the planning frame's ``home``, the plan's altitude above the
     vehicle's home (above mean sea level where the vehicle takes only that exactly and its
     ``vehicle_home`` is known), velocity and acceleration north-east-down."""
-    position, velocity, accel = (value[0] for value in job.reference.state(elapsed_s))
+    position, velocity, accel = job.state(elapsed_s)
     latitude, longitude, _ = enu_to_geodetic(np.array([position[0]]), np.array([position[1]]),
                                              0.0, home)
     frame, altitude = MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, job.altitude_m
@@ -350,11 +436,16 @@ def set_mode(link, mode: str) -> None:
                            stream_modes(link).modes[mode])
 
 
+def _gap(held_s: float, now_s: float) -> str:
+    """What a gap in the targets from autopilot time ``held_s`` to ``now_s`` was."""
+    return f'no target reached the vehicle for {now_s - held_s:.1f} s (the link was down)'
+
+
 def _mode_label(modes: StreamModes, custom_mode: int | None) -> str:
     """A mode for a log line: its name when it is one of ``modes``, else its number."""
     names = {value: name for name, value in modes.modes.items()}
     return names.get(custom_mode, str(custom_mode))
 
 
-__all__ = ['COPTER_MODES', 'PX4_MODES', 'STREAM_FALLBACKS', 'STREAM_GAP_S', 'StreamEvent',
-           'StreamJob', 'TargetStream', 'send_target', 'set_mode', 'stream_modes']
+__all__ = ['COPTER_MODES', 'HOLD_SEARCH_S', 'PX4_MODES', 'STREAM_FALLBACKS', 'STREAM_GAP_S',
+           'StreamEvent', 'StreamJob', 'TargetStream', 'send_target', 'set_mode', 'stream_modes']

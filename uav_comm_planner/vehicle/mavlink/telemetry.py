@@ -233,8 +233,7 @@ class VehicleBridge:
         self.url = url
         self.home = home
         self._on_event = on_event
-        self._settings = settings
-        self._rate_hz = rate_hz
+        self._settings, self._rate_hz = settings, rate_hz
         self._connect_timeout_s = connect_timeout_s
         #: The streamed trajectory, run on this thread at every position (None: no stream).
         self.stream = stream
@@ -376,6 +375,8 @@ class VehicleBridge:
             return True         # following the vehicle's home: not told yet
         east, north, up = global_position_enu(message.lat, message.lon, message.relative_alt,
                                               self.home)
+        if self.stream is not None:         # where a stream after a gap takes its path up
+            self.stream.position_m = np.array([float(east), float(north)])
         speed = math.sqrt(message.vx ** 2 + message.vy ** 2 + message.vz ** 2) / 100.0
         self._on_event(Position(time_s, float(east), float(north), float(up), speed))
         return True
