@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uav_comm_planner.core.zones import (KeepOutCircle, KeepOutPolygon, MAX_POLYGON_VERTICES,
-                                         OperatingArea, Zones)
+                                         MAX_TOTAL_VERTICES, OperatingArea, Zones)
 from uav_comm_planner.errors import FenceFileError, InvalidScenarioError
 from uav_comm_planner.files import read_json_file
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, geodetic_to_plane, Home
@@ -101,6 +101,11 @@ class GeoFence:
             raise InvalidScenarioError(
                 f'the fence has {len(inclusions)} inclusion zones; the planner takes one '
                 f'operating area: keep one inclusion polygon or circle')
+        given = sum(len(polygon.vertices_deg) for polygon in self.polygons)
+        if given > MAX_TOTAL_VERTICES:   # counted before any polygon is built and checked
+            raise InvalidScenarioError(
+                f'the fence has {given} polygon vertices in all, more than '
+                f'{MAX_TOTAL_VERTICES}: simplify it')
         area = None
         keep_out: list = []
         for index, polygon in enumerate(self.polygons):
