@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 import time
 
 import numpy as np
@@ -131,3 +132,24 @@ def test_a_fences_vertices_are_counted_before_any_polygon_is_built(tmp_path, mon
     with pytest.raises(FenceFileError, match=f'the fence has {len(polygons) * 1000} polygon '
                                              f'vertices in all, more than {MAX_TOTAL_VERTICES}'):
         read_zones(path, home)
+
+
+def test_a_short_seeded_run_of_the_parameter_design_and_table_fuzzer_finds_nothing(capsys):
+    import importlib.util
+    import re
+    import sys
+
+    folder = Path(__file__).resolve().parent / 'fuzz'
+    sys.path.insert(0, str(folder))
+    try:
+        spec = importlib.util.spec_from_file_location('fuzz_inputs', folder / 'fuzz_inputs.py')
+        fuzzer = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(fuzzer)
+        status = fuzzer.main(['--cases', '60', '--seed', '5'])
+    finally:
+        sys.path.remove(str(folder))
+    out = capsys.readouterr().out
+    assert status == 0, out
+    assert '0 failures' in out
+    for kind in ('parameters', 'design', 'table'):
+        assert re.search(rf'{kind} +refused +\d+', out), out
