@@ -245,3 +245,11 @@ def test_an_untouched_table_with_drawn_settings_resumes(tmp_path, capsys):
     assert cli.main(argv) == 0
     capsys.readouterr()
     assert len(out.read_text().splitlines()) == 1 + 3 * 2
+
+
+def test_a_parameter_that_overflows_its_unit_is_refused_with_its_line(tmp_path):
+    path = tmp_path / 'copter.param'
+    path.write_text('WPNAV_SPEED,1000\nATC_INPUT_TC,1e308\n')
+    with pytest.raises(InvalidScenarioError, match=r"copter.param:2: ATC_INPUT_TC is '1e308', "
+                                                   r"beyond what a plan can be made with"):
+        read_parameter_file(path)
