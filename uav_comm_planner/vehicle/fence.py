@@ -202,6 +202,17 @@ def _edges_as_drawn(what: str, vertices_deg: tuple[tuple[float, float], ...],
     :data:`EDGE_CHORD_TOLERANCE_M` of it (the vertices given, then the cut points, in order)."""
     degrees = np.array(vertices_deg, dtype=float)
     corners = _to_metres(what, degrees, home)
+    jump = np.abs(np.roll(degrees[:, 1], -1) - degrees[:, 1])
+    if (jump > 180.0).any():
+        # ArduPilot's Polygon_outside and PX4 compare raw longitudes: such an edge is drawn
+        # the long way round the Earth, through longitude 0, not across the antimeridian.
+        first = int(np.argmax(jump > 180.0))
+        raise InvalidScenarioError(
+            f'fence {what}: its edge from vertex {first + 1} to vertex '
+            f'{(first + 1) % len(degrees) + 1} crosses the antimeridian (longitude '
+            f'{degrees[first, 1]:.8g} to {degrees[(first + 1) % len(degrees), 1]:.8g}), which '
+            f'ArduPilot and PX4 draw the long way round the Earth: split the zone at 180 '
+            f'degrees')
     # Longitudes relative to home's, so that an edge across the antimeridian is the short one.
     relative = np.column_stack([degrees[:, 0],
                                 (degrees[:, 1] - home.longitude_deg + 180.0) % 360.0 - 180.0])
