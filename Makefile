@@ -90,14 +90,16 @@ lock: $(STAMP)
 		--python-version 3.11 --output-file $(CONSTRAINTS)
 
 # Seeded fuzzing of the API, the command line and mission export, then of the vehicle link
-# against a fake vehicle on 127.0.0.1, then of zones and fence files (minutes each; short runs
-# of the last two are in `test`).
+# against a fake vehicle on 127.0.0.1, then of zones and fence files, then of vehicle parameter
+# files, study designs and hand-edited study tables (minutes each; short runs of the last three
+# are in `test`).
 FUZZ_CASES ?= 10000
 FUZZ_SEED ?= 1
 fuzz: $(STAMP)
 	$(BIN)/python test/fuzz/fuzz_api_cli.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
 	$(BIN)/python test/fuzz/fuzz_vehicle.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
 	$(BIN)/python test/fuzz/fuzz_zones.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
+	$(BIN)/python test/fuzz/fuzz_inputs.py --cases $(FUZZ_CASES) --seed $(FUZZ_SEED)
 
 # The benchmark, from devtools/ (not installed). Its flight section flies on ArduCopter SITL:
 # $(SITL), or $$UAV_COMM_PLANNER_SITL if unset.

@@ -212,3 +212,34 @@ def test_an_edge_needing_more_vertices_than_a_zone_holds_is_refused(tmp_path, mo
     path = plan_fence_file(tmp_path / 'field.plan', [(True, LARGE_FIELD)])
     with pytest.raises(FenceFileError, match='need more than 1000 vertices'):
         read_zones(path, FIELD_HOME)
+
+
+def raw_degrees_inside(polygon: list, point: tuple[float, float]) -> bool:
+    """W. R. Franklin's PNPOLY on raw (latitude, longitude), as ArduPilot's Polygon_outside
+    and PX4's Geofence::insidePolygon test a position."""
+    inside = False
+    for (x1, y1), (x2, y2) in zip(polygon, polygon[-1:] + polygon[:-1]):
+        if (y1 > point[1]) != (y2 > point[1]) and \
+                point[0] < (x2 - x1) * (point[1] - y1) / (y2 - y1) + x1:
+            inside = not inside
+    return inside
+
+
+def test_an_edge_across_the_antimeridian_is_refused_as_the_autopilots_draw_it_the_long_way(
+        tmp_path):
+    """ArduPilot's Polygon_outside (raw 1e-7 degree integers) and PX4's insidePolygon (raw
+    degrees) join 179.98 and -179.97 through longitude 0: the inclusion field below is, to
+    the autopilot, every longitude but the strip the plan flies in."""
+    home = Home(0.0, 179.99, 0.0)
+    across = [[-0.02, 179.98], [-0.02, -179.97], [0.02, -179.97], [0.02, 179.98]]
+    path = plan_fence_file(tmp_path / 'across.plan', [(True, across)])
+    with pytest.raises(FenceFileError, match=r'fence polygon 1: its edge from vertex 1 to '
+                                             r'vertex 2 crosses the antimeridian \(longitude '
+                                             r'179\.98 to -179\.97\)'):
+        read_zones(path, home)
+    # What the autopilots enforce (PNPOLY on raw latitude, longitude): home is outside.
+    assert not raw_degrees_inside(across, (home.latitude_deg, home.longitude_deg))
+    assert raw_degrees_inside(across, (0.0, 0.0))      # and the far side of the Earth inside
+    beside = [[-0.02, 179.95], [-0.02, 179.999], [0.02, 179.999], [0.02, 179.95]]
+    zones = read_zones(plan_fence_file(tmp_path / 'beside.plan', [(True, beside)]), home)
+    assert zones.area is not None

@@ -190,3 +190,66 @@ def test_a_short_seeded_run_of_the_zone_and_fence_fuzzer_finds_nothing(capsys):
     assert '0 failures' in out
     accepted = re.search(r'fence +ok +(\d+)', out)
     assert accepted and int(accepted.group(1)) >= 10, out
+
+
+def tampered(tmp_path, capsys, argv, column, value) -> str:
+    """Run the study of ``argv``, set ``column`` of its first row to ``value`` and resume it
+    with one more drop: the one-line refusal."""
+    assert cli.main(argv) == 0
+    capsys.readouterr()
+    out = Path(argv[argv.index('--out') + 1])
+    lines = out.read_text().splitlines()
+    names = lines[0].split(',')
+    cells = lines[1].split(',')
+    cells[names.index(column)] = value
+    lines[1] = ','.join(cells)
+    out.write_text('\n'.join(lines) + '\n')
+    argv[argv.index('--cases') + 1] = '2'
+    return one_line_refusal(capsys, argv)
+
+
+@pytest.mark.parametrize('column, value, match', [
+    ('index', '-5', 'index -5 is not a row of a study'),
+    ('index', '1' + '0' * 30, 'index 100000000000000000000000 is not a row'),
+    ('nodes', '100000000', 'row 0 has nodes 100000000, its study 3'),
+    ('seed', '7', 'row 0 has seed 7, its study 0'),
+    ('slots', '5', 'outside its study\'s range 10:20'),
+])
+def test_a_row_that_is_not_its_studys_is_one_line_on_resume(tmp_path, capsys, column, value,
+                                                            match):
+    argv = ['montecarlo', '--cases', '1', '--nodes', '3', '--slots', '10:20', '--workers', '1',
+            '--quiet', '--methods', 'straight', '--out', str(tmp_path / 'study.csv')]
+    err = tampered(tmp_path, capsys, argv, column, value)
+    assert match in err and 'the table was changed by hand' in err, err
+
+
+def test_a_table_that_is_not_utf8_is_one_line_on_resume(tmp_path, capsys):
+    out = tmp_path / 'study.csv'
+    argv = ['montecarlo', '--cases', '1', '--slots', '20', '--workers', '1', '--quiet',
+            '--methods', 'straight', '--out', str(out)]
+    assert cli.main(argv) == 0
+    capsys.readouterr()
+    out.write_bytes(out.read_bytes() + b'\xff\xfe\x00,garbage\n')
+    argv[2] = '2'
+    err = one_line_refusal(capsys, argv)
+    assert 'is not a CSV table of this package' in err
+
+
+def test_an_untouched_table_with_drawn_settings_resumes(tmp_path, capsys):
+    out = tmp_path / 'study.csv'
+    argv = ['montecarlo', '--cases', '2', '--nodes', '2:4', '--altitude', '50,100',
+            '--slots', '10:20', '--workers', '1', '--quiet', '--methods', 'straight',
+            '--out', str(out)]
+    assert cli.main(argv) == 0
+    argv[2] = '3'
+    assert cli.main(argv) == 0
+    capsys.readouterr()
+    assert len(out.read_text().splitlines()) == 1 + 3 * 2
+
+
+def test_a_parameter_that_overflows_its_unit_is_refused_with_its_line(tmp_path):
+    path = tmp_path / 'copter.param'
+    path.write_text('WPNAV_SPEED,1000\nATC_INPUT_TC,1e308\n')
+    with pytest.raises(InvalidScenarioError, match=r"copter.param:2: ATC_INPUT_TC is '1e308', "
+                                                   r"beyond what a plan can be made with"):
+        read_parameter_file(path)

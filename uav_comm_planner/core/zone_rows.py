@@ -87,12 +87,21 @@ class ZoneModel:
                    polygons=tuple(polygons))
 
     @functools.cached_property
-    def padded_polygons(self) -> np.ndarray:
-        """The polygon pieces as one array (P, V, 2), each padded to the most vertices V by
-        repeating its last vertex (an edge of length 0 changes no distance nor support)."""
-        most = max(len(piece) for piece in self.polygons)
-        return np.stack([np.vstack([piece, np.repeat(piece[-1:], most - len(piece), axis=0)])
-                         for piece in self.polygons])
+    def padded_groups(self) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+        """The polygon pieces grouped by size: per group, the pieces' places in
+        :attr:`polygons` and the pieces as one array (P, V, 2), each padded to the group's V, a
+        power of two, by repeating its last vertex (an edge of length 0 changes no distance
+        nor support). A zone's convex core may have hundreds of vertices beside hundreds of
+        triangles: padding every piece to the core's size multiplied the work by a hundred."""
+        sizes = np.array([len(piece) for piece in self.polygons])
+        padded = np.maximum(4, 2 ** np.ceil(np.log2(np.maximum(sizes, 1))).astype(int))
+        groups = []
+        for most in np.unique(padded):
+            index = np.flatnonzero(padded == most)
+            groups.append((index, np.stack([
+                np.vstack([piece, np.repeat(piece[-1:], most - len(piece), axis=0)])
+                for piece in (self.polygons[i] for i in index)])))
+        return tuple(groups)
 
     @property
     def num_pieces(self) -> int:
@@ -120,7 +129,8 @@ class ZoneModel:
         if len(self.radii):
             parts.append(_circle_half_planes(a, b, self.centres, self.radii))
         if self.polygons:
-            parts.append(_polygon_half_planes(a, b, self.padded_polygons))
+            parts.append(_grouped_half_planes(a, b, self.padded_groups,
+                                              len(self.polygons)))
         for n, support, separation in parts:      # per piece and leg: (P, L, 2), (P, L) twice
             offset = support + np.minimum(wanted, separation)
             # Slot m ends leg m - 1 and starts leg m (legs counted from 0 at q0): its rows
@@ -174,6 +184,17 @@ def _circle_half_planes(a: np.ndarray, b: np.ndarray, centres: np.ndarray,
     n = _unit(closest - centres[:, None, :], _leg_fallback(a, b, centres))
     support = np.einsum('clj,cj->cl', n, centres) + radii[:, None]
     return n, support, _separation(n, a, b, support)
+
+
+def _grouped_half_planes(a: np.ndarray, b: np.ndarray,
+                         groups: tuple[tuple[np.ndarray, np.ndarray], ...],
+                         count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_polygon_half_planes` of every group of pieces, in the pieces' order."""
+    n, support, separation = np.empty((count, len(a), 2)), np.empty((count, len(a))), \
+        np.empty((count, len(a)))
+    for index, polygons in groups:
+        n[index], support[index], separation[index] = _polygon_half_planes(a, b, polygons)
+    return n, support, separation
 
 
 #: Work arrays of the polygons' half-planes hold about this many points at the most.

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from uav_comm_planner.core.zones import (KeepOutCircle, KeepOutPolygon, MAX_POLYGON_VERTICES,
-                                         OperatingArea, Zones)
+                                         MAX_TOTAL_VERTICES, OperatingArea, Zones)
 from uav_comm_planner.errors import FenceFileError, InvalidScenarioError
 from uav_comm_planner.files import read_json_file
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, geodetic_to_plane, Home
@@ -101,6 +101,11 @@ class GeoFence:
             raise InvalidScenarioError(
                 f'the fence has {len(inclusions)} inclusion zones; the planner takes one '
                 f'operating area: keep one inclusion polygon or circle')
+        given = sum(len(polygon.vertices_deg) for polygon in self.polygons)
+        if given > MAX_TOTAL_VERTICES:   # counted before any polygon is built and checked
+            raise InvalidScenarioError(
+                f'the fence has {given} polygon vertices in all, more than '
+                f'{MAX_TOTAL_VERTICES}: simplify it')
         area = None
         keep_out: list = []
         for index, polygon in enumerate(self.polygons):
@@ -197,6 +202,17 @@ def _edges_as_drawn(what: str, vertices_deg: tuple[tuple[float, float], ...],
     :data:`EDGE_CHORD_TOLERANCE_M` of it (the vertices given, then the cut points, in order)."""
     degrees = np.array(vertices_deg, dtype=float)
     corners = _to_metres(what, degrees, home)
+    jump = np.abs(np.roll(degrees[:, 1], -1) - degrees[:, 1])
+    if (jump > 180.0).any():
+        # ArduPilot's Polygon_outside and PX4 compare raw longitudes: such an edge is drawn
+        # the long way round the Earth, through longitude 0, not across the antimeridian.
+        first = int(np.argmax(jump > 180.0))
+        raise InvalidScenarioError(
+            f'fence {what}: its edge from vertex {first + 1} to vertex '
+            f'{(first + 1) % len(degrees) + 1} crosses the antimeridian (longitude '
+            f'{degrees[first, 1]:.8g} to {degrees[(first + 1) % len(degrees), 1]:.8g}), which '
+            f'ArduPilot and PX4 draw the long way round the Earth: split the zone at 180 '
+            f'degrees')
     # Longitudes relative to home's, so that an edge across the antimeridian is the short one.
     relative = np.column_stack([degrees[:, 0],
                                 (degrees[:, 1] - home.longitude_deg + 180.0) % 360.0 - 180.0])

@@ -172,6 +172,9 @@ def read_parameter_file(path: str | os.PathLike, *, firmware: str = 'ardupilot',
             raise InvalidScenarioError(f'{path}:{number}: {name} is {raw[:40]!r}, not a finite '
                                        f'number')
         value = max(given, floors.get(name, -math.inf)) * wanted[name][1]
+        if not math.isfinite(value):   # 1e308 times ATC_INPUT_TC's factor of 2
+            raise InvalidScenarioError(f'{path}:{number}: {name} is {raw[:40]!r}, beyond what '
+                                       f'a plan can be made with')
         values[wanted[name][0]] = value
     if not values:
         raise InvalidScenarioError(f'{path} sets none of {", ".join(wanted)} ({firmware})')

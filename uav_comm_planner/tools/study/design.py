@@ -302,6 +302,29 @@ def row_settings(design: StudyDesign, index: int) -> tuple[dict, np.random.Gener
     return row, nodes_rng
 
 
+def row_mismatch(design: StudyDesign, row: Mapping) -> str | None:
+    """What in a stored row is not its study's: an index below 0, a drop, seed, area or
+    endpoints other than the index gives, a grid setting other than its grid point's, or a
+    drawn setting outside its range; None for a row the study could have written. Cheap (no
+    drawing), so that every row of a table is checked when it is resumed or read."""
+    index = row.get('index')
+    if not isinstance(index, int) or not 0 <= index < 2 ** 63:
+        return f'index {str(index)[:24]} is not a row of a study'
+    grid = design.grid_points
+    drop, point = divmod(index, len(grid))
+    fixed = {'drop': drop, 'seed': design.seed, 'area': design.area,
+             'endpoints': design.endpoints, **grid[point]}
+    for name, value in fixed.items():
+        if row.get(name) != value:
+            return f'row {index} has {name} {row.get(name)!r}, its study {value!r}'
+    for name, draw in design.draws.items():
+        if draw.is_range and not (isinstance(row.get(name), (int, float))
+                                  and draw.low <= row[name] <= draw.high):
+            return (f'row {index} has {name} {row.get(name)!r}, outside its study\'s range '
+                    f'{draw.text}')
+    return None
+
+
 def scenario_at(design: StudyDesign, index: int) -> Scenario:
     """The scenario of row ``index`` (raises InvalidScenarioError when it is refused)."""
     return row_scenario(design, *row_settings(design, index))

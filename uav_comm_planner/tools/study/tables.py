@@ -22,8 +22,8 @@ from typing import Sequence, TYPE_CHECKING
 
 from uav_comm_planner.files import write_text_atomic, write_with
 from uav_comm_planner.tools.plots import STATIC_CAVEAT
-from uav_comm_planner.tools.study.design import (row_scenario, row_settings, SETTINGS,
-                                                 StudyDesign, StudyError)
+from uav_comm_planner.tools.study.design import (row_mismatch, row_scenario, row_settings,
+                                                 SETTINGS, StudyDesign, StudyError)
 from uav_comm_planner.tools.study.methods import BASELINES, BOUNDS, METHODS, Outcome
 
 if TYPE_CHECKING:
@@ -146,10 +146,16 @@ class StudyTable:
 
     def indices(self) -> set[int]:
         """The rows already in the table; refuses a table holding one row twice."""
-        seen = [row['index'] for row in self.rows()]
+        rows = self.rows()
+        seen = [row['index'] for row in rows]
         if len(set(seen)) != len(seen):
             raise StudyError(f'{self.path} holds some rows twice; it was not written by this '
                              'package alone')
+        for row in rows:
+            wrong = row_mismatch(self.design, row)
+            if wrong:
+                raise StudyError(f'{self.path}: {wrong}; the table was changed by hand: '
+                                 'restore it or choose another --out')
         return set(seen)
 
 
@@ -244,13 +250,18 @@ class CsvTable(StudyTable):
     def rows(self) -> list[dict]:
         self._cut_partial_line()
         kinds = dict(self.columns)
-        with open(self.path, newline='', encoding='utf-8') as table:
-            reader = csv.DictReader(table)
-            if reader.fieldnames != list(kinds):
-                raise StudyError(f'{self.path} has other columns than this study')
-            return [{name: _from_text(text, kinds[name], self.path, line)
-                     for name, text in row.items()}
-                    for line, row in enumerate(reader, start=2)]
+        try:
+            with open(self.path, newline='', encoding='utf-8') as table:
+                reader = csv.DictReader(table)
+                if reader.fieldnames != list(kinds):
+                    raise StudyError(f'{self.path} has other columns than this study')
+                return [{name: _from_text(text, kinds[name], self.path, line)
+                         for name, text in row.items()}
+                        for line, row in enumerate(reader, start=2)]
+        except (UnicodeDecodeError, csv.Error) as exc:
+            raise StudyError(f'{self.path} is not a CSV table of this package ({exc}); the '
+                             'table was changed by hand: restore it or choose another --out'
+                             ) from None
 
 
 def _from_text(text: str | None, kind: type, path: Path, line: int) -> str | int | float | None:
