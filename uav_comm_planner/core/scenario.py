@@ -16,6 +16,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
+from uav_comm_planner.core.channel import Channel, parse_channel
 from uav_comm_planner.core.numbers import real_number
 from uav_comm_planner.core.propulsion import Airframe
 from uav_comm_planner.core.zones import Zones
@@ -203,6 +204,10 @@ class Scenario:
     ``airframe`` (:class:`~uav_comm_planner.core.propulsion.Airframe`, None: none): its top
     airspeed bounds V_air; with ``energy_budget_wh`` the horizon's propulsion energy
     (:mod:`uav_comm_planner.core.energy`) is at most that.
+
+    ``channel`` names the air-to-ground channel (:mod:`uav_comm_planner.core.channel`):
+    'free-space' (the letter's), 'free-space:alpha=A', 'los:suburban', 'los:urban',
+    'los:dense-urban', 'los:highrise-urban'; held as its canonical name.
     """
 
     ground_nodes_m: tuple[Point, ...]
@@ -222,6 +227,7 @@ class Scenario:
     zones: Zones | None = None
     airframe: Airframe | None = None
     energy_budget_wh: float | None = None
+    channel: str = 'free-space'
 
     def __post_init__(self) -> None:
         nodes = self.ground_nodes_m
@@ -246,6 +252,7 @@ class Scenario:
                 f'noise_psd_dbm_per_hz must be finite, got {self.noise_psd_dbm_per_hz!r}')
         object.__setattr__(self, 'noise_psd_dbm_per_hz', noise)
         object.__setattr__(self, 'num_slots', _count('num_slots', self.num_slots))
+        object.__setattr__(self, 'channel', parse_channel(self.channel).name)
         _check_energy(self)
         self._check_wind()
         _check_scales(self)
@@ -321,6 +328,11 @@ class Scenario:
         nodes = np.array(self.ground_nodes_m, dtype=float)
         nodes.setflags(write=False)
         return nodes
+
+    @functools.cached_property
+    def channel_model(self) -> Channel:
+        """The :class:`~uav_comm_planner.core.channel.Channel` that ``channel`` names."""
+        return parse_channel(self.channel)
 
     @property
     def slot_s(self) -> float:
