@@ -181,6 +181,26 @@ def _check_zones(scenario: 'Scenario') -> None:
                 f'{clearance:.2f} m, the margin is {zones.margin_m:g} m; move it or the zones')
 
 
+def _check_wind(scenario: 'Scenario') -> None:
+    """Wind and airspeed are real, and the UAV can hold its position against the wind."""
+    speed = real_number('wind_speed_mps', scenario.wind_speed_mps)
+    direction = real_number('wind_from_deg', scenario.wind_from_deg)
+    if not (math.isfinite(speed) and speed >= 0.0):
+        raise InvalidScenarioError(f'wind_speed_mps must be >= 0 and finite, got {speed!r}')
+    if not math.isfinite(direction):
+        raise InvalidScenarioError(f'wind_from_deg must be finite, got {direction!r}')
+    object.__setattr__(scenario, 'wind_speed_mps', speed)
+    object.__setattr__(scenario, 'wind_from_deg', direction)
+    if scenario.max_airspeed_mps is not None:
+        _positive('max_airspeed_mps', scenario.max_airspeed_mps)
+        object.__setattr__(scenario, 'max_airspeed_mps', float(scenario.max_airspeed_mps))
+    if speed >= scenario.airspeed_mps:
+        raise InfeasibleHorizonError(
+            f'a wind of {speed:g} m/s is at or above the airspeed the UAV may fly, '
+            f'{scenario.airspeed_mps:g} m/s: it cannot hold its position against it; raise '
+            f'max_airspeed_mps if the airframe is faster, or wait for less wind')
+
+
 @dataclass(frozen=True)
 class Scenario:
     """One planning problem (letter, Section II).
@@ -254,29 +274,11 @@ class Scenario:
         object.__setattr__(self, 'num_slots', _count('num_slots', self.num_slots))
         object.__setattr__(self, 'channel', parse_channel(self.channel).name)
         _check_energy(self)
-        self._check_wind()
+        _check_wind(self)
         _check_scales(self)
         _check_duplicates(self)
         self._check_reachable()
         _check_zones(self)
-
-    def _check_wind(self) -> None:
-        speed = real_number('wind_speed_mps', self.wind_speed_mps)
-        direction = real_number('wind_from_deg', self.wind_from_deg)
-        if not (math.isfinite(speed) and speed >= 0.0):
-            raise InvalidScenarioError(f'wind_speed_mps must be >= 0 and finite, got {speed!r}')
-        if not math.isfinite(direction):
-            raise InvalidScenarioError(f'wind_from_deg must be finite, got {direction!r}')
-        object.__setattr__(self, 'wind_speed_mps', speed)
-        object.__setattr__(self, 'wind_from_deg', direction)
-        if self.max_airspeed_mps is not None:
-            _positive('max_airspeed_mps', self.max_airspeed_mps)
-            object.__setattr__(self, 'max_airspeed_mps', float(self.max_airspeed_mps))
-        if speed >= self.airspeed_mps:
-            raise InfeasibleHorizonError(
-                f'a wind of {speed:g} m/s is at or above the airspeed the UAV may fly, '
-                f'{self.airspeed_mps:g} m/s: it cannot hold its position against it; raise '
-                f'max_airspeed_mps if the airframe is faster, or wait for less wind')
 
     def _check_reachable(self) -> None:
         """Every leg of the straight line q0 -> qF at uniform speed is feasible: since the

@@ -17,6 +17,7 @@ from pathlib import Path
 import sys
 from typing import Sequence
 
+from uav_comm_planner.core.channel import FREE_SPACE
 from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
@@ -139,6 +140,11 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
     for field, (flag, text) in _SCALAR_FLAGS.items():
         kind = int if field == 'num_slots' else float
         parser.add_argument(flag, dest=field, type=kind, help=text)
+    parser.add_argument('--channel', default=None, metavar='NAME',
+                        help="air-to-ground channel (docs/channel.md): free-space (the "
+                             "letter's, the default), free-space:alpha=A (path-loss exponent "
+                             "A), los:suburban, los:urban, los:dense-urban, los:highrise-urban "
+                             "(Al-Hourani's line-of-sight probability)")
     parser.add_argument('--tolerance', type=float, default=None,
                         help='absolute convergence tolerance epsilon, bit/s (default 0: the '
                              'relative tolerance 1e-4 alone; --letter uses 0.01)')
@@ -190,7 +196,8 @@ def _scenario(args: argparse.Namespace, vehicle=None) -> Scenario:
         base = paper_scenario(args.case)
     changes = {field: getattr(args, field) for field in _SCALAR_FLAGS
                if getattr(args, field) is not None}
-    for field, name in (('ground_nodes_m', 'nodes'), ('start_m', 'start'), ('goal_m', 'goal')):
+    for field, name in (('ground_nodes_m', 'nodes'), ('start_m', 'start'), ('goal_m', 'goal'),
+                        ('channel', 'channel')):
         if getattr(args, name) is not None:
             changes[field] = getattr(args, name)
     if args.wind is not None:
@@ -236,7 +243,8 @@ def format_plan(result: PlanResult) -> str:
              f'{scenario.slot_s:g} s, P_T = {scenario.power_budget_w:g} W, '
              f'H = {scenario.altitude_m:g} m, V = {scenario.max_speed_mps:g} m/s'
              + (f', wind {scenario.wind_speed_mps:g} m/s from {scenario.wind_from_deg:g} deg '
-                f'(airspeed {scenario.airspeed_mps:g} m/s)' if scenario.wind_speed_mps else ''),
+                f'(airspeed {scenario.airspeed_mps:g} m/s)' if scenario.wind_speed_mps else '')
+             + (f', channel {scenario.channel}' if scenario.channel != FREE_SPACE else ''),
              f'{"method":<42}{"min avg throughput (bit/s)":>28}']
     lines += [f'{label:<42}{value:>28.4f}' for label, value in rows]
     lines.append(f'{result.outer_iterations} power steps, {result.trajectory_steps} trajectory '
