@@ -124,7 +124,7 @@ def test_bound_is_below_the_rate_everywhere_and_equal_at_the_point(name, radio):
     scenario = paper_scenario('I', channel=name, **radio)
     rng = np.random.default_rng(7)
     q_k = np.vstack([scenario.nodes, scenario.nodes[1] + [0.2, 0.0],
-                     rng.uniform(-300.0, 2300.0, (45, 2))])
+                     rng.uniform(-300.0, 2300.0, (46, 2))])
     p = 10.0 ** rng.uniform(-5.0, 0.7, (3, 50))
     p[0, 3] = 0.0
     coef = channel_coefficients(q_k, p, scenario)

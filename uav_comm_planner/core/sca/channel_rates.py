@@ -113,33 +113,49 @@ class ChannelRates(NodeRates):
         return np.concatenate([entries, (rows.linear / self.num_slots).ravel()]), b
 
     def constraints(self, v, rows: ChannelRows) -> list[cp.Constraint]:
+        """The node rows, then per node the cones rho_{n,m} >= ||z[m] - w_n|| (their duals
+        give the certificate's supergradient where z sits on a node)."""
         m = self.num_slots
-        return [rows.constant[n]
-                - rows.weight[n] @ cp.sum(cp.square(v.z - self.w[n][None, :]), axis=1) / m
-                - rows.linear[n] @ cp.norm(v.z - self.w[n][None, :], 2, axis=1) / m >= v.t
-                for n in range(self.num_nodes)]
+        rho = cp.Variable((self.num_nodes, m))
+        rows_ = [rows.constant[n]
+                 - rows.weight[n] @ cp.sum(cp.square(v.z - self.w[n][None, :]), axis=1) / m
+                 - rows.linear[n] @ rho[n] / m >= v.t for n in range(self.num_nodes)]
+        cones = [cp.SOC(rho[n], (v.z - self.w[n][None, :]).T, axis=0)
+                 for n in range(self.num_nodes)]
+        return rows_ + cones
 
     def certificate(self, z: np.ndarray, rows: ChannelRows, duals: Sequence,
                     bound: DualBound | None = None) -> DualBound | None:
-        smooth = super().certificate(z, NodeRows(rows.weight, rows.constant), duals, bound)
+        """:class:`NodeRates`' certificate with -A ||z - w||'s supergradient -A u: u the unit
+        vector (z - w) / ||z - w|| away from the node, and -mu / mu_0 from the cone's dual
+        (mu_0, mu) on it (the element of the subdifferential the optimum uses). Either way
+        -||x|| <= -u . x for ||u|| <= 1, so the Lagrangian with u . (z - w) in place of
+        ||z - w|| is above the true one and smooth: its bound holds for the true one."""
+        n_nodes = self.num_nodes
+        node_duals, cone_duals = duals[:n_nodes], duals[n_nodes:]
+        smooth = super().certificate(z, NodeRows(rows.weight, rows.constant), node_duals,
+                                     bound)
         if smooth is None:
             return None
-        lam = np.maximum(np.array([float(d) for d in duals]), 0.0)
+        lam = np.maximum(np.array([float(d) for d in node_duals]), 0.0)
         lam = lam / lam.sum()
         gaps = z[None] - self.w[:, None]                                   # (N, M, 2)
         lengths = np.sqrt((gaps ** 2).sum(axis=-1))
+        units = gaps / np.maximum(lengths, 1e-300)[..., None]
+        for n, dual in enumerate(cone_duals):
+            corner = lengths[n] <= CORNER_KM
+            if dual is None or not corner.any():
+                continue
+            mu0 = np.asarray(dual[0], dtype=float).reshape(-1)
+            mu = -np.asarray(dual[1], dtype=float).reshape(2, -1).T
+            scale = np.maximum(np.maximum(mu0, np.sqrt((mu ** 2).sum(axis=1))), 1e-300)
+            units[n, corner] = (mu / scale[:, None])[corner]
         reach = lam[:, None] * rows.linear / self.num_slots                # (N, M)
-        gradient = smooth.gradient.copy()
-        away = lengths > CORNER_KM
-        units = np.divide(gaps, lengths[..., None], out=np.zeros_like(gaps),
-                          where=away[..., None])
-        gradient -= np.einsum('nm,nmk->mk', np.where(away, reach, 0.0), units)
-        for n, m in zip(*np.nonzero(~away & (reach > 0.0))):
-            norm = float(np.linalg.norm(gradient[m]))
-            if norm > 0.0:
-                gradient[m] -= gradient[m] * min(1.0, reach[n, m] / norm)
+        gradient = smooth.gradient - np.einsum('nm,nmk->mk', reach, units)
+        smooth_values = rows.constant - (rows.weight * lengths ** 2).mean(axis=1)
+        lagrangian = float(lam @ smooth_values) - float((reach * (units * gaps).sum(-1)).sum())
         f = rows.values(z, self.w)
-        return DualBound(value=float(f.min()), lagrangian=float(lam @ f), gradient=gradient,
+        return DualBound(value=float(f.min()), lagrangian=lagrangian, gradient=gradient,
                          modulus=smooth.modulus)
 
 
