@@ -118,8 +118,8 @@ def test_the_rate_is_convex_in_the_squared_horizontal_distance(name):
 
 
 @pytest.mark.parametrize('name', LOS)
-@pytest.mark.parametrize('radio', [dict(), dict(bandwidth_hz=1e6, noise_psd_dbm_per_hz=-145.0,
-                                                 altitude_m=60.0)])
+@pytest.mark.parametrize('radio', [
+    dict(), dict(bandwidth_hz=1e6, noise_psd_dbm_per_hz=-145.0, altitude_m=60.0)])
 def test_bound_is_below_the_rate_everywhere_and_equal_at_the_point(name, radio):
     scenario = paper_scenario('I', channel=name, **radio)
     rng = np.random.default_rng(7)

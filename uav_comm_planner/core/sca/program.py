@@ -34,8 +34,9 @@ from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 def step_blocks(frame: Frame, *, keep_path_length: bool = False, partial_sums: bool = True,
                 extra: Sequence[BlockFactory] = ()) -> list[Block]:
     """The blocks of the SCA step for ``frame``'s scenario: the node rates (always first: they
-    define t; :class:`ChannelRates` for a channel with a line-of-sight probability), the legs, the zones where there are some, the energy budget where there is one,
-    the ``extra`` blocks, and with
+    define t; :class:`ChannelRates` for a channel with a line-of-sight probability), the legs,
+    the zones where there are some, the energy budget where there is one, the ``extra``
+    blocks, and with
     ``keep_path_length`` the path budget (last: its certificate picks its multiplier's
     direction against the others')."""
     rates = ChannelRates if frame.scenario.channel_model.has_cusp else NodeRates

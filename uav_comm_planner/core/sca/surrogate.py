@@ -9,8 +9,9 @@ log2(1 + A / (d + x)) in x gives, for x = ||q[m] - w_n||^2 - ||q^k[m] - w_n||^2,
 which is the letter's bound, since
 gamma beta0 / (d^k (gamma beta0 + d^k)) = snr^k / ((1 + snr^k) d^k).
 With a path-loss exponent alpha, snr^k = c (d^k)^(-alpha/2) and the same convexity holds in
-x, with the slope alpha / 2 times the above. The bound is global and tight at q^k, so maximising min_n mean_m lbr_{n,m} subject to the
-speed limits never lowers the true minimum rate.
+x, with the slope alpha / 2 times the above. The bound is global and tight at q^k, so
+maximising min_n mean_m lbr_{n,m} subject to the speed limits never lowers the true minimum
+rate.
 
 With offsets o_n (N,) bits per use (the data a node already holds, see
 :mod:`uav_comm_planner.core.receding`) the step maximises min_n (o_n + mean_m lbr_{n,m}): the
