@@ -93,28 +93,36 @@ class Channel:
         kappa_los, kappa_nlos = self._excess()
         return loss * (kappa_nlos + (kappa_los - kappa_nlos) * los)
 
-    def rate_and_slope(self, rho: np.ndarray, altitude: float,
+    def rate_and_slope(self, rho: np.ndarray, altitude: np.ndarray,
                        snr_scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """R(rho) = log2(1 + c g(rho) / beta0), bits per use, and dR/drho, per metre, for
-        c = ``snr_scale`` (the SNR at g / beta0 = 1), rho horizontal metres (arrays broadcast;
-        at rho = 0 the slope is the one-sided one, rho -> 0+)."""
+        c = ``snr_scale`` (the SNR at g / beta0 = 1), rho horizontal metres, h = ``altitude``
+        metres (arrays broadcast; at rho = 0 the slope is the one-sided one, rho -> 0+)."""
+        rate, slope, _ = self.rate_gradient(rho, altitude, snr_scale)
+        return rate, slope
+
+    def rate_gradient(self, rho: np.ndarray, altitude: np.ndarray, snr_scale: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """R(rho, h) as :meth:`rate_and_slope`, with dR/drho and dR/dh (per metre)."""
         rho = np.asarray(rho, dtype=float)
-        h = float(altitude)
+        h = np.asarray(altitude, dtype=float)
         d2 = rho * rho + h * h
         snr = np.asarray(snr_scale, dtype=float) * self.gain(rho * rho, h)
-        # d log g / d rho: -alpha rho / d^2, plus the line-of-sight term.
-        log_slope = -self.exponent * rho / d2
+        # d log g / d rho and d log g / d h: -alpha (rho, h) / d^2, plus the line of sight's.
+        log_rho = -self.exponent * rho / d2
+        log_h = -self.exponent * h / d2
         if self.environment is not None:
-            theta = _DEGREES * np.arctan2(h, rho)
-            los = self.los_probability(theta)
-            a, b, _, _ = self.environment
+            los = self.los_probability(_DEGREES * np.arctan2(h, rho))
+            _, b, _, _ = self.environment
             kappa_los, kappa_nlos = self._excess()
             mean = kappa_nlos + (kappa_los - kappa_nlos) * los
-            dtheta = -_DEGREES * h / d2
-            log_slope = log_slope + (kappa_los - kappa_nlos) * b * los * (1.0 - los) \
-                * dtheta / mean
-        rate = np.log1p(snr) / _LN2
-        return rate, snr / (1.0 + snr) * log_slope / _LN2
+            # dP/dtheta = b P (1 - P); dtheta/drho = -(180/pi) h / d^2, dtheta/dh = (180/pi) rho
+            # / d^2.
+            per_degree = (kappa_los - kappa_nlos) * b * los * (1.0 - los) / mean * _DEGREES / d2
+            log_rho = log_rho - per_degree * h
+            log_h = log_h + per_degree * rho
+        share = snr / (1.0 + snr) / _LN2
+        return np.log1p(snr) / _LN2, share * log_rho, share * log_h
 
 
 def _exponent(text: str, name: str) -> float:

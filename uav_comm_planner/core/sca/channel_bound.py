@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from uav_comm_planner.core.channel import Channel
 from uav_comm_planner.core.model import snr_scale, squared_horizontal_distances
 from uav_comm_planner.core.scenario import Scenario
 
@@ -67,39 +68,41 @@ class ChannelCoefficients:
         return self.constant - self.linear * rho - self.weight * rho * rho
 
 
-def _grid(rho_k: np.ndarray, altitude: float) -> np.ndarray:
-    """(rows, G): the grid of rho for each expansion point rho_k (rows,)."""
-    far = np.broadcast_to(altitude * _FAR, (len(rho_k), len(_FAR)))
-    near = rho_k[:, None] + altitude * np.concatenate([-_NEAR, _NEAR])[None, :]
+def _grid(rho_k: np.ndarray, altitude: np.ndarray) -> np.ndarray:
+    """(rows, G): the grid of rho for each expansion point rho_k (rows,) at altitudes (rows,)
+    metres."""
+    far = altitude[:, None] * _FAR[None, :]
+    near = rho_k[:, None] + altitude[:, None] * np.concatenate([-_NEAR, _NEAR])[None, :]
     return np.maximum(np.concatenate([far, near], axis=1), 0.0)
 
 
-def _ratios(channel, h: float, rho_k: np.ndarray, c: np.ndarray, value: np.ndarray,
+def _ratios(channel, h: np.ndarray, rho_k: np.ndarray, c: np.ndarray, value: np.ndarray,
             slope: np.ndarray, rho: np.ndarray) -> np.ndarray:
-    """[R_k + R'_k (rho - rho_k) - R(rho)] / (rho - rho_k)^2 for rows of rho (rows, ...), 0 at
-    rho_k itself."""
+    """[R_k + R'_k (rho - rho_k) - R(rho)] / (rho - rho_k)^2 for rows of rho (rows, ...) at
+    altitudes h (rows,), 0 at rho_k itself."""
     extra = (slice(None),) + (None,) * (rho.ndim - 1)
-    rate, _ = channel.rate_and_slope(rho, h, c[extra])
+    rate, _ = channel.rate_and_slope(rho, h[extra], c[extra])
     gap = rho - rho_k[extra]
-    apart = np.abs(gap) > 1e-9 * h
+    apart = np.abs(gap) > 1e-9 * h[extra]
     return np.where(apart, (value[extra] + slope[extra] * gap - rate)
                     / np.where(apart, gap * gap, 1.0), 0.0)
 
 
-def curvature_bound(scenario: Scenario, rho_k: np.ndarray, c: np.ndarray) -> np.ndarray:
+def curvature_bound(channel: Channel, altitude: np.ndarray, rho_k: np.ndarray,
+                    c: np.ndarray) -> np.ndarray:
     """B* (rows,) per square metre: the largest [R_k + R'_k (rho - rho_k) - R(rho)] /
     (rho - rho_k)^2 (0 where the tangent is below R), for expansion points rho_k (rows,)
-    metres and SNR scales c (rows,).
+    metres at altitudes (rows,) metres and SNR scales c (rows,).
 
     The ratio can peak sharply where the tangent almost touches R a second time (suburban's
     steep P_LoS), so the grid's :data:`_PEAKS` best points are refined: :data:`_REFINE` times,
     a grid of :data:`_REFINE_POINTS` between the neighbours of the best point so far.
     """
-    channel, h = scenario.channel_model, scenario.altitude_m
+    altitude = np.broadcast_to(np.asarray(altitude, dtype=float), rho_k.shape)
     out = np.zeros(len(rho_k))
     for first in range(0, len(rho_k), _CHUNK):
         part = slice(first, first + _CHUNK)
-        rk, ck = rho_k[part], c[part]
+        rk, ck, h = rho_k[part], c[part], altitude[part]
         value, slope = channel.rate_and_slope(rk, h, ck)
         rho = np.sort(_grid(rk, h), axis=1)
         ratio = _ratios(channel, h, rk, ck, value, slope, rho)
@@ -125,16 +128,24 @@ def channel_coefficients(q_k: np.ndarray, p: np.ndarray,
     """The bound's coefficients at q^k (M, 2) metres for power p (N, M) watts."""
     rho_k = np.sqrt(squared_horizontal_distances(q_k, scenario))
     c = np.asarray(p, dtype=float) * snr_scale(scenario)
-    value, slope = scenario.channel_model.rate_and_slope(rho_k, scenario.altitude_m, c)
+    return coefficients_at(scenario.channel_model, rho_k,
+                           np.full(rho_k.shape, scenario.altitude_m), c)
+
+
+def coefficients_at(channel: Channel, rho_k: np.ndarray, altitude: np.ndarray,
+                    c: np.ndarray) -> ChannelCoefficients:
+    """The bound's coefficients for horizontal distances rho_k, altitudes and SNR scales c
+    (arrays of one shape; metres, metres, the SNR at g / beta0 = 1)."""
+    value, slope = channel.rate_and_slope(rho_k, altitude, c)
     slope = np.minimum(slope, 0.0)
     curvature = CURVATURE_MARGIN * curvature_bound(
-        scenario, rho_k.ravel(), c.ravel()).reshape(rho_k.shape)
+        channel, altitude.ravel(), rho_k.ravel(), c.ravel()).reshape(rho_k.shape)
     # -dR/ds = -R'(rho_k) / (2 rho_k): the letter's tangent in s, the largest concave choice.
     with np.errstate(divide='ignore', invalid='ignore'):
         tangent = np.where(rho_k > 0.0, -slope / (2.0 * rho_k), np.inf)
     # At least a share of the tangent (capped at one altitude out): strongly concave in every
     # slot that carries power, which the step's dual certificate needs.
-    floor = FLOOR_SHARE * -slope / (2.0 * np.maximum(rho_k, scenario.altitude_m))
+    floor = FLOOR_SHARE * -slope / (2.0 * np.maximum(rho_k, altitude))
     weight = np.minimum(np.maximum(curvature, floor), tangent)
     linear = np.maximum(-slope - 2.0 * weight * rho_k, 0.0)
     constant = value + linear * rho_k + weight * rho_k * rho_k     # tight at rho_k
@@ -149,5 +160,5 @@ def channel_lower_bound(q: np.ndarray, q_k: np.ndarray, p: np.ndarray,
     return coefficients.at(np.sqrt(squared_horizontal_distances(q, scenario)))
 
 
-__all__ = ['channel_coefficients', 'channel_lower_bound', 'ChannelCoefficients',
+__all__ = ['channel_coefficients', 'channel_lower_bound', 'ChannelCoefficients', 'coefficients_at',
            'CURVATURE_MARGIN', 'curvature_bound', 'FLOOR_SHARE']
