@@ -29,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 import time
+import warnings
 
 import cvxpy as cp
 import numpy as np
@@ -197,7 +198,10 @@ def altitude_step(q_k: np.ndarray, h_k: np.ndarray, p: np.ndarray, scenario: Sce
         constraints.append(cp.abs(cp.diff(h)) <= limits.max_climb_mps * scenario.slot_s / KM)
     problem = cp.Problem(cp.Maximize(v.t), constraints)
     try:
-        problem.solve(solver='CLARABEL')
+        with warnings.catch_warnings():
+            # cvxpy warns of every inaccurate answer; Algorithm 1 judges the step instead.
+            warnings.filterwarnings('ignore', message='Solution may be inaccurate')
+            problem.solve(solver='CLARABEL')
     except cp.error.SolverError as exc:
         raise SolverError(f'altitude step: Clarabel failed ({exc})') from None
     if problem.status not in ('optimal', 'optimal_inaccurate') or v.z.value is None:

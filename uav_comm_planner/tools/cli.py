@@ -24,7 +24,7 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
-from uav_comm_planner.tools import energy_sweep, fit_airframe
+from uav_comm_planner.tools import altitude_cli, energy_sweep, fit_airframe
 from uav_comm_planner.tools.energy_cli import (add_airframe_argument, add_energy_arguments,
                                                energy_record, energy_request, format_energy,
                                                planner_for)
@@ -308,6 +308,10 @@ def json_text(data: object) -> str:
 
 def _command_plan(args: argparse.Namespace) -> int:
     _check_outputs(args.json, args.mission, figure=args.figure)
+    altitudes = altitude_cli.altitude_limits(args, _vehicle_asked(args))
+    if altitudes is not None:
+        return altitude_cli.run(args, _scenario(args), altitudes, _settings(args), lambda record:
+                                print(f'wrote {write_text_atomic(args.json, json_text(record))}'))
     if args.mission is not None:
         from uav_comm_planner.vehicle.mavlink.files import check_mission_path
         check_mission_path(args.mission)
@@ -487,6 +491,7 @@ def build_parser() -> argparse.ArgumentParser:
     for field, (flag, text) in _VEHICLE_FLAGS.items():
         vehicle.add_argument(flag, dest=_VEHICLE_DEST + field, type=float, help=text)
     add_energy_arguments(plan_parser)
+    altitude_cli.add_arguments(plan_parser)
     plan_parser.set_defaults(handler=_command_plan)
 
     sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')
