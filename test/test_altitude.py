@@ -27,9 +27,9 @@ def recomputed(env: str, q, h, p, scenario) -> float:
     n_nodes, sigma2 = scenario.num_nodes, 10 ** ((scenario.noise_psd_dbm_per_hz - 30) / 10)
     rates = []
     for n, (wx, wy) in enumerate(scenario.ground_nodes_m):
+        noise = scenario.bandwidth_hz * sigma2
         bits = sum(math.log2(1 + p[n][m] * n_nodes * expected_gain(
-            env, scenario.reference_gain, x - wx, y - wy, h[m]) / (scenario.bandwidth_hz
-                                                                    * sigma2))
+            env, scenario.reference_gain, x - wx, y - wy, h[m]) / noise)
             for m, (x, y) in enumerate(q))
         rates.append(scenario.bandwidth_hz / n_nodes * bits / len(q))
     return min(rates)
