@@ -93,6 +93,21 @@ class Channel:
         kappa_los, kappa_nlos = self._excess()
         return loss * (kappa_nlos + (kappa_los - kappa_nlos) * los)
 
+    def los_parts(self, squared_horizontal: np.ndarray, altitude: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(P_LoS, g_LoS / beta0, g_NLoS / beta0) with :meth:`gain` = P_LoS g_LoS + (1 - P_LoS)
+        g_NLoS: the line-of-sight lottery behind the expected gain (free space: always in
+        line of sight, P_LoS = 1)."""
+        s = np.asarray(squared_horizontal, dtype=float)
+        h = np.asarray(altitude, dtype=float)
+        d2 = s + h * h
+        loss = 1.0 / d2 if self.exponent == 2.0 else d2 ** (-self.exponent / 2.0)
+        if self.environment is None:
+            return np.ones_like(loss), loss, loss
+        kappa_los, kappa_nlos = self._excess()
+        return (self.los_probability(_DEGREES * np.arctan2(h, np.sqrt(s))), loss * kappa_los,
+                loss * kappa_nlos)
+
     def rate_and_slope(self, rho: np.ndarray, altitude: np.ndarray,
                        snr_scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """R(rho) = log2(1 + c g(rho) / beta0), bits per use, and dR/drho, per metre, for

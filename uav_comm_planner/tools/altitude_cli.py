@@ -10,8 +10,10 @@ import argparse
 from typing import Any
 
 from uav_comm_planner.core.altitude import AltitudeLimits, AltitudePlan, plan_with_altitude
+from uav_comm_planner.core.fading import Fading
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.tools import fading_cli
 from uav_comm_planner.tools.serialize import run_record, scenario_to_dict
 
 #: The climb rate without --climb-rate: ArduCopter's WPNAV_SPEED_UP default, 2.5 m/s.
@@ -104,13 +106,15 @@ def altitude_record(result: AltitudePlan, settings: SolverSettings) -> dict[str,
 
 
 def run(args: argparse.Namespace, scenario: Scenario, limits: AltitudeLimits,
-        settings: SolverSettings, write_json) -> int:
-    """Plan with altitudes, print it, and write the JSON result with ``write_json(record)``
-    if --json asks for it."""
+        settings: SolverSettings, write_json, fading: Fading | None = None) -> int:
+    """Plan with altitudes, print it (and its evaluation under ``fading``, if any), and write
+    the JSON result with ``write_json(record)`` if --json asks for it."""
     result = plan_with_altitude(scenario, limits, settings)
     print(format_altitude_plan(result))
+    evaluation = fading_cli.evaluate(fading, result.trajectory, result.power, scenario,
+                                     result.altitudes)
     if args.json is not None:
-        write_json(altitude_record(result, settings))
+        write_json({**altitude_record(result, settings), **fading_cli.fading_record(evaluation)})
     return 0
 
 

@@ -24,7 +24,7 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
-from uav_comm_planner.tools import altitude_cli, energy_sweep, fit_airframe
+from uav_comm_planner.tools import altitude_cli, energy_sweep, fading_cli, fit_airframe
 from uav_comm_planner.tools.energy_cli import (add_airframe_argument, add_energy_arguments,
                                                energy_record, energy_request, format_energy,
                                                planner_for)
@@ -308,10 +308,12 @@ def json_text(data: object) -> str:
 
 def _command_plan(args: argparse.Namespace) -> int:
     _check_outputs(args.json, args.mission, figure=args.figure)
+    fading = fading_cli.fading_from(args)
     altitudes = altitude_cli.altitude_limits(args, _vehicle_asked(args))
     if altitudes is not None:
         return altitude_cli.run(args, _scenario(args), altitudes, _settings(args), lambda record:
-                                print(f'wrote {write_text_atomic(args.json, json_text(record))}'))
+                                print(f'wrote {write_text_atomic(args.json, json_text(record))}'),
+                                fading)
     if args.mission is not None:
         from uav_comm_planner.vehicle.mavlink.files import check_mission_path
         check_mission_path(args.mission)
@@ -339,10 +341,11 @@ def _command_plan(args: argparse.Namespace) -> int:
     result = planned.result
     if energy is not None:
         print(format_energy(result, energy))
+    evaluation = fading_cli.evaluate(fading, result.trajectory, result.power, result.scenario)
     # Every check before the first file: the JSON text and the mission's rows.
     text = (json_text({**result_to_dict(result, settings=request.settings,
                                         optimised=planned.optimised),
-                       **energy_record(result, energy)})
+                       **energy_record(result, energy), **fading_cli.fading_record(evaluation)})
             if args.json is not None else None)
     if args.mission is not None and planned.items is None:
         raise PlannerError(planned.items_error)
@@ -492,6 +495,7 @@ def build_parser() -> argparse.ArgumentParser:
         vehicle.add_argument(flag, dest=_VEHICLE_DEST + field, type=float, help=text)
     add_energy_arguments(plan_parser)
     altitude_cli.add_arguments(plan_parser)
+    fading_cli.add_arguments(plan_parser)
     plan_parser.set_defaults(handler=_command_plan)
 
     sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')
