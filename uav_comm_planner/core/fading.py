@@ -112,8 +112,8 @@ class FadingEvaluation:
                 'planned_min_throughput': self.planned}
 
 
-def _power_gains(rng: np.random.Generator, fading: Fading, shape: tuple,
-                 los: np.ndarray) -> np.ndarray:
+def power_gains(rng: np.random.Generator, fading: Fading, shape: tuple,
+                los: np.ndarray) -> np.ndarray:
     """|h|^2 (shape) with E = 1: Rician(K) where ``los``, Rayleigh elsewhere."""
     scattered = (rng.standard_normal(shape) ** 2 + rng.standard_normal(shape) ** 2) / 2.0
     if fading.model == 'rayleigh':
@@ -145,10 +145,10 @@ def evaluate_fading(q: np.ndarray, p: np.ndarray, scenario: Scenario, fading: Fa
         count = min(batch, fading.samples - first)
         shape = (count, n_nodes, m)
         if fading.model == 'rayleigh':
-            snr = mean_snr * _power_gains(rng, fading, shape, np.zeros(shape, dtype=bool))
+            snr = mean_snr * power_gains(rng, fading, shape, np.zeros(shape, dtype=bool))
         else:
             los = rng.random(shape) < p_los
-            gain = np.where(los, g_los, g_nlos) * _power_gains(rng, fading, shape, los)
+            gain = np.where(los, g_los, g_nlos) * power_gains(rng, fading, shape, los)
             snr = p * scale * gain
         rates = spectral_efficiency_to_rate(np.log1p(snr).mean(axis=2) / LN2, scenario)
         minima.append(rates.min(axis=1))
@@ -158,4 +158,4 @@ def evaluate_fading(q: np.ndarray, p: np.ndarray, scenario: Scenario, fading: Fa
 
 
 __all__ = ['DEFAULT_K_DB', 'DEFAULT_SAMPLES', 'evaluate_fading', 'Fading', 'FADING_MODELS',
-           'FadingEvaluation', 'MAX_SAMPLES']
+           'FadingEvaluation', 'MAX_SAMPLES', 'power_gains']
