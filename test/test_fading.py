@@ -11,7 +11,7 @@ import pytest
 from scipy.special import exp1
 
 from uav_comm_planner import paper_scenario, plan
-from uav_comm_planner.core.fading import power_gains, evaluate_fading, Fading
+from uav_comm_planner.core.fading import evaluate_fading, Fading, power_gains
 from uav_comm_planner.core.model import snr_per_watt
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.tools import cli
