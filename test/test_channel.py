@@ -155,11 +155,12 @@ def test_bound_s_slope_at_the_point_is_the_rate_s():
     np.testing.assert_allclose((bound[1] - bound[0]), (rate[1] - rate[0]), rtol=1e-4)
 
 
-@pytest.mark.parametrize('name', ['los:urban', 'los:highrise-urban'])
-def test_reference_and_fast_steps_agree_on_the_channel_block(name):
-    scenario = paper_scenario('I', channel=name, num_slots=30, horizon_s=30.0,
+@pytest.mark.parametrize('name, slots', [('los:urban', 30), ('los:highrise-urban', 30),
+                                         ('los:suburban', 100)])
+def test_reference_and_fast_steps_agree_on_the_channel_block(name, slots):
+    scenario = paper_scenario('I', channel=name, num_slots=slots, horizon_s=float(slots),
                               max_speed_mps=100.0)
-    q_k = np.linspace(scenario.start_m, scenario.goal_m, 32)[1:-1]
+    q_k = np.linspace(scenario.start_m, scenario.goal_m, slots + 2)[1:-1]
     q_k[10] = scenario.nodes[1]                         # one slot on a node's corner
     p = waterfilling_power(snr_per_watt(q_k, scenario), scenario.power_budget_w).p
     fast = trajectory_step_clarabel(q_k, p, scenario)
@@ -238,3 +239,54 @@ def test_node_parameter_channel(harness):
 def test_every_name_listed_parses():
     for name in channel_names():
         assert parse_channel(name).name == name
+
+
+@pytest.mark.parametrize('slots, partial_sums', [(150, True), (150, False), (40, True)])
+def test_channel_block_rows_are_the_bound_minus_t(slots, partial_sums):
+    """b - A x on the node rows equals mean_m lbr_{n,m}(q) - t for any q when u[m] and
+    rho_{n,m} are the squared norm and the distances, and the cones' rows are their slacks."""
+    from uav_comm_planner.core.sca.block import Expansion, Frame
+    from uav_comm_planner.core.sca.channel_rates import ChannelRates
+    from uav_comm_planner.core.sca.program import cone_program, step_blocks
+
+    scenario = paper_scenario('I', channel='los:urban', num_slots=slots,
+                              horizon_s=float(slots))
+    frame = Frame.of(scenario)
+    blocks = step_blocks(frame, partial_sums=partial_sums)
+    rates = blocks[0]
+    assert isinstance(rates, ChannelRates)
+    assert (rates.num_sums > 0) == (partial_sums and slots > 64)
+    program = cone_program(blocks)
+    rng = np.random.default_rng(2)
+    q_k = np.linspace(scenario.start_m, scenario.goal_m, slots + 2)[1:-1]
+    q_k[5] = scenario.nodes[0]
+    p = waterfilling_power(snr_per_watt(q_k, scenario), scenario.power_budget_w).p
+    data = [block.at(Expansion(q_k, p)) for block in blocks]
+    entries = np.concatenate([block.update(d)[0] for block, d in zip(blocks, data)])
+    right = np.concatenate([block.update(d)[1] for block, d in zip(blocks, data)])
+    values = program.values.copy()
+    values[program.changing_build] = entries
+    b = np.concatenate([block.right_hand_side() for block in blocks])
+    b[program.changing_rows] = right
+    a = program.matrix(values)
+    q = q_k + rng.normal(scale=150.0, size=q_k.shape)
+    z = frame.km(q)
+    w = frame.nodes
+    t = 2.3
+    x = np.zeros(program.num_columns)
+    x[0], x[1:1 + 2 * slots] = t, z.ravel()
+    first = program.first_columns[0]
+    x[first:first + slots] = (z ** 2).sum(axis=1)
+    rho_first = first + slots + rates.num_sums
+    distances = np.sqrt(((z[None] - w[:, None]) ** 2).sum(axis=-1))
+    x[rho_first:rho_first + 3 * slots] = distances.ravel()
+    block_rows = slice(rates.num_nodes, rates.num_nodes + rates.num_sums)
+    x[first + slots:first + slots + rates.num_sums] = -(b - a @ x)[block_rows]
+    slack = b - a @ x
+    np.testing.assert_allclose(slack[block_rows], 0.0, atol=1e-12)
+    expected = sca_lower_bound(q, q_k, p, scenario).mean(axis=1) - t
+    np.testing.assert_allclose(slack[:rates.num_nodes], expected, rtol=1e-9, atol=1e-9)
+    cones = slack[rates.num_nodes + rates.num_sums + 4 * slots:][:3 * 3 * slots].reshape(-1, 3)
+    np.testing.assert_allclose(cones[:, 0], distances.ravel(), atol=1e-12)
+    np.testing.assert_allclose(cones[:, 1:], (z[None] - w[:, None]).reshape(-1, 2),
+                               atol=1e-12)
