@@ -24,7 +24,8 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
-from uav_comm_planner.tools import altitude_cli, energy_sweep, fading_cli, fit_airframe
+from uav_comm_planner.tools import (altitude_cli, altitude_study, energy_sweep, fading_cli,
+                                    fit_airframe)
 from uav_comm_planner.tools.energy_cli import (add_airframe_argument, add_energy_arguments,
                                                energy_record, energy_request, format_energy,
                                                planner_for)
@@ -543,6 +544,11 @@ def build_parser() -> argparse.ArgumentParser:
                                        description=montecarlo.DESCRIPTION)
     montecarlo.add_arguments(study_parser)
     study_parser.set_defaults(handler=montecarlo.command)
+
+    altitude_parser = commands.add_parser('altitude-study', help=altitude_study.DESCRIPTION,
+                                          description=altitude_study.DESCRIPTION)
+    altitude_study.add_arguments(altitude_parser)
+    altitude_parser.set_defaults(handler=altitude_study.command)
 
     fit_parser = commands.add_parser('fit-airframe', help=fit_airframe.DESCRIPTION,
                                      description=fit_airframe.DESCRIPTION)
