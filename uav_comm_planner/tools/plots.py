@@ -107,7 +107,6 @@ _SETTING_TEXT = {
     'reference_gain': lambda v: f'$\\beta_0$ = {10 * math.log10(v):.3g} dB',
     'start_m': lambda v: f'$q_0$ = {_point(v)}',
     'goal_m': lambda v: f'$q_F$ = {_point(v)}',
-    'channel': str,
 }
 
 
