@@ -26,6 +26,7 @@ golden-section search over the range, its ends included), so the 3D plan is neve
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 import math
 import time
@@ -241,6 +242,7 @@ def best_fixed_altitude(scenario: Scenario, limits: AltitudeLimits,
     of :data:`SEARCH_STEPS` steps, the range's ends included; (altitude m, its plan)."""
     low, high = limits.range_m
     plans: dict[float, PlanResult] = {}
+    settings = dataclasses.replace(settings, compute_baselines=False)    # the plans alone
 
     def value(h: float) -> float:
         if h not in plans:
