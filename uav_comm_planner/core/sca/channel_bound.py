@@ -39,12 +39,12 @@ from uav_comm_planner.core.scenario import Scenario
 CURVATURE_MARGIN = 1.02
 #: B is at least this share of -R'(rho_k) / (2 max(rho_k, h)) (never above the tangent's).
 FLOOR_SHARE = 0.01
-#: The grid of rho, in altitudes: from the node out (geometric, and every quarter of a degree
-#: of elevation, where P_LoS changes: suburban's sigmoid turns within a few degrees), and
+#: The grid of rho, in altitudes: from the node out (geometric, and every half degree of
+#: elevation, where P_LoS changes: suburban's sigmoid turns within a few degrees), and
 #: about rho_k.
-_FAR = np.concatenate([[0.0], np.geomspace(1e-4, 1e3, 200),
-                       1.0 / np.tan(np.radians(np.arange(0.25, 90.0, 0.25)))])
-_NEAR = np.geomspace(1e-5, 2.0, 60)
+_FAR = np.concatenate([[0.0], np.geomspace(1e-4, 1e3, 100),
+                       1.0 / np.tan(np.radians(np.arange(0.5, 90.0, 0.5)))])
+_NEAR = np.geomspace(1e-5, 2.0, 40)
 #: The grid's best points refined, the refinements, and the points of each.
 _PEAKS, _REFINE, _REFINE_POINTS = 4, 3, 17
 #: Rows of (N, M) handled at once (bounds the memory of the grid to a few megabytes).
@@ -138,8 +138,13 @@ def coefficients_at(channel: Channel, rho_k: np.ndarray, altitude: np.ndarray,
     (arrays of one shape; metres, metres, the SNR at g / beta0 = 1)."""
     value, slope = channel.rate_and_slope(rho_k, altitude, c)
     slope = np.minimum(slope, 0.0)
-    curvature = CURVATURE_MARGIN * curvature_bound(
-        channel, altitude.ravel(), rho_k.ravel(), c.ravel()).reshape(rho_k.shape)
+    # Slots without power have R = 0 everywhere: no curvature to search (water-filling leaves
+    # most slots of most nodes empty).
+    powered = c.ravel() > 0.0
+    curvature = np.zeros(rho_k.size)
+    curvature[powered] = CURVATURE_MARGIN * curvature_bound(
+        channel, altitude.ravel()[powered], rho_k.ravel()[powered], c.ravel()[powered])
+    curvature = curvature.reshape(rho_k.shape)
     # -dR/ds = -R'(rho_k) / (2 rho_k): the letter's tangent in s, the largest concave choice.
     with np.errstate(divide='ignore', invalid='ignore'):
         tangent = np.where(rho_k > 0.0, -slope / (2.0 * rho_k), np.inf)
