@@ -9,6 +9,10 @@ class InvalidScenarioError(PlannerError, ValueError):
     """A scenario or solver setting is out of its domain (NaN, non-positive, duplicates...)."""
 
 
+class InvalidChannelError(InvalidScenarioError):
+    """A channel name that is not one the planner knows ('free-space', 'los:urban', ...)."""
+
+
 class InfeasibleHorizonError(InvalidScenarioError):
     """The goal cannot be reached from the start within the horizon at the speed limit."""
 

@@ -44,7 +44,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from uav_comm_planner.core.model import LN2, snr_scale, spectral_efficiency_to_rate
+from uav_comm_planner.core.model import LN2, snr_at, snr_scale, spectral_efficiency_to_rate
 from uav_comm_planner.core.scenario import Scenario
 
 #: Cells per leg: the grid's side is h = V delta / CELLS_PER_LEG (and at most H / 2).
@@ -155,8 +155,14 @@ def _geometry(scenario: Scenario) -> _Geometry:
     grid = grid_for(scenario)
     scale, h2 = snr_scale(scenario), scenario.altitude_m ** 2
     reach = scenario.max_step_m
-    snr = np.stack([scale / (h2 + grid.squared_gaps(w)) for w in scenario.nodes])
-    snr_outside = np.array([scale / (h2 + grid.edge_distance(w) ** 2) for w in scenario.nodes])
+    if scenario.channel_model.is_letter:
+        snr = np.stack([scale / (h2 + grid.squared_gaps(w)) for w in scenario.nodes])
+        snr_outside = np.array([scale / (h2 + grid.edge_distance(w) ** 2)
+                                for w in scenario.nodes])
+    else:    # every channel's gain falls with the horizontal distance
+        snr = np.stack([snr_at(grid.squared_gaps(w), scenario) for w in scenario.nodes])
+        snr_outside = np.array([snr_at(grid.edge_distance(w) ** 2, scenario)
+                                for w in scenario.nodes])
     cx, cy = grid.centres()
     half = grid.cell_m / 2.0
     upper = grid.origin + grid.cell_m * np.asarray(grid.shape)

@@ -31,15 +31,41 @@ def squared_distances(q: np.ndarray, scenario: Scenario) -> np.ndarray:
 
 
 def snr_scale(scenario: Scenario) -> float:
-    """N beta0 / (B sigma^2): a_n[m] d_n[m], the SNR per watt at a squared distance of 1 m^2."""
+    """N beta0 / (B sigma^2): the SNR per watt at a gain of beta0 (at 1 m in free space)."""
     return scenario.num_nodes * scenario.reference_gain / (
         scenario.bandwidth_hz * scenario.noise_psd_w_per_hz)
 
 
 def snr_per_watt(q: np.ndarray, scenario: Scenario) -> np.ndarray:
     """a_n[m] = N g_n[m] / (B sigma^2): (N, M) per watt (OFDMA, B/N per node), with the
-    line-of-sight gain g_n[m] = beta0 / d_n[m]."""
-    return snr_scale(scenario) / squared_distances(q, scenario)
+    scenario's channel gain g_n[m]: the letter's beta0 / d_n[m] under 'free-space'
+    (:mod:`uav_comm_planner.core.channel` for the others)."""
+    channel = scenario.channel_model
+    if channel.is_letter:
+        return snr_scale(scenario) / squared_distances(q, scenario)
+    return snr_at(squared_horizontal_distances(q, scenario), scenario)
+
+
+def squared_horizontal_distances(q: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """||q[m] - w_n||^2: (N, M) square metres."""
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    w = scenario.nodes
+    return (q[:, 0] - w[:, :1]) ** 2 + (q[:, 1] - w[:, 1:]) ** 2
+
+
+def snr_at(squared_horizontal: np.ndarray, scenario: Scenario) -> np.ndarray:
+    """The SNR per watt at squared horizontal distances rho^2 (m^2, any shape) from a node,
+    at the scenario's altitude and channel: snr_scale g / beta0."""
+    return snr_scale(scenario) * scenario.channel_model.gain(squared_horizontal,
+                                                             scenario.altitude_m)
+
+
+def best_snr_per_watt(scenario: Scenario) -> float:
+    """a_max, the SNR per watt right above a node: every channel's gain falls with the
+    horizontal distance at a fixed altitude (N beta0 / (H^2 B sigma^2) in free space)."""
+    if scenario.channel_model.is_letter:
+        return snr_scale(scenario) / scenario.altitude_m ** 2
+    return float(snr_at(0.0, scenario))
 
 
 def spectral_efficiency_to_rate(bits_per_use: np.ndarray, scenario: Scenario) -> np.ndarray:

@@ -14,8 +14,8 @@ import numpy as np
 from uav_comm_planner.core import detour, search
 from uav_comm_planner.core.bound import dual_upper_bound
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
-from uav_comm_planner.core.model import (average_rates, flown_path, LN2, snr_per_watt,
-                                         snr_scale, spectral_efficiencies,
+from uav_comm_planner.core.model import (average_rates, best_snr_per_watt, flown_path, LN2,
+                                         snr_per_watt, spectral_efficiencies,
                                          spectral_efficiency_to_rate)
 from uav_comm_planner.core.power import checked_offsets, waterfilling_power
 from uav_comm_planner.core.sca.block import BlockFactory
@@ -307,14 +307,14 @@ def letter_rules(settings: SolverSettings) -> SolverSettings:
 def throughput_upper_bound(scenario: Scenario) -> float:
     """An upper bound of the max-min throughput, bit/s: (B/N) log2(1 + a_max P_T / (N M)).
 
-    a_max = N beta0 / (H^2 B sigma^2) is the SNR per watt right above a node. For any plan,
+    a_max (:func:`~uav_comm_planner.core.model.best_snr_per_watt`, N beta0 / (H^2 B sigma^2)
+    in free space) is the SNR per watt right above a node. For any plan,
     node n's rate is (B/N) mean_m log2(1 + p_n[m] a_n[m]) <= (B/N) mean_m log2(1 + p_n[m] a_max)
     <= (B/N) log2(1 + a_max P_n / M) by Jensen's inequality, with P_n = sum_m p_n[m]; the node
     with the least P_n has P_n <= P_T / N, so min_n R_n is at most the bound.
     """
     n, m = scenario.num_nodes, scenario.num_slots
-    best_snr_per_watt = snr_scale(scenario) / scenario.altitude_m ** 2
-    bits = math.log1p(best_snr_per_watt * scenario.power_budget_w / (n * m)) / LN2
+    bits = math.log1p(best_snr_per_watt(scenario) * scenario.power_budget_w / (n * m)) / LN2
     return float(spectral_efficiency_to_rate(np.float64(bits), scenario))
 
 

@@ -16,6 +16,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
+from uav_comm_planner.core.channel import Channel, parse_channel
 from uav_comm_planner.core.numbers import real_number
 from uav_comm_planner.core.propulsion import Airframe
 from uav_comm_planner.core.zones import Zones
@@ -180,6 +181,26 @@ def _check_zones(scenario: 'Scenario') -> None:
                 f'{clearance:.2f} m, the margin is {zones.margin_m:g} m; move it or the zones')
 
 
+def _check_wind(scenario: 'Scenario') -> None:
+    """Wind and airspeed are real, and the UAV can hold its position against the wind."""
+    speed = real_number('wind_speed_mps', scenario.wind_speed_mps)
+    direction = real_number('wind_from_deg', scenario.wind_from_deg)
+    if not (math.isfinite(speed) and speed >= 0.0):
+        raise InvalidScenarioError(f'wind_speed_mps must be >= 0 and finite, got {speed!r}')
+    if not math.isfinite(direction):
+        raise InvalidScenarioError(f'wind_from_deg must be finite, got {direction!r}')
+    object.__setattr__(scenario, 'wind_speed_mps', speed)
+    object.__setattr__(scenario, 'wind_from_deg', direction)
+    if scenario.max_airspeed_mps is not None:
+        _positive('max_airspeed_mps', scenario.max_airspeed_mps)
+        object.__setattr__(scenario, 'max_airspeed_mps', float(scenario.max_airspeed_mps))
+    if speed >= scenario.airspeed_mps:
+        raise InfeasibleHorizonError(
+            f'a wind of {speed:g} m/s is at or above the airspeed the UAV may fly, '
+            f'{scenario.airspeed_mps:g} m/s: it cannot hold its position against it; raise '
+            f'max_airspeed_mps if the airframe is faster, or wait for less wind')
+
+
 @dataclass(frozen=True)
 class Scenario:
     """One planning problem (letter, Section II).
@@ -203,6 +224,10 @@ class Scenario:
     ``airframe`` (:class:`~uav_comm_planner.core.propulsion.Airframe`, None: none): its top
     airspeed bounds V_air; with ``energy_budget_wh`` the horizon's propulsion energy
     (:mod:`uav_comm_planner.core.energy`) is at most that.
+
+    ``channel`` names the air-to-ground channel (:mod:`uav_comm_planner.core.channel`):
+    'free-space' (the letter's), 'free-space:alpha=A', 'los:suburban', 'los:urban',
+    'los:dense-urban', 'los:highrise-urban'; held as its canonical name.
     """
 
     ground_nodes_m: tuple[Point, ...]
@@ -222,6 +247,7 @@ class Scenario:
     zones: Zones | None = None
     airframe: Airframe | None = None
     energy_budget_wh: float | None = None
+    channel: str = 'free-space'
 
     def __post_init__(self) -> None:
         nodes = self.ground_nodes_m
@@ -246,30 +272,13 @@ class Scenario:
                 f'noise_psd_dbm_per_hz must be finite, got {self.noise_psd_dbm_per_hz!r}')
         object.__setattr__(self, 'noise_psd_dbm_per_hz', noise)
         object.__setattr__(self, 'num_slots', _count('num_slots', self.num_slots))
+        object.__setattr__(self, 'channel', parse_channel(self.channel).name)
         _check_energy(self)
-        self._check_wind()
+        _check_wind(self)
         _check_scales(self)
         _check_duplicates(self)
         self._check_reachable()
         _check_zones(self)
-
-    def _check_wind(self) -> None:
-        speed = real_number('wind_speed_mps', self.wind_speed_mps)
-        direction = real_number('wind_from_deg', self.wind_from_deg)
-        if not (math.isfinite(speed) and speed >= 0.0):
-            raise InvalidScenarioError(f'wind_speed_mps must be >= 0 and finite, got {speed!r}')
-        if not math.isfinite(direction):
-            raise InvalidScenarioError(f'wind_from_deg must be finite, got {direction!r}')
-        object.__setattr__(self, 'wind_speed_mps', speed)
-        object.__setattr__(self, 'wind_from_deg', direction)
-        if self.max_airspeed_mps is not None:
-            _positive('max_airspeed_mps', self.max_airspeed_mps)
-            object.__setattr__(self, 'max_airspeed_mps', float(self.max_airspeed_mps))
-        if speed >= self.airspeed_mps:
-            raise InfeasibleHorizonError(
-                f'a wind of {speed:g} m/s is at or above the airspeed the UAV may fly, '
-                f'{self.airspeed_mps:g} m/s: it cannot hold its position against it; raise '
-                f'max_airspeed_mps if the airframe is faster, or wait for less wind')
 
     def _check_reachable(self) -> None:
         """Every leg of the straight line q0 -> qF at uniform speed is feasible: since the
@@ -321,6 +330,11 @@ class Scenario:
         nodes = np.array(self.ground_nodes_m, dtype=float)
         nodes.setflags(write=False)
         return nodes
+
+    @functools.cached_property
+    def channel_model(self) -> Channel:
+        """The :class:`~uav_comm_planner.core.channel.Channel` that ``channel`` names."""
+        return parse_channel(self.channel)
 
     @property
     def slot_s(self) -> float:

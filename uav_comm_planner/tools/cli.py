@@ -17,13 +17,15 @@ from pathlib import Path
 import sys
 from typing import Sequence
 
+from uav_comm_planner.core.channel import FREE_SPACE
 from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.optimizer import plan, PlanResult
 from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
-from uav_comm_planner.tools import energy_sweep, fit_airframe
+from uav_comm_planner.tools import (altitude_cli, altitude_study, energy_sweep, fading_cli,
+                                    fit_airframe)
 from uav_comm_planner.tools.energy_cli import (add_airframe_argument, add_energy_arguments,
                                                energy_record, energy_request, format_energy,
                                                planner_for)
@@ -139,6 +141,11 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
     for field, (flag, text) in _SCALAR_FLAGS.items():
         kind = int if field == 'num_slots' else float
         parser.add_argument(flag, dest=field, type=kind, help=text)
+    parser.add_argument('--channel', default=None, metavar='NAME',
+                        help="air-to-ground channel (docs/channel.md): free-space (the "
+                             "letter's, the default), free-space:alpha=A (path-loss exponent "
+                             "A), los:suburban, los:urban, los:dense-urban, los:highrise-urban "
+                             "(Al-Hourani's line-of-sight probability)")
     parser.add_argument('--tolerance', type=float, default=None,
                         help='absolute convergence tolerance epsilon, bit/s (default 0: the '
                              'relative tolerance 1e-4 alone; --letter uses 0.01)')
@@ -190,7 +197,8 @@ def _scenario(args: argparse.Namespace, vehicle=None) -> Scenario:
         base = paper_scenario(args.case)
     changes = {field: getattr(args, field) for field in _SCALAR_FLAGS
                if getattr(args, field) is not None}
-    for field, name in (('ground_nodes_m', 'nodes'), ('start_m', 'start'), ('goal_m', 'goal')):
+    for field, name in (('ground_nodes_m', 'nodes'), ('start_m', 'start'), ('goal_m', 'goal'),
+                        ('channel', 'channel')):
         if getattr(args, name) is not None:
             changes[field] = getattr(args, name)
     if args.wind is not None:
@@ -236,7 +244,8 @@ def format_plan(result: PlanResult) -> str:
              f'{scenario.slot_s:g} s, P_T = {scenario.power_budget_w:g} W, '
              f'H = {scenario.altitude_m:g} m, V = {scenario.max_speed_mps:g} m/s'
              + (f', wind {scenario.wind_speed_mps:g} m/s from {scenario.wind_from_deg:g} deg '
-                f'(airspeed {scenario.airspeed_mps:g} m/s)' if scenario.wind_speed_mps else ''),
+                f'(airspeed {scenario.airspeed_mps:g} m/s)' if scenario.wind_speed_mps else '')
+             + (f', channel {scenario.channel}' if scenario.channel != FREE_SPACE else ''),
              f'{"method":<42}{"min avg throughput (bit/s)":>28}']
     lines += [f'{label:<42}{value:>28.4f}' for label, value in rows]
     lines.append(f'{result.outer_iterations} power steps, {result.trajectory_steps} trajectory '
@@ -300,6 +309,12 @@ def json_text(data: object) -> str:
 
 def _command_plan(args: argparse.Namespace) -> int:
     _check_outputs(args.json, args.mission, figure=args.figure)
+    fading = fading_cli.fading_from(args)
+    altitudes = altitude_cli.altitude_limits(args, _vehicle_asked(args))
+    if altitudes is not None:
+        return altitude_cli.run(args, _scenario(args), altitudes, _settings(args), lambda record:
+                                print(f'wrote {write_text_atomic(args.json, json_text(record))}'),
+                                fading)
     if args.mission is not None:
         from uav_comm_planner.vehicle.mavlink.files import check_mission_path
         check_mission_path(args.mission)
@@ -327,10 +342,11 @@ def _command_plan(args: argparse.Namespace) -> int:
     result = planned.result
     if energy is not None:
         print(format_energy(result, energy))
+    evaluation = fading_cli.evaluate(fading, result.trajectory, result.power, result.scenario)
     # Every check before the first file: the JSON text and the mission's rows.
     text = (json_text({**result_to_dict(result, settings=request.settings,
                                         optimised=planned.optimised),
-                       **energy_record(result, energy)})
+                       **energy_record(result, energy), **fading_cli.fading_record(evaluation)})
             if args.json is not None else None)
     if args.mission is not None and planned.items is None:
         raise PlannerError(planned.items_error)
@@ -484,6 +500,8 @@ def build_parser() -> argparse.ArgumentParser:
     for field, (flag, text) in _VEHICLE_FLAGS.items():
         vehicle.add_argument(flag, dest=_VEHICLE_DEST + field, type=float, help=text)
     add_energy_arguments(plan_parser)
+    altitude_cli.add_arguments(plan_parser)
+    fading_cli.add_arguments(plan_parser)
     plan_parser.set_defaults(handler=_command_plan)
 
     sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')
@@ -531,6 +549,11 @@ def build_parser() -> argparse.ArgumentParser:
                                        description=montecarlo.DESCRIPTION)
     montecarlo.add_arguments(study_parser)
     study_parser.set_defaults(handler=montecarlo.command)
+
+    altitude_parser = commands.add_parser('altitude-study', help=altitude_study.DESCRIPTION,
+                                          description=altitude_study.DESCRIPTION)
+    altitude_study.add_arguments(altitude_parser)
+    altitude_parser.set_defaults(handler=altitude_study.command)
 
     fit_parser = commands.add_parser('fit-airframe', help=fit_airframe.DESCRIPTION,
                                      description=fit_airframe.DESCRIPTION)

@@ -20,6 +20,7 @@ from scipy import sparse
 from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.sca.block import Block, BlockFactory, Columns, Frame
+from uav_comm_planner.core.sca.channel_rates import ChannelRates
 from uav_comm_planner.core.sca.energy import EnergyBudget
 from uav_comm_planner.core.sca.legs import LegLimits
 from uav_comm_planner.core.sca.path_budget import PathBudget
@@ -33,11 +34,13 @@ from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 def step_blocks(frame: Frame, *, keep_path_length: bool = False, partial_sums: bool = True,
                 extra: Sequence[BlockFactory] = ()) -> list[Block]:
     """The blocks of the SCA step for ``frame``'s scenario: the node rates (always first: they
-    define t), the legs, the zones where there are some, the energy budget where there is one,
-    the ``extra`` blocks, and with
+    define t; :class:`ChannelRates` for a channel with a line-of-sight probability), the legs,
+    the zones where there are some, the energy budget where there is one, the ``extra``
+    blocks, and with
     ``keep_path_length`` the path budget (last: its certificate picks its multiplier's
     direction against the others')."""
-    blocks: list[Block] = [NodeRates(frame, partial_sums=partial_sums),
+    rates = ChannelRates if frame.scenario.channel_model.has_cusp else NodeRates
+    blocks: list[Block] = [rates(frame, partial_sums=partial_sums),
                            LegLimits(frame, lengths=keep_path_length)]
     model = zone_model(frame.scenario.zones)
     if model is not None and model.rows_per_slot:

@@ -8,8 +8,10 @@ log2(1 + A / (d + x)) in x gives, for x = ||q[m] - w_n||^2 - ||q^k[m] - w_n||^2,
 
 which is the letter's bound, since
 gamma beta0 / (d^k (gamma beta0 + d^k)) = snr^k / ((1 + snr^k) d^k).
-The bound is global and tight at q^k, so maximising min_n mean_m lbr_{n,m} subject to the
-speed limits never lowers the true minimum rate.
+With a path-loss exponent alpha, snr^k = c (d^k)^(-alpha/2) and the same convexity holds in
+x, with the slope alpha / 2 times the above. The bound is global and tight at q^k, so
+maximising min_n mean_m lbr_{n,m} subject to the speed limits never lowers the true minimum
+rate.
 
 With offsets o_n (N,) bits per use (the data a node already holds, see
 :mod:`uav_comm_planner.core.receding`) the step maximises min_n (o_n + mean_m lbr_{n,m}): the
@@ -24,7 +26,9 @@ from typing import Callable
 
 import numpy as np
 
-from uav_comm_planner.core.model import leg_lengths, LN2, snr_scale, squared_distances
+from uav_comm_planner.core.model import (leg_lengths, LN2, snr_per_watt, snr_scale,
+                                         squared_distances)
+from uav_comm_planner.core.sca.channel_bound import channel_lower_bound
 from uav_comm_planner.core.scenario import Scenario
 
 #: The conic problems see positions in kilometres: coordinates of order 1, not 1000.
@@ -49,9 +53,18 @@ def surrogate_coefficients(q_k: np.ndarray, p: np.ndarray,
                            scenario: Scenario) -> SurrogateCoefficients:
     """The SCA bound's coefficients at the expansion point q^k (M, 2) for power p (N, M)."""
     d = squared_distances(q_k, scenario)
-    snr = np.asarray(p, dtype=float) * (snr_scale(scenario) / d)
+    channel = scenario.channel_model
+    if channel.has_cusp:
+        raise ValueError(f'channel {channel.name}: its bound is channel_coefficients '
+                         '(core/sca/channel_bound.py)')
+    if channel.is_letter:
+        snr = np.asarray(p, dtype=float) * (snr_scale(scenario) / d)
+    else:
+        snr = np.asarray(p, dtype=float) * snr_per_watt(q_k, scenario)
+    # d^-alpha/2 in d: the slope in x / d is alpha / 2 times the letter's (alpha = 2).
+    half_exponent = channel.exponent / 2.0
     return SurrogateCoefficients(value=np.log1p(snr) / LN2,
-                                 slope=snr / ((1.0 + snr) * LN2),
+                                 slope=half_exponent * snr / ((1.0 + snr) * LN2),
                                  d=d, horizontal=d - scenario.altitude_m ** 2)
 
 
@@ -67,7 +80,11 @@ def kilometre_rows(coef: SurrogateCoefficients) -> tuple[np.ndarray, np.ndarray]
 
 def sca_lower_bound(q: np.ndarray, q_k: np.ndarray, p: np.ndarray,
                     scenario: Scenario) -> np.ndarray:
-    """lbr_{n,m}(q) expanded at q^k: (N, M) bits per use, a lower bound of log2(1 + p a(q))."""
+    """lbr_{n,m}(q) expanded at q^k: (N, M) bits per use, a lower bound of log2(1 + p a(q))
+    (the line-of-sight channels' bound: :func:`~uav_comm_planner.core.sca.channel_bound.
+    channel_lower_bound`)."""
+    if scenario.channel_model.has_cusp:
+        return channel_lower_bound(q, q_k, p, scenario)
     coef = surrogate_coefficients(q_k, p, scenario)
     x = squared_distances(q, scenario) - coef.d
     return coef.value - coef.slope * x / coef.d

@@ -1,0 +1,122 @@
+"""The command line's altitude options: ``plan --altitude-range MIN,MAX [--climb-rate MPS]``
+plans the altitude of every slot with the trajectory and the power
+(:mod:`uav_comm_planner.core.altitude`), prints the plan against the best fixed altitude and
+writes ``altitudes_m`` in the JSON result. Mission files, vehicle-aware plans, fences and energy
+budgets keep one altitude: asked together with a range, they are refused before planning."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from uav_comm_planner.core.altitude import AltitudeLimits, AltitudePlan, plan_with_altitude
+from uav_comm_planner.core.fading import Fading
+from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.tools import fading_cli
+from uav_comm_planner.tools.serialize import run_record, scenario_to_dict
+
+#: The climb rate without --climb-rate: ArduCopter's WPNAV_SPEED_UP default, 2.5 m/s.
+DEFAULT_CLIMB_MPS = 2.5
+#: Options a plan with altitudes does not combine with (flag, the attribute it sets).
+NOT_WITH_ALTITUDE = (('--mission', 'mission'), ('--fence', 'fence'), ('--figure', 'figure'),
+                     ('--airframe', 'airframe'), ('--energy-budget-wh', 'energy_budget_wh'),
+                     ('--battery-wh', 'battery_wh'), ('--min-throughput', 'min_throughput'))
+
+
+def _range(text: str) -> tuple[float, float]:
+    parts = text.split(',')
+    try:
+        low, high = (float(part) for part in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f'expected MIN,MAX (metres), got {text!r}') from None
+    return low, high
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """--altitude-range and --climb-rate on the plan command."""
+    group = parser.add_argument_group(
+        'altitude as a variable (docs/channel.md): every slot its own altitude')
+    group.add_argument('--altitude-range', type=_range, metavar='MIN,MAX',
+                       help='plan each slot\'s altitude within MIN..MAX metres above the nodes '
+                            '(q0\'s and qF\'s altitudes free within it); with --channel '
+                            'los:* altitude is a trade-off, with free space the lowest wins')
+    group.add_argument('--climb-rate', type=float, metavar='MPS',
+                       help='fastest climb or descent between slots, m/s (default '
+                            f'{DEFAULT_CLIMB_MPS:g}); needs --altitude-range')
+
+
+def altitude_limits(args: argparse.Namespace, vehicle_aware: bool) -> AltitudeLimits | None:
+    """The limits the options ask for (None without --altitude-range); refuses (typed error)
+    --climb-rate alone and the options a plan with altitudes does not take."""
+    if args.altitude_range is None:
+        if args.climb_rate is not None:
+            raise InvalidScenarioError('--climb-rate needs --altitude-range MIN,MAX')
+        return None
+    given = [flag for flag, name in NOT_WITH_ALTITUDE if getattr(args, name, None) is not None]
+    if vehicle_aware:
+        given.append('--vehicle')
+    if given:
+        raise InvalidScenarioError(f'--altitude-range does not combine with {given[0]}: a '
+                                   'plan with altitudes is not yet exported or flown')
+    climb = DEFAULT_CLIMB_MPS if args.climb_rate is None else args.climb_rate
+    return AltitudeLimits(args.altitude_range, climb)
+
+
+def format_altitude_plan(result: AltitudePlan) -> str:
+    """The plan against the best fixed altitude, and its altitudes."""
+    scenario, heights = result.scenario, result.altitudes
+    low, high = result.limits.range_m
+    return '\n'.join([
+        f'N = {scenario.num_nodes} nodes, M = {scenario.num_slots} slots of '
+        f'{scenario.slot_s:g} s, P_T = {scenario.power_budget_w:g} W, altitude {low:g} to '
+        f'{high:g} m (climb {result.limits.max_climb_mps:g} m/s), V = '
+        f'{scenario.max_speed_mps:g} m/s, channel {scenario.channel}',
+        f'{"method":<42}{"min avg throughput (bit/s)":>28}',
+        f'{"proposed (altitude planned)":<42}{result.min_throughput:>28.4f}',
+        f'{f"best fixed altitude, {result.fixed_altitude_m:.1f} m":<42}'
+        f'{result.fixed.min_throughput:>28.4f}',
+        f'altitudes {heights.min():.1f} to {heights.max():.1f} m (mean {heights.mean():.1f} m); '
+        f'{len(result.history) - 1} steps, '
+        f'{"converged" if result.converged else "iteration limit"}, plan time '
+        f'{result.solve_time_s:.2f} s'])
+
+
+def altitude_record(result: AltitudePlan, settings: SolverSettings) -> dict[str, Any]:
+    """The JSON result: trajectory, altitudes_m, times, power, rates, min_throughput, history,
+    the best fixed altitude and its throughput, the range, the scenario and the settings."""
+    return {
+        'trajectory': result.trajectory.tolist(),
+        'altitudes_m': result.altitudes.tolist(),
+        'times': result.times.tolist(),
+        'power': result.power.tolist(),
+        'rates': result.rates.tolist(),
+        'min_throughput': result.min_throughput,
+        'history': list(result.history),
+        'fixed_altitude_m': result.fixed_altitude_m,
+        'fixed_altitude_throughput': result.fixed.min_throughput,
+        'altitude_range_m': list(result.limits.range_m),
+        'max_climb_mps': result.limits.max_climb_mps,
+        'scenario': scenario_to_dict(result.scenario),
+        'solve_time_s': result.solve_time_s,
+        'status': 'converged' if result.converged else 'iteration limit',
+        **run_record(settings),
+    }
+
+
+def run(args: argparse.Namespace, scenario: Scenario, limits: AltitudeLimits,
+        settings: SolverSettings, write_json, fading: Fading | None = None) -> int:
+    """Plan with altitudes, print it (and its evaluation under ``fading``, if any), and write
+    the JSON result with ``write_json(record)`` if --json asks for it."""
+    result = plan_with_altitude(scenario, limits, settings)
+    print(format_altitude_plan(result))
+    evaluation = fading_cli.evaluate(fading, result.trajectory, result.power, scenario,
+                                     result.altitudes)
+    if args.json is not None:
+        write_json({**altitude_record(result, settings), **fading_cli.fading_record(evaluation)})
+    return 0
+
+
+__all__ = ['add_arguments', 'altitude_limits', 'altitude_record', 'DEFAULT_CLIMB_MPS',
+           'format_altitude_plan', 'run']
