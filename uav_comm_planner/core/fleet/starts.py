@@ -24,7 +24,7 @@ import numpy as np
 from uav_comm_planner.core.feasibility import project_onto_speed_limit, within_speed_limit
 from uav_comm_planner.core.fleet.scenario import FleetScenario
 from uav_comm_planner.core.fleet.separation import (keeps_separation, SEPARATION_CUSHION_M,
-                                                    separation_rows)
+                                                    unit_directions)
 from uav_comm_planner.core.fleet.step import fleet_frames
 from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.sca.block import Variables
@@ -63,21 +63,30 @@ def straight_lines(fleet: FleetScenario) -> np.ndarray:
     return np.stack([straight_line(vehicle) for vehicle in fleet.vehicles])
 
 
-def separate(q: np.ndarray, fleet: FleetScenario, *, fixed: Sequence[int] = (),
-             solver: str = 'CLARABEL') -> np.ndarray | None:
-    """The push-apart (module docstring): q (K, M, 2) metres changed least to keep the speed
-    limits and d_min, the UAVs in ``fixed`` unchanged; q itself when it keeps both."""
-    q = np.asarray(q, dtype=float)
-    flyable = all(within_speed_limit(q_k, vehicle, slack=0.0)
-                  for q_k, vehicle in zip(q, fleet.vehicles))
-    if flyable and keeps_separation(q, fleet):
-        return q
-    frames = fleet_frames(fleet)
-    z0 = np.stack([frame.km(q_k) for frame, q_k in zip(frames, q)])
-    lines = np.stack([frame.km(line) for frame, line in zip(frames, straight_lines(fleet))])
-    pairs = fleet.pairs
-    fallback = np.stack([lines[j] - lines[k] for j, k in pairs]) if pairs else None
-    rows = separation_rows(z0, fleet, scale=KM, fallback=fallback)
+def sideways_directions(z: np.ndarray, pairs: tuple[tuple[int, int], ...], d_km: float,
+                        side: float) -> np.ndarray:
+    """Directions that turn one way round each pair's meeting: r[m] + side d_min n, r[m] =
+    z_j[m] - z_k[m] and n the unit normal (left of) r's overall change r[M] - r[1]. Where
+    two lines cross, r passes near 0 and its own direction flips between two slots, asking a
+    UAV to jump across the other; shifted by d_min sideways it turns round 0 on one side
+    instead (``side`` +1 or -1)."""
+    directions = []
+    for j, k in pairs:
+        r = z[j] - z[k]
+        change = r[-1] - r[0]
+        if not np.linalg.norm(change) > 0.0:
+            change = r[0] if np.linalg.norm(r[0]) > 0.0 else np.array([1.0, 0.0])
+        normal = np.array([-change[1], change[0]]) / np.linalg.norm(change)
+        directions.append(r + side * d_km * normal)
+    return np.stack(directions)
+
+
+def _pushed(z0: np.ndarray, directions: np.ndarray, fleet: FleetScenario, frames: list,
+            fixed: Sequence[int], solver: str) -> np.ndarray | None:
+    """The least change of z0 (K, M, 2) km keeping the speed limits and the separation rows
+    along ``directions`` (P, M, 2); None when the solver finds none."""
+    length = np.linalg.norm(directions, axis=-1, keepdims=True)
+    units = np.where(length > 0.0, directions / np.maximum(length, 1e-300), [1.0, 0.0])
     z = [cp.Constant(z0[k]) if k in fixed else cp.Variable(z0[k].shape)
          for k in range(fleet.num_uavs)]
     constraints = []
@@ -87,7 +96,7 @@ def separate(q: np.ndarray, fleet: FleetScenario, *, fixed: Sequence[int] = (),
         path = cp.vstack([frame.start[None, :], z_k, frame.goal[None, :]])
         constraints += LegLimits(frame).constraints(
             Variables(z_k, cp.Variable(), path[1:] - path[:-1]), None)
-    for (j, k), direction in zip(pairs, rows.direction):
+    for (j, k), direction in zip(fleet.pairs, units):
         constraints.append(cp.sum(cp.multiply(direction, z[j] - z[k]), axis=1)
                            >= (fleet.min_separation_m + 2 * SEPARATION_CUSHION_M) / KM)
     moved = sum(cp.sum_squares(z[k] - z0[k]) for k in range(fleet.num_uavs) if k not in fixed)
@@ -100,9 +109,40 @@ def separate(q: np.ndarray, fleet: FleetScenario, *, fixed: Sequence[int] = (),
         return None
     if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
         return None
-    answer = np.stack([q[k] if k in fixed else project_onto_speed_limit(
-        frame.metres(z[k].value), frame.scenario) for k, frame in enumerate(frames)])
-    return answer if keeps_separation(answer, fleet) else None
+    return np.stack([z0[k] if k in fixed else z[k].value for k in range(fleet.num_uavs)])
 
 
-__all__ = ['partition', 'segment_distances', 'separate', 'straight_lines']
+def separate(q: np.ndarray, fleet: FleetScenario, *, fixed: Sequence[int] = (),
+             solver: str = 'CLARABEL') -> np.ndarray | None:
+    """The push-apart (module docstring): q (K, M, 2) metres changed least to keep the speed
+    limits and d_min, the UAVs in ``fixed`` unchanged; q itself when it keeps both. The rows'
+    directions are tried in turn: q's own differences, then turned round each meeting on one
+    side, then on the other (:func:`sideways_directions`)."""
+    q = np.asarray(q, dtype=float)
+    flyable = all(within_speed_limit(q_k, vehicle, slack=0.0)
+                  for q_k, vehicle in zip(q, fleet.vehicles))
+    if flyable and keeps_separation(q, fleet):
+        return q
+    frames = fleet_frames(fleet)
+    if not fleet.pairs:
+        return np.stack([project_onto_speed_limit(q_k, frame.scenario)
+                         for q_k, frame in zip(q, frames)])
+    z0 = np.stack([frame.km(q_k) for frame, q_k in zip(frames, q)])
+    lines = np.stack([frame.km(line) for frame, line in zip(frames, straight_lines(fleet))])
+    pairs = fleet.pairs
+    own = unit_directions(z0, pairs, np.stack([lines[j] - lines[k] for j, k in pairs]))
+    d_km = fleet.min_separation_m / KM
+    for directions in (own, sideways_directions(z0, pairs, d_km, 1.0),
+                       sideways_directions(z0, pairs, d_km, -1.0)):
+        z = _pushed(z0, directions, fleet, frames, fixed, solver)
+        if z is None:
+            continue
+        answer = np.stack([q[k] if k in fixed else project_onto_speed_limit(
+            frame.metres(z[k]), frame.scenario) for k, frame in enumerate(frames)])
+        if keeps_separation(answer, fleet):
+            return answer
+    return None
+
+
+__all__ = ['partition', 'segment_distances', 'separate', 'sideways_directions',
+           'straight_lines']
