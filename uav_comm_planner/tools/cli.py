@@ -23,7 +23,7 @@ from uav_comm_planner.core.scenario import paper_scenario, Scenario, SolverSetti
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
-from uav_comm_planner.tools import energy_sweep, fit_airframe
+from uav_comm_planner.tools import energy_sweep, fit_airframe, fleet_cli
 from uav_comm_planner.tools.energy_cli import (add_airframe_argument, add_energy_arguments,
                                                energy_record, energy_request, format_energy,
                                                planner_for)
@@ -106,6 +106,14 @@ def _nodes(text: str) -> list[tuple[float, float]]:
     return [_pair(item) for item in text.split(';') if item.strip()]
 
 
+def _ends(text: str) -> list[tuple[float, float]]:
+    """One point X,Y, or one per UAV X,Y;X,Y;... (with --uavs)."""
+    ends = _nodes(text)
+    if not ends:
+        raise argparse.ArgumentTypeError(f'expected X,Y or X,Y;X,Y;..., got {text!r}')
+    return ends
+
+
 def _wind(text: str) -> tuple[float, float]:
     speed, from_deg = _floats(text, 2)
     if not (math.isfinite(speed) and speed >= 0 and math.isfinite(from_deg)):
@@ -130,8 +138,10 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
                              'written by --json also works)')
     parser.add_argument('--nodes', type=_nodes, metavar='X,Y;X,Y;...',
                         help='ground node positions, metres')
-    parser.add_argument('--start', type=_pair, metavar='X,Y', help='launch point q0, metres')
-    parser.add_argument('--goal', type=_pair, metavar='X,Y', help='landing point qF, metres')
+    parser.add_argument('--start', type=_ends, metavar='X,Y',
+                        help='launch point q0, metres (one per UAV with --uavs: X,Y;X,Y)')
+    parser.add_argument('--goal', type=_ends, metavar='X,Y',
+                        help='landing point qF, metres (one per UAV with --uavs: X,Y;X,Y)')
     parser.add_argument('--wind', type=_wind, metavar='SPEED,FROM_DEG',
                         help='the wind to plan for: m/s, and the direction it blows from in '
                              'degrees clockwise from north (as weather reports and '
@@ -190,9 +200,16 @@ def _scenario(args: argparse.Namespace, vehicle=None) -> Scenario:
         base = paper_scenario(args.case)
     changes = {field: getattr(args, field) for field in _SCALAR_FLAGS
                if getattr(args, field) is not None}
-    for field, name in (('ground_nodes_m', 'nodes'), ('start_m', 'start'), ('goal_m', 'goal')):
-        if getattr(args, name) is not None:
-            changes[field] = getattr(args, name)
+    if args.nodes is not None:
+        changes['ground_nodes_m'] = args.nodes
+    for field, name in (('start_m', 'start'), ('goal_m', 'goal')):
+        ends = getattr(args, name)
+        if ends is None:
+            continue
+        if len(ends) != 1 and getattr(args, 'uavs', None) is None:
+            raise PlannerError(f'--{name} takes one point X,Y ({len(ends)} given: several '
+                               f'need --uavs K)')
+        changes[field] = ends[0]       # a fleet's first UAV's: the shared scenario is valid
     if args.wind is not None:
         changes['wind_speed_mps'], changes['wind_from_deg'] = args.wind
         airspeed = None if vehicle is None else vehicle.airspeed_for_wind_mps(args.wind[0])
@@ -298,7 +315,20 @@ def json_text(data: object) -> str:
                            'was written') from None
 
 
+def _command_fleet(args: argparse.Namespace) -> int:
+    """``plan --uavs K`` (:mod:`.fleet_cli`)."""
+    missions = ([] if args.mission is None else
+                fleet_cli.fleet_mission_paths(args.mission, args.uavs))
+    _check_outputs(args.json, *missions, figure=args.figure)
+    home = args.home if args.home is not None else default_home(args.firmware)
+    return fleet_cli.command(args, _scenario(args), _settings(args),
+                             limits=_vehicle_limits(args), home=home, json_text=json_text)
+
+
 def _command_plan(args: argparse.Namespace) -> int:
+    if args.uavs is not None:
+        return _command_fleet(args)
+    fleet_cli.check_not_fleet(args)
     _check_outputs(args.json, args.mission, figure=args.figure)
     if args.mission is not None:
         from uav_comm_planner.vehicle.mavlink.files import check_mission_path
@@ -479,6 +509,7 @@ def build_parser() -> argparse.ArgumentParser:
     for field, (flag, text) in _VEHICLE_FLAGS.items():
         vehicle.add_argument(flag, dest=_VEHICLE_DEST + field, type=float, help=text)
     add_energy_arguments(plan_parser)
+    fleet_cli.add_arguments(plan_parser)
     plan_parser.set_defaults(handler=_command_plan)
 
     sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')

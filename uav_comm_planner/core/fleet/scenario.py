@@ -63,6 +63,11 @@ class FleetScenario:
                 f'one goal per UAV: {len(starts)} starts but {len(goals)} goals')
         object.__setattr__(self, 'starts_m', starts)
         object.__setattr__(self, 'goals_m', goals)
+        if (self.scenario.zones is not None and not self.scenario.zones.empty) \
+                or self.scenario.energy_budget_wh is not None:
+            raise InvalidScenarioError(
+                'a fleet is planned without zones or an energy budget: its trajectory step has '
+                'the node rates, the speed limits (in wind too) and the separation only')
         separation = real_number('min_separation_m', self.min_separation_m)
         if not (math.isfinite(separation) and separation >= 0.0):
             raise InvalidScenarioError(

@@ -1,0 +1,101 @@
+"""``uav-comm-planner plan --uavs K``: the fleet's JSON recomputed from its own arrays, one
+mission per vehicle read back through pymavlink, the figure, and one-line errors."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from uav_comm_planner.tools import cli
+from uav_comm_planner.vehicle.geodesy import default_home, geodetic_to_enu
+from uav_comm_planner.vehicle.mavlink.files import read_waypoints
+from uav_comm_planner.vehicle.mavlink.items import NAV_LAND, NAV_WAYPOINT
+
+FLEET = ('--uavs', '2', '--start', '0,0;0,500', '--goal', '2000,0;2000,500',
+         '--min-separation', '100')
+
+
+def run(capsys, *argv):
+    status = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def test_the_fleet_json_states_what_its_arrays_give(tmp_path, capsys):
+    result_file, figure = tmp_path / 'r.json', tmp_path / 'f.svg'
+    status, out, _ = run(capsys, 'plan', *FLEET, '--json', str(result_file),
+                         '--figure', str(figure))
+    assert status == 0 and 'fleet (joint power and trajectories)' in out
+    data = json.loads(result_file.read_text())
+    q, p = np.array(data['trajectories']), np.array(data['power'])
+    assert q.shape == (2, 50, 2) and p.shape == (2, 3, 50)
+    scenario = data['scenario']
+    nodes = np.array(scenario['ground_nodes_m'])
+    n = len(nodes)
+    sigma2 = 10 ** ((scenario['noise_psd_dbm_per_hz'] - 30) / 10)
+    scale = n * scenario['reference_gain'] / (scenario['bandwidth_hz'] * sigma2)
+    d = ((q[:, None, :, :] - nodes[None, :, None, :]) ** 2).sum(axis=-1) + 100.0 ** 2
+    rates = scenario['bandwidth_hz'] / n * np.log2(1 + p * scale / d).mean(axis=2).sum(axis=0)
+    assert np.allclose(data['rates'], rates, rtol=1e-12)
+    assert data['min_throughput'] == pytest.approx(rates.min(), rel=1e-12)
+    assert np.linalg.norm(q[0] - q[1], axis=1).min() >= 100.0
+    assert data['closest_approach_m'] >= 100.0
+    assert np.all(p >= 0) and np.all(p.sum(axis=(1, 2)) <= scenario['power_budget_w'])
+    for k, (start, goal) in enumerate(zip(data['starts_m'], data['goals_m'])):
+        legs = np.diff(np.vstack([start, q[k], goal]), axis=0)
+        assert np.linalg.norm(legs, axis=1).max() <= scenario['max_speed_mps']
+    assert data['min_throughput'] >= max(data['single_uav_throughputs'].values())
+    assert '<svg' in figure.read_text()[:400]
+    assert figure.read_text().count('UAV 1') >= 1 and 'UAV 2' in figure.read_text()
+
+
+def test_one_mission_per_vehicle_each_ending_at_its_own_goal(tmp_path, capsys):
+    mission = tmp_path / 'm.waypoints'
+    status, out, err = run(capsys, 'plan', '--uavs', '2', '--start', '0,0;0,300',
+                           '--goal', '600,0;600,300', '--min-separation', '50',
+                           '--nodes', '100,100;500,200', '--speed', '8', '--horizon', '200',
+                           '--slots', '40', '--mission', str(mission))
+    assert status == 0, err
+    assert not mission.exists()
+    home = default_home('ardupilot')
+    for k, goal in enumerate(((600.0, 0.0), (600.0, 300.0)), start=1):
+        items = read_waypoints(tmp_path / f'm_uav{k}.waypoints')
+        assert f'wrote {tmp_path / f"m_uav{k}.waypoints"}' in out
+        assert items[-1].command == NAV_LAND
+        last = [item for item in items if item.command == NAV_WAYPOINT][-1]
+        east, north, _ = geodetic_to_enu(np.array(last.x), np.array(last.y), 0.0, home)
+        assert math.dist((float(east), float(north)), goal) < 0.5
+
+
+@pytest.mark.parametrize('argv, message', [
+    (('--uavs', '2', '--start', '0,0', '--goal', '2000,0;2000,500'), '2 points in --start'),
+    (('--uavs', '2', '--goal', '2000,0;2000,500'), '2 points in --start'),
+    (('--uavs', '0', '--start', '0,0', '--goal', '2000,0'), '1 to 8 UAVs'),
+    (('--uavs', 'two',), 'whole number'),
+    (('--min-separation', '100',), 'needs --uavs'),
+    (('--start', '0,0;0,500',), 'several need --uavs'),
+    (FLEET[:-1] + ('600',), 'less than the separation'),
+    (FLEET + ('--fence', 'f.geojson'), '--fence is for one UAV'),
+    (FLEET + ('--letter',), '--letter is for one UAV'),
+    (FLEET[:-1] + ('nan',), 'min_separation_m'),
+    (('--uavs', '2', '--start', '0,0;0,x', '--goal', '1,1;2,2'), 'comma-separated numbers'),
+    (FLEET + ('--mission', 'm.txt'), 'unknown mission format'),
+])
+def test_bad_fleet_input_is_one_line_and_status_2(tmp_path, capsys, argv, message):
+    result_file = tmp_path / 'r.json'
+    status, out, err = run(capsys, 'plan', *argv, '--json', str(result_file))
+    assert status == 2
+    assert err.count('\n') == 1 and err.startswith('uav-comm-planner: error: ')
+    assert message in err
+    assert not result_file.exists()
+
+
+def test_a_mission_the_vehicle_cannot_fly_writes_nothing(tmp_path, capsys):
+    """At the letter's 100 m/s, faster than ArduCopter's default cruise: refused before the
+    first file (the JSON included)."""
+    result_file, mission = tmp_path / 'r.json', tmp_path / 'm.waypoints'
+    status, _, err = run(capsys, 'plan', *FLEET, '--json', str(result_file),
+                         '--mission', str(mission))
+    assert status == 2 and 'faster than the vehicle flies' in err
+    assert list(tmp_path.iterdir()) == []

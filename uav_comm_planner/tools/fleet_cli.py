@@ -1,0 +1,177 @@
+"""``uav-comm-planner plan --uavs K``: a fleet's plan on the command line.
+
+``--start "X,Y;X,Y" --goal "X,Y;X,Y"`` give each UAV's ends, ``--min-separation M`` d_min; the
+other scenario flags (nodes, speed, horizon, budget...) are every UAV's. The JSON result holds
+``trajectories`` (K x M x 2, metres) and ``power`` (K x N x M, watts) beside ``min_throughput``
+and ``rates``; ``--mission m.waypoints`` writes one mission per vehicle, ``m_uav1.waypoints``,
+``m_uav2.waypoints``, ...; ``--figure`` draws every UAV. Every check (the flags, the fleet, the
+output paths, every vehicle's mission rows, the JSON text) passes before the first file is
+written.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Callable
+
+from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
+from uav_comm_planner.core.fleet.model import closest_approach_m
+from uav_comm_planner.core.fleet.planner import FleetPlan
+from uav_comm_planner.core.fleet.scenario import MAX_UAVS
+from uav_comm_planner.core.model import average_rates
+from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.core.scenario import Scenario, SolverSettings
+from uav_comm_planner.errors import InvalidScenarioError, PlannerError
+from uav_comm_planner.files import write_text_atomic
+from uav_comm_planner.tools.serialize import run_record, scenario_to_dict
+from uav_comm_planner.vehicle.geodesy import Home
+from uav_comm_planner.vehicle.limits import VehicleLimits
+
+#: Flags of the single-UAV plan that a fleet's plan does not take, by their dest.
+SINGLE_ONLY = {'fence': '--fence', 'vehicle': '--vehicle', 'airframe': '--airframe',
+               'energy_budget_wh': '--energy-budget-wh', 'battery_wh': '--battery-wh',
+               'min_throughput': '--min-throughput', 'letter': '--letter'}
+
+
+def _uav_count(text: str) -> int:
+    try:
+        count = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a whole number of UAVs, got {text!r}')
+    if not 1 <= count <= MAX_UAVS:
+        raise argparse.ArgumentTypeError(f'expected 1 to {MAX_UAVS} UAVs, got {count}')
+    return count
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--uavs`` and ``--min-separation`` on the plan command's parser."""
+    group = parser.add_argument_group(
+        'fleet', 'several UAVs planned together on orthogonal channels (docs/fleet.md): each '
+        "its own band B and budget P_T, a node's throughput the sum over the UAVs")
+    group.add_argument('--uavs', type=_uav_count, metavar='K',
+                       help='plan K UAVs jointly; --start and --goal then give K points '
+                            '"X,Y;X,Y;..."')
+    group.add_argument('--min-separation', type=float, metavar='M',
+                       help='least distance between any two UAVs in every slot, metres '
+                            '(with --uavs; default 0)')
+
+
+def fleet_mission_paths(path: Path, count: int) -> list[Path]:
+    """m.waypoints -> m_uav1.waypoints, ..., m_uavK.waypoints (the same folder and format)."""
+    return [path.with_name(f'{path.stem}_uav{k}{path.suffix}') for k in range(1, count + 1)]
+
+
+def fleet_request(args: argparse.Namespace, base: Scenario) -> FleetScenario:
+    """The fleet the flags describe, over ``base`` (the other flags' scenario); refuses
+    (PlannerError) a count of ends other than K and the flags a fleet does not take."""
+    given = [flag for dest, flag in SINGLE_ONLY.items() if getattr(args, dest, None)]
+    if given:
+        raise PlannerError(f'{given[0]} is for one UAV; --uavs plans a fleet on the '
+                           f"letter's model per UAV (docs/fleet.md)")
+    count = args.uavs
+    for name in ('start', 'goal'):
+        ends = getattr(args, name)
+        if ends is None or len(ends) != count:
+            got = 'none' if ends is None else len(ends)
+            raise PlannerError(f'--uavs {count} needs {count} points in --{name} "X,Y;X,Y;...", '
+                               f'got {got}')
+    separation = 0.0 if args.min_separation is None else args.min_separation
+    return FleetScenario(base, tuple(args.start), tuple(args.goal), separation)
+
+
+def uav_result(result: FleetPlan, k: int) -> PlanResult:
+    """UAV k's part (0-based) as a single UAV's plan: its trajectory and power, the rates it
+    alone gives, for the mission export."""
+    vehicle = result.fleet.vehicle(k)
+    rates = average_rates(result.trajectories[k], result.power[k], vehicle)
+    return PlanResult(scenario=vehicle, trajectory=result.trajectories[k], times=result.times,
+                      power=result.power[k], rates=rates, min_throughput=float(rates.min()),
+                      history=(), start=result.start)
+
+
+def fleet_to_dict(result: FleetPlan, settings: FleetSettings) -> dict:
+    """The JSON result: trajectories (K x M x 2, metres), power (K x N x M, watts), times,
+    rates (N, bit/s, summed over the UAVs), min_throughput, and how it was reached."""
+    fleet = result.fleet
+    return {
+        'uavs': fleet.num_uavs,
+        'trajectories': result.trajectories.tolist(),
+        'times': result.times.tolist(),
+        'power': result.power.tolist(),
+        'rates': result.rates.tolist(),
+        'min_throughput': result.min_throughput,
+        'starts_m': [list(point) for point in fleet.starts_m],
+        'goals_m': [list(point) for point in fleet.goals_m],
+        'min_separation_m': fleet.min_separation_m,
+        'closest_approach_m': (closest_approach_m(result.trajectories)
+                               if fleet.num_uavs > 1 else None),
+        'single_uav_throughputs': dict(result.single_throughputs),
+        'start': result.start,
+        'start_throughputs': dict(result.start_throughputs),
+        'left_out': dict(result.left_out),
+        'history': [{'step': s.kind, 'min_throughput': s.min_throughput}
+                    for s in result.history],
+        'status': result.status,
+        'solve_time_s': result.solve_time_s,
+        'scenario': scenario_to_dict(fleet.scenario),
+        'power_method': settings.power_method,
+        **run_record(settings.single),
+    }
+
+
+def format_fleet(result: FleetPlan) -> str:
+    """The fleet's table: its min throughput against each UAV's single-UAV plan."""
+    fleet, scenario = result.fleet, result.fleet.scenario
+    lines = [f'K = {fleet.num_uavs} UAVs, N = {scenario.num_nodes} nodes, M = '
+             f'{scenario.num_slots} slots of {scenario.slot_s:g} s, P_T = '
+             f'{scenario.power_budget_w:g} W per UAV, H = {scenario.altitude_m:g} m, '
+             f'V = {scenario.max_speed_mps:g} m/s, d_min = {fleet.min_separation_m:g} m',
+             f'{"method":<42}{"min avg throughput (bit/s)":>28}',
+             f'{"fleet (joint power and trajectories)":<42}{result.min_throughput:>28.4f}']
+    lines += [f'{"UAV " + name.split()[1] + " alone (single-UAV plan)":<42}{value:>28.4f}'
+              for name, value in result.single_throughputs.items()]
+    closest = (f', closest approach {closest_approach_m(result.trajectories):.1f} m'
+               if fleet.num_uavs > 1 else '')
+    lines.append(f'{result.outer_iterations} power steps, {result.trajectory_steps} trajectory '
+                 f'steps, {result.status}, start: {result.start}{closest}, plan time '
+                 f'{result.solve_time_s:.2f} s')
+    lines += [f'start {name!r} left out: {why}' for name, why in result.left_out.items()]
+    return '\n'.join(lines)
+
+
+def command(args: argparse.Namespace, base: Scenario, single: SolverSettings, *,
+            limits: VehicleLimits, home: Home, json_text: Callable[[object], str]) -> int:
+    """Plan the fleet, print its table, write what was asked; 0 on success."""
+    from uav_comm_planner.vehicle.mavlink.files import check_mission_path, write_mission_file
+    from uav_comm_planner.vehicle.mavlink.items import build_mission_items
+    fleet = fleet_request(args, base)
+    missions = (fleet_mission_paths(args.mission, fleet.num_uavs)
+                if args.mission is not None else [])
+    for path in missions:
+        check_mission_path(path)
+    settings = FleetSettings(single=single)
+    result = plan_fleet(fleet, settings)
+    print(format_fleet(result))
+    text = json_text(fleet_to_dict(result, settings)) if args.json is not None else None
+    items = [build_mission_items(uav_result(result, k), home, end=args.mission_end,
+                                 firmware=args.firmware, limits=limits)
+             for k in range(len(missions))]
+    if text is not None:
+        print(f'wrote {write_text_atomic(args.json, text)}')
+    if args.figure is not None:
+        from uav_comm_planner.tools.fleet_plots import fleet_figure
+        print(f'wrote {fleet_figure(result, args.figure)}')
+    for path, vehicle_items in zip(missions, items):
+        print(f'wrote {write_mission_file(vehicle_items, path, home, firmware=args.firmware)}')
+    return 0
+
+
+def check_not_fleet(args: argparse.Namespace) -> None:
+    """Without --uavs: refuse --min-separation (PlannerError)."""
+    if args.min_separation is not None:
+        raise InvalidScenarioError('--min-separation needs --uavs K (a fleet)')
+
+
+__all__ = ['add_arguments', 'check_not_fleet', 'command', 'fleet_mission_paths',
+           'fleet_request', 'fleet_to_dict', 'format_fleet', 'uav_result']
