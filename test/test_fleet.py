@@ -10,10 +10,12 @@ import pytest
 
 from uav_comm_planner.core.drops import random_scenario
 from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
+from uav_comm_planner.core.fleet.model import fleet_snr
 from uav_comm_planner.core.fleet.power import (coordinate_power, fleet_dual_bound,
                                                joint_power)
 from uav_comm_planner.core.fleet.separation import separation_rows
 from uav_comm_planner.core.fleet.starts import partition, separate, straight_lines
+from uav_comm_planner.core.fleet.step import FleetStep, step_clarabel, step_cvxpy
 from uav_comm_planner.core.optimizer import plan
 from uav_comm_planner.core.scenario import paper_scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
@@ -216,3 +218,27 @@ def test_without_separation_two_uavs_may_meet_and_the_coordinate_power_serves():
     result = plan_fleet(fleet, FleetSettings(power_method='coordinate'))
     check_plan(result)
     assert result.min_throughput >= max(result.single_throughputs.values())
+
+
+def test_the_clarabel_step_and_the_cvxpy_step_reach_the_same_bound():
+    """One step from crossing-free straight lines, where the separation binds (300 m apart,
+    one node between the lines): both solvers' answers give the same min_n of the summed
+    bounds, computed here from each UAV's bound rows."""
+    base = paper_scenario('I', ground_nodes_m=((1000.0, 250.0), (400.0, 100.0)))
+    fleet = FleetScenario(base, ((0, 0), (0, 500)), ((2000, 0), (2000, 500)), 300.0)
+    q = straight_lines(fleet)
+    p = joint_power(fleet_snr(q, fleet), base.power_budget_w).p
+    step = FleetStep(fleet)
+    data = step.data(q, p)
+    w = step.frames[0].nodes
+    values = []
+    for solve in (step_clarabel, step_cvxpy):
+        z = solve(fleet, step.frames, step.rates, data)
+        values.append(sum(rows.values(z_k, w) for rows, z_k in zip(data.rows, z)).min())
+        assert np.linalg.norm(z[0] - z[1], axis=1).min() * 1000 >= 300.0
+        slack = data.separation.slack(z)
+        assert slack.min() > -1e-7 and slack.min() < 1e-6      # a separation row binds
+    assert values[0] == pytest.approx(values[1], rel=1e-6)
+    start = sum(rows.values(step.frames[k].km(q[k]), w)
+                for k, rows in enumerate(data.rows)).min()
+    assert values[0] > start
