@@ -242,3 +242,12 @@ def test_the_clarabel_step_and_the_cvxpy_step_reach_the_same_bound():
     start = sum(rows.values(step.frames[k].km(q[k]), w)
                 for k, rows in enumerate(data.rows)).min()
     assert values[0] > start
+
+
+def test_the_fleet_benchmark_reports_each_fleet_above_its_single_plans(capsys):
+    from devtools import fleet_bench
+    assert fleet_bench.main(['--quick']) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()[1:]]
+    assert [row[0] for row in rows] == ['1', '2', '3']
+    for row in rows[1:]:
+        assert float(row[3]) >= float(row[5]) and float(row[6]) >= 100.0

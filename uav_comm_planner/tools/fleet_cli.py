@@ -20,6 +20,7 @@ from uav_comm_planner.core.fleet.model import closest_approach_m
 from uav_comm_planner.core.fleet.planner import FleetPlan
 from uav_comm_planner.core.fleet.scenario import MAX_UAVS
 from uav_comm_planner.core.model import average_rates
+from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError, PlannerError
@@ -123,7 +124,7 @@ def fleet_to_dict(result: FleetPlan, settings: FleetSettings) -> dict:
 def format_fleet(result: FleetPlan) -> str:
     """The fleet's table: its min throughput against each UAV's single-UAV plan."""
     fleet, scenario = result.fleet, result.fleet.scenario
-    lines = [f'K = {fleet.num_uavs} UAVs, N = {scenario.num_nodes} nodes, M = '
+    lines = [f'K = {counted(fleet.num_uavs, "UAV")}, N = {counted(scenario.num_nodes, "node")}, M = '
              f'{scenario.num_slots} slots of {scenario.slot_s:g} s, P_T = '
              f'{scenario.power_budget_w:g} W per UAV, H = {scenario.altitude_m:g} m, '
              f'V = {scenario.max_speed_mps:g} m/s, d_min = {fleet.min_separation_m:g} m',
