@@ -124,10 +124,10 @@ def fleet_to_dict(result: FleetPlan, settings: FleetSettings) -> dict:
 def format_fleet(result: FleetPlan) -> str:
     """The fleet's table: its min throughput against each UAV's single-UAV plan."""
     fleet, scenario = result.fleet, result.fleet.scenario
-    lines = [f'K = {counted(fleet.num_uavs, "UAV")}, N = {counted(scenario.num_nodes, "node")}, M = '
-             f'{scenario.num_slots} slots of {scenario.slot_s:g} s, P_T = '
-             f'{scenario.power_budget_w:g} W per UAV, H = {scenario.altitude_m:g} m, '
-             f'V = {scenario.max_speed_mps:g} m/s, d_min = {fleet.min_separation_m:g} m',
+    lines = [f'K = {counted(fleet.num_uavs, "UAV")}, N = '
+             f'{counted(scenario.num_nodes, "node")}, M = {scenario.num_slots} slots of '
+             f'{scenario.slot_s:g} s, P_T = {scenario.power_budget_w:g} W per UAV, '
+             f'H = {scenario.altitude_m:g} m, V = {scenario.max_speed_mps:g} m/s, d_min = {fleet.min_separation_m:g} m',
              f'{"method":<42}{"min avg throughput (bit/s)":>28}',
              f'{"fleet (joint power and trajectories)":<42}{result.min_throughput:>28.4f}']
     lines += [f'{"UAV " + name.split()[1] + " alone (single-UAV plan)":<42}{value:>28.4f}'
