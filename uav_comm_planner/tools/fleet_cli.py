@@ -127,7 +127,8 @@ def format_fleet(result: FleetPlan) -> str:
     lines = [f'K = {counted(fleet.num_uavs, "UAV")}, N = '
              f'{counted(scenario.num_nodes, "node")}, M = {scenario.num_slots} slots of '
              f'{scenario.slot_s:g} s, P_T = {scenario.power_budget_w:g} W per UAV, '
-             f'H = {scenario.altitude_m:g} m, V = {scenario.max_speed_mps:g} m/s, d_min = {fleet.min_separation_m:g} m',
+             f'H = {scenario.altitude_m:g} m, V = {scenario.max_speed_mps:g} m/s, '
+             f'd_min = {fleet.min_separation_m:g} m',
              f'{"method":<42}{"min avg throughput (bit/s)":>28}',
              f'{"fleet (joint power and trajectories)":<42}{result.min_throughput:>28.4f}']
     lines += [f'{"UAV " + name.split()[1] + " alone (single-UAV plan)":<42}{value:>28.4f}'
