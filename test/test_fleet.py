@@ -251,3 +251,19 @@ def test_the_fleet_benchmark_reports_each_fleet_above_its_single_plans(capsys):
     assert [row[0] for row in rows] == ['1', '2', '3']
     for row in rows[1:]:
         assert float(row[3]) >= float(row[5]) and float(row[6]) >= 100.0
+
+
+def test_in_wind_every_uav_keeps_its_airspeed():
+    """8 m/s from the east, V_air = 30 m/s: every leg's ground velocity minus the wind within
+    V_air (the leg block's airspeed cone, per UAV)."""
+    base = paper_scenario('I', max_speed_mps=40.0, max_airspeed_mps=30.0, wind_speed_mps=8.0,
+                          wind_from_deg=90.0, horizon_s=100.0)
+    fleet = FleetScenario(base, ((0, 0), (0, 500)), ((2000, 0), (2000, 500)), 150.0)
+    result = plan_fleet(fleet, FleetSettings(single=SolverSettings(screened_tours=4)))
+    check_plan(result)
+    wind = np.array([-8.0, 0.0])          # from the east: the air moves west
+    for k in range(2):
+        path = np.vstack([fleet.starts_m[k], result.trajectories[k], fleet.goals_m[k]])
+        velocity = np.diff(path, axis=0) / base.slot_s
+        assert np.linalg.norm(velocity - wind, axis=1).max() <= 30.0 * (1 + 1e-9)
+    assert result.min_throughput >= max(result.single_throughputs.values())

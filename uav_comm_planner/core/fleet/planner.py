@@ -9,7 +9,8 @@ The starts (:mod:`.starts`):
 * ``'partition'``: each UAV's single-UAV plan (:func:`~uav_comm_planner.core.optimizer.plan`)
   over its own group of nodes, pushed apart to d_min;
 * ``'single k'``: UAV k flies its own single-UAV plan over all the nodes, the others their
-  partition trajectories pushed apart from it (UAV k held fixed). UAV k's plan with its power
+  partition trajectories (or, where those cannot be placed, their straight lines) pushed apart
+  from it (UAV k held fixed). UAV k's plan with its power
   and no power from the others is then a point of the fleet's problem, so the fleet's plan from
   this start is at least that single plan: K UAVs never serve the nodes worse than the best of
   the K single-UAV plans from their own ends (whenever the push-apart finds the others a place,
@@ -31,7 +32,7 @@ import numpy as np
 from uav_comm_planner.core.fleet.model import fleet_rates, fleet_snr
 from uav_comm_planner.core.fleet.power import common_value, coordinate_power, POWER_METHODS
 from uav_comm_planner.core.fleet.scenario import FleetScenario
-from uav_comm_planner.core.fleet.starts import partition, separate
+from uav_comm_planner.core.fleet.starts import partition, separate, straight_lines
 from uav_comm_planner.core.fleet.step import FleetStep
 from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.model import spectral_efficiency_to_rate
@@ -202,6 +203,7 @@ def _starts(fleet: FleetScenario, settings: FleetSettings
         else:
             own.append(straight_line(vehicle))
     own = np.stack(own)
+    lines = straight_lines(fleet)
     starts, singles, left_out = {}, {}, {}
     if 'partition' in settings.starts:
         separated = separate(own, fleet)
@@ -214,9 +216,13 @@ def _starts(fleet: FleetScenario, settings: FleetSettings
             name = f'single {k + 1}'
             single = plan(vehicle, settings.single)
             singles[name] = single.min_throughput
-            q = own.copy()
-            q[k] = single.trajectory
-            separated = separate(q, fleet, fixed=(k,))
+            separated = None
+            for others in (own, lines):         # the others' own tours, else straight lines
+                q = others.copy()
+                q[k] = single.trajectory
+                separated = separate(q, fleet, fixed=(k,))
+                if separated is not None:
+                    break
             if separated is None:
                 left_out[name] = (f'the push-apart found the other UAVs no place at '
                                   f'{fleet.min_separation_m:g} m from UAV {k + 1}\'s plan')
