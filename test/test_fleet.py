@@ -18,7 +18,7 @@ from uav_comm_planner.core.fleet.starts import partition, separate, straight_lin
 from uav_comm_planner.core.fleet.step import FleetStep, step_clarabel, step_cvxpy
 from uav_comm_planner.core.optimizer import plan
 from uav_comm_planner.core.scenario import paper_scenario, SolverSettings
-from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.errors import ComputeBudgetError, InvalidScenarioError
 
 
 def rates_by_hand(q, p, fleet):
@@ -201,6 +201,9 @@ def test_bad_settings_are_refused():
         FleetSettings(starts=('nowhere',))
     with pytest.raises(InvalidScenarioError, match='FleetScenario'):
         plan_fleet(paper_scenario('I'))
+    fleet = FleetScenario(paper_scenario('I'), ((0, 0), (0, 500)), ((2000, 0), (2000, 500)))
+    with pytest.raises(ComputeBudgetError, match='K x N x M = 2 UAVs x 3 nodes x 50 slots'):
+        plan_fleet(fleet, FleetSettings(single=SolverSettings(max_node_slots=200)))
 
 
 def test_one_uav_is_the_single_uav_plan_or_better():

@@ -39,7 +39,7 @@ from uav_comm_planner.core.model import spectral_efficiency_to_rate
 from uav_comm_planner.core.optimizer import plan
 from uav_comm_planner.core.scenario import SolverSettings
 from uav_comm_planner.core.search import Step
-from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.errors import ComputeBudgetError, InvalidScenarioError
 
 logger = logging.getLogger(__name__)
 
@@ -235,7 +235,8 @@ def plan_fleet(fleet: FleetScenario, settings: FleetSettings | None = None) -> F
     """Plan every UAV's trajectory and power jointly (module docstring).
 
     Raises :class:`~uav_comm_planner.errors.InvalidScenarioError` for a fleet or settings out of
-    their domain, or when no start keeps the separation, and
+    their domain (:class:`~uav_comm_planner.errors.ComputeBudgetError` when K x N x M exceeds
+    ``settings.single.max_node_slots``), or when no start keeps the separation, and
     :class:`~uav_comm_planner.errors.SolverError` when a convex step fails.
     """
     began = time.perf_counter()
@@ -247,6 +248,13 @@ def plan_fleet(fleet: FleetScenario, settings: FleetSettings | None = None) -> F
         raise InvalidScenarioError(
             f'settings must be FleetSettings or None, got {type(settings).__name__}')
     settings.single.check(fleet.scenario)
+    size = fleet.num_uavs * fleet.scenario.num_nodes * fleet.scenario.num_slots
+    if size > settings.single.max_node_slots:
+        raise ComputeBudgetError(
+            f'problem too large: K x N x M = {fleet.num_uavs} UAVs x '
+            f'{fleet.scenario.num_nodes} nodes x {fleet.scenario.num_slots} slots = {size} '
+            f'exceeds the compute budget max_node_slots = {settings.single.max_node_slots}; '
+            f'lower num_slots, the node count or the UAVs')
     starts, singles, left_out = _starts(fleet, settings)
     if not starts:
         raise InvalidScenarioError(
