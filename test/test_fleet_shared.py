@@ -28,8 +28,8 @@ def wu_fleet(count: int, separation: float = 100.0) -> FleetScenario:
                           power_budget_w=0.1 * SLOTS)
     if count == 1:
         return FleetScenario(base, ((0.0, 1000.0),), ((2000.0, 1000.0),), 0.0)
-    return FleetScenario(base, ((0.0, 800.0), (0.0, 1200.0)), ((2000.0, 800.0),
-                                                                (2000.0, 1200.0)), separation)
+    return FleetScenario(base, ((0.0, 800.0), (0.0, 1200.0)),
+                         ((2000.0, 800.0), (2000.0, 1200.0)), separation)
 
 
 def throughputs_by_hand(alpha, p, q, fleet):
