@@ -212,7 +212,8 @@ def test_one_uav_is_the_single_uav_plan_or_better():
     result = plan_fleet(fleet)
     check_plan(result)
     single = plan(fleet.vehicle(0), FleetSettings().single)
-    assert result.min_throughput >= single.min_throughput
+    # The conic power step meets the water-filling's optimum to its certified 1e-8.
+    assert result.min_throughput >= single.min_throughput * (1 - 1e-8)
     assert result.min_throughput == pytest.approx(single.min_throughput, rel=1e-3)
 
 
