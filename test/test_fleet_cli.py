@@ -51,13 +51,23 @@ def test_the_fleet_json_states_what_its_arrays_give(tmp_path, capsys):
 
 
 def test_one_mission_per_vehicle_each_ending_at_its_own_goal(tmp_path, capsys):
-    mission = tmp_path / 'm.waypoints'
+    mission, result_file = tmp_path / 'm.waypoints', tmp_path / 'r.json'
     status, out, err = run(capsys, 'plan', '--uavs', '2', '--start', '0,0;0,300',
                            '--goal', '600,0;600,300', '--min-separation', '50',
                            '--nodes', '100,100;500,200', '--speed', '8', '--horizon', '200',
-                           '--slots', '40', '--mission', str(mission))
+                           '--slots', '40', '--mission', str(mission), '--json',
+                           str(result_file))
     assert status == 0, err
     assert not mission.exists()
+    # Planned at d_min = 50 m, the missions as ArduCopter times them came within 46.9 m: the
+    # plan kept more at its slots, so that the missions keep 50 m.
+    (line,) = [line for line in out.splitlines() if line.startswith('missions as ardupilot')]
+    closest = float(line.split('closest approach ')[1].split()[0])
+    data = json.loads(result_file.read_text())
+    assert closest >= 50.0 == data['min_separation_m']
+    assert data['planned_separation_m'] > 50.0
+    q = np.array(data['trajectories'])
+    assert np.linalg.norm(q[0] - q[1], axis=1).min() >= data['planned_separation_m']
     home = default_home('ardupilot')
     for k, goal in enumerate(((600.0, 0.0), (600.0, 300.0)), start=1):
         items = read_waypoints(tmp_path / f'm_uav{k}.waypoints')
@@ -92,10 +102,23 @@ def test_bad_fleet_input_is_one_line_and_status_2(tmp_path, capsys, argv, messag
 
 
 def test_a_mission_the_vehicle_cannot_fly_writes_nothing(tmp_path, capsys):
-    """At the letter's 100 m/s, faster than ArduCopter's default cruise: refused before the
-    first file (the JSON included)."""
+    """At the letter's 100 m/s, faster than ArduCopter's default cruise (10 m/s): refused
+    before the first file (the JSON included)."""
     result_file, mission = tmp_path / 'r.json', tmp_path / 'm.waypoints'
     status, _, err = run(capsys, 'plan', *FLEET, '--json', str(result_file),
                          '--mission', str(mission))
-    assert status == 2 and 'faster than the vehicle flies' in err
+    assert status == 2 and 'the vehicle cannot fly this plan on time' in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_missions_that_the_autopilot_would_fly_too_close_are_refused(tmp_path, capsys):
+    """Ends exactly d_min apart: no plan with more separation exists, and the missions as
+    ArduCopter times them come within 36 m: refused, nothing written."""
+    mission = tmp_path / 'm.waypoints'
+    status, _, err = run(capsys, 'plan', '--uavs', '2', '--start', '0,0;0,50',
+                         '--goal', '600,0;600,50', '--min-separation', '50',
+                         '--nodes', '100,100;500,-50', '--speed', '8', '--horizon', '200',
+                         '--slots', '40', '--mission', str(mission),
+                         '--json', str(tmp_path / 'r.json'))
+    assert status == 2 and 'below d_min = 50 m' in err and 'fly the plan streamed' in err
     assert list(tmp_path.iterdir()) == []

@@ -12,8 +12,13 @@ written.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import itertools
+import math
 from pathlib import Path
 from typing import Callable
+
+import numpy as np
 
 from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
 from uav_comm_planner.core.fleet.model import closest_approach_m
@@ -91,9 +96,77 @@ def uav_result(result: FleetPlan, k: int) -> PlanResult:
                       history=(), start=result.start)
 
 
-def fleet_to_dict(result: FleetPlan, settings: FleetSettings) -> dict:
+#: The missions' timed flights are compared at this share of a slot.
+MISSION_SAMPLES_PER_SLOT = 20
+
+
+def missions_closest_approach(result: FleetPlan, limits: VehicleLimits, firmware: str
+                              ) -> tuple[float, float, tuple[int, int]] | None:
+    """The least distance between two vehicles flying their missions as the autopilot times
+    them (:func:`~uav_comm_planner.vehicle.flyable.schedule_flight`, every vehicle from its q0
+    at the same moment), metres, with when (seconds) and which pair (1-based); None for one
+    vehicle. The plan keeps d_min at its slot times; the autopilot's timing of a waypoint
+    mission is not the plan's, so this is what the missions themselves keep."""
+    from uav_comm_planner.vehicle.flyable import schedule_flight
+    count = result.fleet.num_uavs
+    if count < 2:
+        return None
+    flights = [schedule_flight(uav_result(result, k), limits, firmware=firmware).flight
+               for k in range(count)]
+    scenario = result.fleet.scenario
+    end = max(flight.end_s for flight in flights)
+    times = np.arange(0.0, end + scenario.slot_s, scenario.slot_s / MISSION_SAMPLES_PER_SLOT)
+    tracks = [flight.positions(times) for flight in flights]
+    closest = (math.inf, 0.0, (1, 2))
+    for j, k in itertools.combinations(range(count), 2):
+        gap = np.linalg.norm(tracks[j] - tracks[k], axis=1)
+        at = int(gap.argmin())
+        if gap[at] < closest[0]:
+            closest = (float(gap[at]), float(times[at]), (j + 1, k + 1))
+    return closest
+
+
+#: Plans the missions may take: each next one keeps more than d_min at its slots.
+MISSION_PLANS = 4
+
+
+def plan_for_missions(fleet: FleetScenario, settings: FleetSettings, limits: VehicleLimits,
+                      firmware: str) -> tuple[FleetPlan, str]:
+    """A plan whose missions, as the autopilot times them (:func:`missions_closest_approach`),
+    keep d_min, and the line that says so: planned at d_min first, then, while the missions
+    come closer, at a separation raised by one and a half times their shortfall each time (at
+    most :data:`MISSION_PLANS` plans). Refuses (PlannerError) when none does."""
+    required = planned = fleet.min_separation_m
+    found = None
+    for _ in range(MISSION_PLANS):
+        try:
+            attempt = dataclasses.replace(fleet, min_separation_m=planned)
+        except InvalidScenarioError:        # the ends themselves are closer than that
+            break
+        result = plan_fleet(attempt, settings)
+        found = missions_closest_approach(result, limits, firmware)
+        if found is None:
+            return result, 'one vehicle: no separation to keep'
+        gap, at, (j, k) = found
+        if gap >= required:
+            return result, (f'missions as {firmware} times them: closest approach {gap:.1f} m '
+                            f'(UAV {j} and UAV {k} at {at:.1f} s), d_min {required:g} m, '
+                            f'planned with {planned:.1f} m at the slots')
+        planned += max(1.5 * (required - gap), 1.0)
+    gap, at, (j, k) = found
+    raise PlannerError(
+        f'the missions, flown as {firmware} times them (every vehicle from its q0 at the same '
+        f'moment), bring UAV {j} and UAV {k} within {gap:.1f} m of each other at {at:.1f} s, '
+        f'below d_min = {required:g} m, even planned with more separation: fly the plan '
+        f'streamed (docs/fleet.md), or move the vehicles\' ends apart')
+
+
+def fleet_to_dict(result: FleetPlan, settings: FleetSettings,
+                  required_separation_m: float | None = None) -> dict:
     """The JSON result: trajectories (K x M x 2, metres), power (K x N x M, watts), times,
-    rates (N, bit/s, summed over the UAVs), min_throughput, and how it was reached."""
+    rates (N, bit/s, summed over the UAVs), min_throughput, and how it was reached;
+    min_separation_m is d_min as asked (``required_separation_m``, default the plan's),
+    planned_separation_m what the plan keeps at its slots (more when the missions needed it)."""
     fleet = result.fleet
     return {
         'uavs': fleet.num_uavs,
@@ -104,7 +177,9 @@ def fleet_to_dict(result: FleetPlan, settings: FleetSettings) -> dict:
         'min_throughput': result.min_throughput,
         'starts_m': [list(point) for point in fleet.starts_m],
         'goals_m': [list(point) for point in fleet.goals_m],
-        'min_separation_m': fleet.min_separation_m,
+        'min_separation_m': (fleet.min_separation_m if required_separation_m is None
+                             else required_separation_m),
+        'planned_separation_m': fleet.min_separation_m,
         'closest_approach_m': (closest_approach_m(result.trajectories)
                                if fleet.num_uavs > 1 else None),
         'single_uav_throughputs': dict(result.single_throughputs),
@@ -153,9 +228,15 @@ def command(args: argparse.Namespace, base: Scenario, single: SolverSettings, *,
     for path in missions:
         check_mission_path(path)
     settings = FleetSettings(single=single)
-    result = plan_fleet(fleet, settings)
+    if missions:
+        result, apart = plan_for_missions(fleet, settings, limits, args.firmware)
+    else:
+        result, apart = plan_fleet(fleet, settings), None
     print(format_fleet(result))
-    text = json_text(fleet_to_dict(result, settings)) if args.json is not None else None
+    if apart is not None:
+        print(apart)
+    text = (json_text(fleet_to_dict(result, settings, fleet.min_separation_m))
+            if args.json is not None else None)
     items = [build_mission_items(uav_result(result, k), home, end=args.mission_end,
                                  firmware=args.firmware, limits=limits)
              for k in range(len(missions))]
@@ -176,4 +257,5 @@ def check_not_fleet(args: argparse.Namespace) -> None:
 
 
 __all__ = ['add_arguments', 'check_not_fleet', 'command', 'fleet_mission_paths',
-           'fleet_request', 'fleet_to_dict', 'format_fleet', 'uav_result']
+           'fleet_request', 'fleet_to_dict', 'format_fleet', 'missions_closest_approach',
+           'plan_for_missions', 'uav_result']
