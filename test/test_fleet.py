@@ -215,6 +215,9 @@ def test_one_uav_is_the_single_uav_plan_or_better():
     # The conic power step meets the water-filling's optimum to its certified 1e-8.
     assert result.min_throughput >= single.min_throughput * (1 - 1e-8)
     assert result.min_throughput == pytest.approx(single.min_throughput, rel=1e-3)
+    alone = plan_fleet(fleet, FleetSettings(starts=('single',)))
+    assert alone.start == 'single 1' and alone.single_throughputs['single 1'] == pytest.approx(
+        single.min_throughput, rel=1e-12)
 
 
 def test_without_separation_two_uavs_may_meet_and_the_coordinate_power_serves():

@@ -211,7 +211,9 @@ def _starts(fleet: FleetScenario, settings: FleetSettings
             left_out['partition'] = 'the push-apart found no separated trajectories'
         else:
             starts['partition'] = separated
-    if 'single' in settings.starts and fleet.num_uavs > 1:
+    # One UAV's 'single 1' is its partition start (all nodes in its group), unless only
+    # 'single' is asked for.
+    if 'single' in settings.starts and (fleet.num_uavs > 1 or 'partition' not in starts):
         for k, vehicle in enumerate(fleet.vehicles):
             name = f'single {k + 1}'
             single = plan(vehicle, settings.single)
