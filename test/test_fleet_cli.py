@@ -122,3 +122,49 @@ def test_missions_that_the_autopilot_would_fly_too_close_are_refused(tmp_path, c
                          '--json', str(tmp_path / 'r.json'))
     assert status == 2 and 'below d_min = 50 m' in err and 'fly the plan streamed' in err
     assert list(tmp_path.iterdir()) == []
+
+
+SHARED = ('--uavs', '2', '--start', '0,800;0,1200', '--goal', '2000,800;2000,1200',
+          '--min-separation', '100', '--nodes', '300,500;1000,1500;1700,600', '--speed', '50',
+          '--horizon', '60', '--slots', '30', '--noise-dbm', '-110', '--beta0', '1e-6',
+          '--budget', '3', '--shared-band')
+
+
+def test_the_shared_band_json_states_what_its_arrays_give(tmp_path, capsys):
+    """B x (1/M) sum_m sum_k alpha log2(1 + SINR), SINR written out from the JSON's arrays."""
+    result_file = tmp_path / 's.json'
+    status, out, err = run(capsys, 'plan', *SHARED, '--json', str(result_file),
+                           '--figure', str(tmp_path / 's.png'))
+    assert status == 0, err
+    data = json.loads(result_file.read_text())
+    q, p, alpha = (np.array(data[key]) for key in ('trajectories', 'power', 'schedule'))
+    assert q.shape == (2, 30, 2) and p.shape == (2, 30) and alpha.shape == (2, 3, 30)
+    s = data['scenario']
+    nodes = np.array(s['ground_nodes_m'])
+    noise = s['bandwidth_hz'] * 10 ** ((s['noise_psd_dbm_per_hz'] - 30) / 10)
+    d = ((q[:, None] - nodes[None, :, None]) ** 2).sum(axis=-1) + s['altitude_m'] ** 2
+    received = p[:, None, :] * s['reference_gain'] / (noise * d)
+    sinr = received / (1 + received.sum(axis=0) - received)
+    rates = s['bandwidth_hz'] * (alpha * np.log2(1 + sinr)).sum(axis=0).mean(axis=1)
+    assert np.allclose(data['rates'], rates, rtol=1e-10)
+    assert data['min_throughput'] == pytest.approx(rates.min(), rel=1e-10)
+    assert alpha.sum(axis=1).max() <= 1 + 1e-6 and alpha.sum(axis=0).max() <= 1 + 1e-6
+    assert p.min() >= 0 and p.sum(axis=1).max() <= 3.0 * (1 + 1e-9)
+    assert np.linalg.norm(q[0] - q[1], axis=1).min() >= 100.0
+    (with_control,) = [float(line.split()[-1]) for line in out.splitlines()
+                       if line.startswith('shared band, power control')]
+    (without,) = [float(line.split()[-1]) for line in out.splitlines()
+                  if line.startswith('shared band, no power control')]
+    assert with_control == round(data['min_throughput'], 4) and with_control >= without
+    assert data['power_control'] and (tmp_path / 's.png').read_bytes()[:4] == b'\x89PNG'
+
+
+@pytest.mark.parametrize('argv, message', [
+    (('--shared-band',), '--shared-band needs --uavs'),
+    (FLEET + ('--no-power-control',), '--no-power-control is for --shared-band'),
+    (SHARED + ('--mission', 'm.waypoints'), 'missions are not exported yet'),
+])
+def test_bad_shared_band_input_is_one_line(tmp_path, capsys, argv, message):
+    status, _, err = run(capsys, 'plan', *argv, '--json', str(tmp_path / 'r.json'))
+    assert status == 2 and err.count('\n') == 1 and message in err
+    assert list(tmp_path.iterdir()) == []

@@ -24,6 +24,7 @@ from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
 from uav_comm_planner.core.fleet.model import closest_approach_m
 from uav_comm_planner.core.fleet.planner import FleetPlan
 from uav_comm_planner.core.fleet.scenario import MAX_UAVS
+from uav_comm_planner.core.fleet.shared_band import plan_shared_band, SharedBandPlan
 from uav_comm_planner.core.model import average_rates
 from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.optimizer import PlanResult
@@ -61,6 +62,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument('--min-separation', type=float, metavar='M',
                        help='least distance between any two UAVs in every slot, metres '
                             '(with --uavs; default 0)')
+    group.add_argument('--shared-band', action='store_true',
+                       help="Wu 2018's model instead: one band B for all UAVs, each serving one "
+                            'node per slot, the others interfering (with --uavs; --json and '
+                            '--figure)')
+    group.add_argument('--no-power-control', action='store_true',
+                       help='with --shared-band: every UAV sends P_T / M in every slot')
 
 
 def fleet_mission_paths(path: Path, count: int) -> list[Path]:
@@ -217,17 +224,83 @@ def format_fleet(result: FleetPlan) -> str:
     return '\n'.join(lines)
 
 
+def shared_band_to_dict(result: SharedBandPlan, settings: FleetSettings) -> dict:
+    """The shared band's JSON result: trajectories (K x M x 2, metres), power (K x M, watts:
+    one per UAV and slot), schedule (K x N x M, the share of each slot UAV k gives node n),
+    rates (N, bit/s) and min_throughput (bit/s), B times Wu's bit/s/Hz."""
+    fleet = result.fleet
+    bandwidth = fleet.scenario.bandwidth_hz
+    return {
+        'model': 'shared band',
+        'power_control': result.power_control,
+        'uavs': fleet.num_uavs,
+        'trajectories': result.trajectories.tolist(),
+        'times': fleet.scenario.times_s.tolist(),
+        'power': result.power.tolist(),
+        'schedule': result.schedule.tolist(),
+        'rates': (bandwidth * result.throughputs).tolist(),
+        'min_throughput': bandwidth * result.min_throughput,
+        'starts_m': [list(point) for point in fleet.starts_m],
+        'goals_m': [list(point) for point in fleet.goals_m],
+        'min_separation_m': fleet.min_separation_m,
+        'closest_approach_m': (closest_approach_m(result.trajectories)
+                               if fleet.num_uavs > 1 else None),
+        'history': [{'step': kind, 'min_throughput': bandwidth * value}
+                    for kind, value in result.history],
+        'scenario': scenario_to_dict(fleet.scenario),
+        **run_record(settings.single),
+    }
+
+
+def plan_shared(fleet: FleetScenario, settings: FleetSettings, *,
+                power_control: bool) -> tuple[SharedBandPlan, list[str]]:
+    """Wu's shared band from the orthogonal fleet's trajectories, without power control, then
+    (``power_control``) with it from there; the plan and its table's lines."""
+    start = plan_fleet(fleet, settings)
+    without = plan_shared_band(fleet, start.trajectories, power_control=False)
+    result = (plan_shared_band(fleet, without.trajectories, power=without.power)
+              if power_control else without)
+    bandwidth = fleet.scenario.bandwidth_hz
+    rows = [('shared band, power control', result.min_throughput)] if power_control else []
+    rows.append(('shared band, no power control', without.min_throughput))
+    lines = [f'{"method":<42}{"min avg throughput (bit/s)":>28}']
+    lines += [f'{label:<42}{bandwidth * value:>28.4f}' for label, value in rows]
+    closest = (f', closest approach {closest_approach_m(result.trajectories):.1f} m'
+               if fleet.num_uavs > 1 else '')
+    lines.append(f'{len(result.history)} blocks (schedule, power, trajectories){closest}')
+    return result, lines
+
+
 def command(args: argparse.Namespace, base: Scenario, single: SolverSettings, *,
             limits: VehicleLimits, home: Home, json_text: Callable[[object], str]) -> int:
     """Plan the fleet, print its table, write what was asked; 0 on success."""
     from uav_comm_planner.vehicle.mavlink.files import check_mission_path, write_mission_file
     from uav_comm_planner.vehicle.mavlink.items import build_mission_items
+    if args.no_power_control and not args.shared_band:
+        raise PlannerError('--no-power-control is for --shared-band (on orthogonal channels '
+                           'the power step is the plan)')
     fleet = fleet_request(args, base)
     missions = (fleet_mission_paths(args.mission, fleet.num_uavs)
                 if args.mission is not None else [])
     for path in missions:
         check_mission_path(path)
     settings = FleetSettings(single=single)
+    if args.shared_band:
+        if missions:
+            raise PlannerError('--shared-band writes --json and --figure; its missions are '
+                               'not exported yet')
+        shared, lines = plan_shared(fleet, settings, power_control=not args.no_power_control)
+        print(f'K = {counted(fleet.num_uavs, "UAV")} on one shared band, N = '
+              f'{counted(fleet.scenario.num_nodes, "node")}, d_min = '
+              f'{fleet.min_separation_m:g} m\n' + '\n'.join(lines))
+        text = (json_text(shared_band_to_dict(shared, settings)) if args.json is not None
+                else None)
+        if text is not None:
+            print(f'wrote {write_text_atomic(args.json, text)}')
+        if args.figure is not None:
+            from uav_comm_planner.tools.fleet_plots import fleet_figure
+            print(f'wrote {fleet_figure(shared, args.figure)}')
+        return 0
     if missions:
         result, apart = plan_for_missions(fleet, settings, limits, args.firmware)
     else:
@@ -251,11 +324,13 @@ def command(args: argparse.Namespace, base: Scenario, single: SolverSettings, *,
 
 
 def check_not_fleet(args: argparse.Namespace) -> None:
-    """Without --uavs: refuse --min-separation (PlannerError)."""
-    if args.min_separation is not None:
-        raise InvalidScenarioError('--min-separation needs --uavs K (a fleet)')
+    """Without --uavs: refuse the fleet's flags (PlannerError)."""
+    for flag, given in (('--min-separation', args.min_separation is not None),
+                        ('--shared-band', args.shared_band)):
+        if given:
+            raise InvalidScenarioError(f'{flag} needs --uavs K (a fleet)')
 
 
 __all__ = ['add_arguments', 'check_not_fleet', 'command', 'fleet_mission_paths',
            'fleet_request', 'fleet_to_dict', 'format_fleet', 'missions_closest_approach',
-           'plan_for_missions', 'uav_result']
+           'plan_for_missions', 'plan_shared', 'shared_band_to_dict', 'uav_result']

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from uav_comm_planner.core.fleet.planner import FleetPlan
+from uav_comm_planner.core.fleet.shared_band import SharedBandPlan
 from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.tools.plots import (_legend_below, _pyplot, check_figure_path,
                                           format_rate, save_figure)
@@ -20,10 +21,19 @@ UAV_COLOURS = ('tab:blue', 'tab:orange', 'tab:green', 'tab:purple', 'tab:brown',
                'tab:olive', 'tab:cyan')
 
 
-def draw_fleet(result: FleetPlan, *, title: str = ''):
-    """Paths, pair distances and power per UAV in three panels; returns the figure."""
+def slot_power(result: FleetPlan | SharedBandPlan) -> np.ndarray:
+    """Each UAV's transmit power per slot, all nodes together: (K, M) watts."""
+    power = np.asarray(result.power)
+    return power.sum(axis=1) if power.ndim == 3 else power
+
+
+def draw_fleet(result: FleetPlan | SharedBandPlan, *, title: str = ''):
+    """Paths, pair distances and power per UAV in three panels (a fleet on orthogonal channels
+    or on the shared band); returns the figure."""
     plt = _pyplot()
     fleet, scenario = result.fleet, result.fleet.scenario
+    times = scenario.times_s
+    power = slot_power(result)
     figure, (ax_path, ax_gap, ax_power) = plt.subplots(1, 3, figsize=(15, 5.2),
                                                        layout='constrained')
     for k, (q_k, vehicle) in enumerate(zip(result.trajectories, fleet.vehicles)):
@@ -33,8 +43,7 @@ def draw_fleet(result: FleetPlan, *, title: str = ''):
                      label=f'UAV {k + 1}')
         ax_path.plot(*vehicle.start_m, 's', color=colour, markersize=8)
         ax_path.plot(*vehicle.goal_m, '*', color=colour, markersize=12)
-        ax_power.step(result.times, result.power[k].sum(axis=0), where='mid', color=colour,
-                      label=f'UAV {k + 1}')
+        ax_power.step(times, power[k], where='mid', color=colour, label=f'UAV {k + 1}')
     w = scenario.nodes
     ax_path.plot(w[:, 0], w[:, 1], '^', color='tab:red', markersize=9, label='ground nodes')
     ax_path.set(xlabel='x (m)', ylabel='y (m)', title='trajectories (square: q0, star: qF)')
@@ -43,7 +52,7 @@ def draw_fleet(result: FleetPlan, *, title: str = ''):
     _legend_below(ax_path, columns=3)
     for j, k in itertools.combinations(range(fleet.num_uavs), 2):
         gap = np.linalg.norm(result.trajectories[j] - result.trajectories[k], axis=1)
-        ax_gap.plot(result.times, gap, label=f'UAV {j + 1} - UAV {k + 1}')
+        ax_gap.plot(times, gap, label=f'UAV {j + 1} - UAV {k + 1}')
     if fleet.min_separation_m > 0:
         ax_gap.axhline(fleet.min_separation_m, color='grey', linestyle=':',
                        label=f'd_min = {fleet.min_separation_m:g} m')
@@ -55,16 +64,22 @@ def draw_fleet(result: FleetPlan, *, title: str = ''):
     ax_power.set_ylim(bottom=0.0)
     ax_power.ticklabel_format(axis='y', useOffset=False)
     _legend_below(ax_power, columns=min(fleet.num_uavs, 4))
+    if isinstance(result, SharedBandPlan):
+        stated = (f'{result.min_throughput:.4f} bit/s/Hz on one shared band '
+                  f'({"with" if result.power_control else "without"} power control)')
+    else:
+        stated = format_rate(result.min_throughput)
     figure.suptitle(title or (f'{fleet.num_uavs} UAVs, {scenario.num_nodes} nodes: min average '
-                              f'throughput {format_rate(result.min_throughput)}, '
+                              f'throughput {stated}, '
                               f'$P_T$ = {scenario.power_budget_w:g} W per UAV'))
     return figure
 
 
-def fleet_figure(result: FleetPlan, path: str | os.PathLike, *, title: str = '') -> Path:
+def fleet_figure(result: FleetPlan | SharedBandPlan, path: str | os.PathLike, *,
+                 title: str = '') -> Path:
     """Draw :func:`draw_fleet` into ``path`` (.png, .pdf or .svg) atomically."""
     check_figure_path(path)
     return save_figure(draw_fleet(result, title=title), path)
 
 
-__all__ = ['draw_fleet', 'fleet_figure', 'UAV_COLOURS']
+__all__ = ['draw_fleet', 'fleet_figure', 'slot_power', 'UAV_COLOURS']
