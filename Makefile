@@ -118,6 +118,9 @@ figures: $(STAMP)
 		--figure docs/fig1_case_I_low_snr.png
 	$(BIN)/uav-comm-planner energy-sweep --case I --speed 30 --horizon 200 --airframe zeng2019 \
 		--figure docs/fig_energy_tradeoff_case_I.png
+	$(BIN)/uav-comm-planner plan --uavs 2 --start "0,0;0,500" --goal "2000,0;2000,500" \
+		--min-separation 100 --figure docs/fleet_case_I.png
+	$(BIN)/python -m devtools.shared_band_study --figure docs/fleet_shared_band.png
 
 # The parameter tables of docs/node.md, from the node's own parameter descriptors
 # (devtools/docgen.py, not installed).

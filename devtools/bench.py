@@ -17,6 +17,8 @@
   (:mod:`devtools.replans`), for ArduCopter and for PX4.
 * Quality: on seeded random drops, the default plan against the letter's Algorithm 1 and the
   best known plan, with the dual upper bound (:mod:`uav_comm_planner.core.bound`) and its gap.
+* Fleets: K = 1, 2, 3 UAVs planned jointly over one drop, N = 20, M = 500
+  (:mod:`devtools.fleet_bench`).
 
 Run ``make bench`` or, from the checkout, ``python -m devtools.bench`` (``--quick`` for a
 smaller run).
@@ -39,6 +41,7 @@ from typing import Callable, Sequence, TextIO
 import numpy as np
 from scipy.special import betaincinv
 
+from devtools.fleet_bench import fleet_table
 from devtools.flights import flight_cases, fly_case, format_flights
 from devtools.replans import (format_replan_drops, format_replans, measure_replan_drops,
                               measure_replans, REPLAN_POINTS)
@@ -470,6 +473,9 @@ def run(quick: bool = False, out: TextIO | None = None, *, flights: bool = True,
             format_replans(measure_replans((1,) if quick else (1, 2, 3),
                                            points=REPLAN_POINTS[1:2] if quick else REPLAN_POINTS,
                                            firmware='px4')))
+    section('Fleets: K = 1, 2, 3 UAVs planned jointly over one drop (orthogonal channels, '
+            'd_min = 100 m; devtools/fleet_bench.py), one plan each',
+            fleet_table(quick))
     cases, max_slots = (3, 80) if quick else (QUALITY_DROPS, 199)
     drops = (f'random drops: N 3-20, M 51-{max_slots}, slots 0.5-2 s, V 20-100 m/s; best known: '
              'the best of the default, the letter and 20 other random tours run to '

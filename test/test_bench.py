@@ -206,3 +206,11 @@ def test_the_replans_sections_time_the_node_s_replan_warm_and_in_full(output, ti
     summary = next(line for line in lines if 'random replans' in line)
     assert re.match(r'3 random replans: warm median \d+\.\d+ s, full search \d+\.\d+ s; warm '
                     r'more than 0\.1 % below the full search in \d', summary)
+
+
+def test_the_fleet_section_plans_one_two_and_three_uavs(output):
+    rows = [line.split() for line in section(output, 'Fleets')[1:]]
+    assert [row[0] for row in rows] == ['1', '2', '3']
+    for row in rows[1:]:
+        assert float(row[3]) >= float(row[5])         # at least the best single-UAV plan
+        assert float(row[6]) >= 100.0                  # d_min kept

@@ -25,7 +25,8 @@ from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import check_output_path, read_json_file, write_text_atomic
 from uav_comm_planner.tools import (altitude_cli, altitude_study, energy_sweep, fading_cli,
-                                    fit_airframe)
+                                    fit_airframe, fleet_cli)
+from uav_comm_planner.tools.arguments import _ends, _floats, _home, _nodes, _wind
 from uav_comm_planner.tools.energy_cli import (add_airframe_argument, add_energy_arguments,
                                                energy_record, energy_request, format_energy,
                                                planner_for)
@@ -35,7 +36,7 @@ from uav_comm_planner.tools.serialize import (package_version, result_to_dict, r
                                               settings_from_dict)
 from uav_comm_planner.tools.study import command as montecarlo
 from uav_comm_planner.vehicle.firmware import FIRMWARES
-from uav_comm_planner.vehicle.geodesy import default_home, Home
+from uav_comm_planner.vehicle.geodesy import default_home
 from uav_comm_planner.vehicle.mavlink.items import MISSION_ENDS
 
 #: The budgets of the letter's Fig. 2, watts.
@@ -89,40 +90,6 @@ _VEHICLE_FLAGS = {
 _VEHICLE_DEST = 'vehicle_'
 
 
-def _floats(text: str, count: int | None = None) -> list[float]:
-    try:
-        values = [float(v) for v in text.split(',')]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected comma-separated numbers, got {text!r}')
-    if count is not None and len(values) != count:
-        raise argparse.ArgumentTypeError(f'expected {count} comma-separated numbers, got {text!r}')
-    return values
-
-
-def _pair(text: str) -> tuple[float, float]:
-    x, y = _floats(text, 2)
-    return (x, y)
-
-
-def _nodes(text: str) -> list[tuple[float, float]]:
-    return [_pair(item) for item in text.split(';') if item.strip()]
-
-
-def _wind(text: str) -> tuple[float, float]:
-    speed, from_deg = _floats(text, 2)
-    if not (math.isfinite(speed) and speed >= 0 and math.isfinite(from_deg)):
-        raise argparse.ArgumentTypeError(
-            f'expected a wind speed >= 0 m/s and a direction in degrees, got {text!r}')
-    return speed, from_deg
-
-
-def _home(text: str) -> Home:
-    try:
-        return Home.parse(text)
-    except PlannerError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
 def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
     source = parser.add_mutually_exclusive_group()
     source.add_argument('--case', default='I', choices=['I', 'II', 'i', 'ii'],
@@ -132,8 +99,10 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
                              'written by --json also works)')
     parser.add_argument('--nodes', type=_nodes, metavar='X,Y;X,Y;...',
                         help='ground node positions, metres')
-    parser.add_argument('--start', type=_pair, metavar='X,Y', help='launch point q0, metres')
-    parser.add_argument('--goal', type=_pair, metavar='X,Y', help='landing point qF, metres')
+    parser.add_argument('--start', type=_ends, metavar='X,Y',
+                        help='launch point q0, metres (one per UAV with --uavs: X,Y;X,Y)')
+    parser.add_argument('--goal', type=_ends, metavar='X,Y',
+                        help='landing point qF, metres (one per UAV with --uavs: X,Y;X,Y)')
     parser.add_argument('--wind', type=_wind, metavar='SPEED,FROM_DEG',
                         help='the wind to plan for: m/s, and the direction it blows from in '
                              'degrees clockwise from north (as weather reports and '
@@ -197,10 +166,17 @@ def _scenario(args: argparse.Namespace, vehicle=None) -> Scenario:
         base = paper_scenario(args.case)
     changes = {field: getattr(args, field) for field in _SCALAR_FLAGS
                if getattr(args, field) is not None}
-    for field, name in (('ground_nodes_m', 'nodes'), ('start_m', 'start'), ('goal_m', 'goal'),
-                        ('channel', 'channel')):
+    for field, name in (('ground_nodes_m', 'nodes'), ('channel', 'channel')):
         if getattr(args, name) is not None:
             changes[field] = getattr(args, name)
+    for field, name in (('start_m', 'start'), ('goal_m', 'goal')):
+        ends = getattr(args, name)
+        if ends is None:
+            continue
+        if len(ends) != 1 and getattr(args, 'uavs', None) is None:
+            raise PlannerError(f'--{name} takes one point X,Y ({len(ends)} given: several '
+                               f'need --uavs K)')
+        changes[field] = ends[0]       # a fleet's first UAV's: the shared scenario is valid
     if args.wind is not None:
         changes['wind_speed_mps'], changes['wind_from_deg'] = args.wind
         airspeed = None if vehicle is None else vehicle.airspeed_for_wind_mps(args.wind[0])
@@ -307,7 +283,20 @@ def json_text(data: object) -> str:
                            'was written') from None
 
 
+def _command_fleet(args: argparse.Namespace) -> int:
+    """``plan --uavs K`` (:mod:`.fleet_cli`)."""
+    missions = ([] if args.mission is None else
+                fleet_cli.fleet_mission_paths(args.mission, args.uavs))
+    _check_outputs(args.json, *missions, figure=args.figure)
+    home = args.home if args.home is not None else default_home(args.firmware)
+    return fleet_cli.command(args, _scenario(args), _settings(args),
+                             limits=_vehicle_limits(args), home=home, json_text=json_text)
+
+
 def _command_plan(args: argparse.Namespace) -> int:
+    if args.uavs is not None:
+        return _command_fleet(args)
+    fleet_cli.check_not_fleet(args)
     _check_outputs(args.json, args.mission, figure=args.figure)
     fading = fading_cli.fading_from(args)
     altitudes = altitude_cli.altitude_limits(args, _vehicle_asked(args))
@@ -502,6 +491,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_energy_arguments(plan_parser)
     altitude_cli.add_arguments(plan_parser)
     fading_cli.add_arguments(plan_parser)
+    fleet_cli.add_arguments(plan_parser)
     plan_parser.set_defaults(handler=_command_plan)
 
     sweep_parser = commands.add_parser('sweep', help='min throughput against the power budget')
