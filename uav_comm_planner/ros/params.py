@@ -144,8 +144,7 @@ class NodeSettings:
         if self.mission_file:
             _check_bare_file_name(self.mission_file)
         if self.mavlink_url:
-            # Checked on set: an unknown kind, a bad port or a missing serial device is
-            # refused now, not found by the link's thread later.
+            # Checked on set: a bad link is refused now, not found by the link's thread later.
             parse_link_url(self.mavlink_url)
         try:
             self.home
@@ -212,9 +211,7 @@ DESCRIPTIONS = {
     'bandwidth_hz': 'total bandwidth B shared equally by the nodes (Hz)',
     'noise_psd_dbm_per_hz': 'noise power spectral density sigma^2 (dBm/Hz)',
     'reference_gain': 'channel power gain beta0 at 1 m (linear)',
-    'channel': "air-to-ground channel (docs/channel.md): free-space (the letter's), "
-               'free-space:alpha=A (path-loss exponent A), los:suburban, los:urban, '
-               "los:dense-urban, los:highrise-urban (Al-Hourani's line-of-sight probability)",
+    'channel': 'channel: free-space, free-space:alpha=A, los:ENV (docs/channel.md)',
     'power_budget_w': 'total transmit power budget P_T over all nodes and slots (W)',
     'wind_speed_mps': 'wind speed (m/s) the plan is made for; 0: still air',
     'wind_from_deg': 'direction the wind blows from, degrees clockwise from north (as '

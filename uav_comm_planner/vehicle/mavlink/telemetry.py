@@ -233,12 +233,11 @@ class VehicleBridge:
         self.url = url
         self.home = home
         self._on_event = on_event
-        self._settings, self._rate_hz = settings, rate_hz
-        self._connect_timeout_s = connect_timeout_s
+        self._settings, self._rate_hz, self._connect_timeout_s = (settings, rate_hz,
+                                                                  connect_timeout_s)
         #: The streamed trajectory, run on this thread at every position (None: no stream).
         self.stream = stream
-        self._home_limit_m = home_limit_m
-        self._lock = threading.Lock()
+        self._home_limit_m, self._lock = home_limit_m, threading.Lock()
         self._waiting: _Upload | None = None
         self._stop, self.ending = threading.Event(), EndRequest()
         #: What the vehicle told of itself: its home, its latest latitude and longitude.
