@@ -79,20 +79,26 @@ def _port_free(port: int) -> bool:
     return True
 
 
-#: Instances this process has started, never handed out again: a port just closed may linger.
-_USED_INSTANCES: set[int] = set()
+#: Instances this process has handed out, oldest first: a port just closed may linger, so an
+#: instance is handed out again only once every other one in its range has been.
+_USED_INSTANCES: list[int] = []
 
 
 def free_instance(first: int = 10, last: int = 59) -> int:
     """An instance number whose MAVLink port and its neighbours are free; processes start
-    their search at different places, so that test runs side by side rarely meet."""
+    their search at different places, so that test runs side by side rarely meet. Instances
+    this process has not used yet come first, then those it used longest ago."""
     span = last - first + 1
     start = first + os.getpid() % span
-    for offset in range(span):
-        instance = first + (start - first + offset) % span
+    ring = [first + (start - first + offset) % span for offset in range(span)]
+    fresh = [instance for instance in ring if instance not in _USED_INSTANCES]
+    again = [instance for instance in _USED_INSTANCES if first <= instance <= last]
+    for instance in fresh + again:
         base = BASE_PORT + 10 * instance
-        if instance not in _USED_INSTANCES and all(_port_free(base + k) for k in range(3)):
-            _USED_INSTANCES.add(instance)
+        if all(_port_free(base + k) for k in range(3)):
+            if instance in _USED_INSTANCES:
+                _USED_INSTANCES.remove(instance)
+            _USED_INSTANCES.append(instance)
             return instance
     raise VehicleLinkError(f'no free SITL instance between {first} and {last}')
 
