@@ -287,9 +287,8 @@ def px4_speed_for_time(vertices: np.ndarray, duration_s: float, max_speed_mps: f
     """The cruise (to 0.005 m/s) that reaches the end of ``vertices`` from rest
     (:func:`px4_reach_time`) in ``duration_s`` or less; ``max_speed_mps`` when even that is
     too slow."""
-    steps = max(1, math.ceil(math.log2(max_speed_mps / 0.005)))
     return slowest_speed_for(lambda speed: px4_reach_time(vertices, speed, limits), duration_s,
-                             max_speed_mps, iterations=steps)
+                             max_speed_mps, tolerance_mps=0.005)
 
 
 __all__ = ['ACCEPTANCE_RADIUS_M', 'SampledProfile', 'corner_speed', 'px4_leg_time',
