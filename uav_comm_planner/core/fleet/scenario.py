@@ -38,8 +38,9 @@ class FleetScenario:
     """K UAVs over the nodes of ``scenario`` (Wu 2018, orthogonal channels).
 
     scenario: the nodes, altitude, speed limit, horizon, slots, band B, noise, beta0 and the
-    budget P_T that every UAV has (each its own band and its own budget); its start and goal
-    are not used. starts_m, goals_m: q0_k and qF_k, K pairs each, metres.
+    budget P_T that every UAV has (each its own band and its own budget), and the speed
+    limits, wind, zones and airframe with its energy budget of every UAV (each UAV's horizon
+    energy within ``energy_budget_wh``, its own battery's); its start and goal are not used. starts_m, goals_m: q0_k and qF_k, K pairs each, metres.
     min_separation_m: d_min, the least horizontal distance between any two UAVs at every slot
     q_j[m], q_k[m] (m = 1..M; the ends, which are given, must keep it too). All UAVs fly at the
     same altitude H, so d_min is their distance.
@@ -63,11 +64,6 @@ class FleetScenario:
                 f'one goal per UAV: {len(starts)} starts but {len(goals)} goals')
         object.__setattr__(self, 'starts_m', starts)
         object.__setattr__(self, 'goals_m', goals)
-        if (self.scenario.zones is not None and not self.scenario.zones.empty) \
-                or self.scenario.energy_budget_wh is not None:
-            raise InvalidScenarioError(
-                'a fleet is planned without zones or an energy budget: its trajectory step has '
-                'the node rates, the speed limits (in wind too) and the separation only')
         separation = real_number('min_separation_m', self.min_separation_m)
         if not (math.isfinite(separation) and separation >= 0.0):
             raise InvalidScenarioError(
