@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
-
 from test_fence import degrees_at, plan_file
+
 from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.propulsion import ZENG2019
 from uav_comm_planner.core.scenario import paper_scenario

@@ -4,6 +4,7 @@ clearance and the horizon energy recomputed outside the step's rows."""
 
 import numpy as np
 import pytest
+from test_fleet import check_plan
 
 from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
@@ -20,7 +21,6 @@ from uav_comm_planner.core.sca.zones import ZoneHalfPlanes
 from uav_comm_planner.core.scenario import paper_scenario, SolverSettings
 from uav_comm_planner.core.zones import KeepOutCircle, KeepOutPolygon, Zones
 from uav_comm_planner.errors import InvalidScenarioError
-from test_fleet import check_plan
 
 ENDS = (((0, 0), (0, 500)), ((2000, 0), (2000, 500)))
 #: A disc over the middle node (1000, 200) and a block between the lines' ends.

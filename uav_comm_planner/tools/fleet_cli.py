@@ -22,6 +22,7 @@ from typing import Callable
 
 import numpy as np
 
+from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
 from uav_comm_planner.core.fleet.model import closest_approach_m
 from uav_comm_planner.core.fleet.planner import FleetPlan
@@ -31,7 +32,6 @@ from uav_comm_planner.core.fleet.shared_band import (check_shared_band, plan_sha
 from uav_comm_planner.core.model import average_rates
 from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.optimizer import PlanResult
-from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError, PlannerError

@@ -40,7 +40,8 @@ class FleetScenario:
     scenario: the nodes, altitude, speed limit, horizon, slots, band B, noise, beta0 and the
     budget P_T that every UAV has (each its own band and its own budget), and the speed
     limits, wind, zones and airframe with its energy budget of every UAV (each UAV's horizon
-    energy within ``energy_budget_wh``, its own battery's); its start and goal are not used. starts_m, goals_m: q0_k and qF_k, K pairs each, metres.
+    energy within ``energy_budget_wh``, its own battery's); its start and goal are not used.
+    starts_m, goals_m: q0_k and qF_k, K pairs each, metres.
     min_separation_m: d_min, the least horizontal distance between any two UAVs at every slot
     q_j[m], q_k[m] (m = 1..M; the ends, which are given, must keep it too). All UAVs fly at the
     same altitude H, so d_min is their distance.

@@ -10,7 +10,8 @@ speed limits and the separation.
   trajectories held fixed; with zones or an energy budget, each moved UAV also keeps its
   zones' restriction and its energy budget's (the single UAV's blocks at the trajectory given,
   :func:`~uav_comm_planner.core.fleet.step.vehicle_blocks`), and an answer is kept only if
-  every UAV keeps its zones' margin and its budget exactly (:func:`keeps_blocks`). Its separation rows are linearised at the trajectories given, with
+  every UAV keeps its zones' margin and its budget exactly (:func:`keeps_blocks`). Its
+  separation rows are linearised at the trajectories given, with
   the straight lines' direction where two UAVs coincide; each row implies d_min whatever its
   direction (:mod:`.separation`), so an answer is separated exactly. None when no answer is
   found with those directions.
