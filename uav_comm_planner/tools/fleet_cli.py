@@ -29,10 +29,9 @@ from uav_comm_planner.core.fleet.planner import FleetPlan
 from uav_comm_planner.core.fleet.scenario import MAX_UAVS
 from uav_comm_planner.core.fleet.shared_band import (check_shared_band, plan_shared_band,
                                                      SharedBandPlan)
-from uav_comm_planner.core.model import average_rates
+from uav_comm_planner.core.model import average_rates, flown_path
 from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.optimizer import PlanResult
-from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError, PlannerError
 from uav_comm_planner.files import write_text_atomic
