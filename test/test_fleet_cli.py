@@ -190,7 +190,7 @@ def test_a_fleet_keeps_out_of_the_fence_file_and_within_each_budget(tmp_path, ca
     result_file = tmp_path / 'r.json'
     status, out, err = run(capsys, 'plan', *FLEET, '--horizon', '100', '--fence', str(fence),
                            '--airframe', 'zeng2019', '--energy-budget-wh', '8.5',
-                           '--json', str(result_file))
+                           '--json', str(result_file), '--figure', str(tmp_path / 'f.svg'))
     assert status == 0, err
     data = json.loads(result_file.read_text())
     q = np.array(data['trajectories'])
@@ -207,3 +207,5 @@ def test_a_fleet_keeps_out_of_the_fence_file_and_within_each_budget(tmp_path, ca
         assert f'UAV {k + 1} horizon energy {energy_wh:.4g} Wh (budget 8.5 Wh)' in out
     assert data['zone_clearance_m'][0] >= 5.0 * (1 - 1e-9) and 'least clearance' in out
     assert data['min_throughput'] >= max(data['single_uav_throughputs'].values())
+    drawn = (tmp_path / 'f.svg').read_text()
+    assert 'keep-out zone' in drawn and '5 m margin' in drawn and 'UAV 2' in drawn
