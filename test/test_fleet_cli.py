@@ -3,6 +3,7 @@ mission per vehicle read back through pymavlink, the figure, and one-line errors
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,10 +13,12 @@ from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.propulsion import ZENG2019
 from uav_comm_planner.core.scenario import paper_scenario
 from uav_comm_planner.tools import cli
+from uav_comm_planner.vehicle.fence import read_zones
 from uav_comm_planner.vehicle.geodesy import default_home, geodetic_to_enu
 from uav_comm_planner.vehicle.mavlink.files import read_waypoints
 from uav_comm_planner.vehicle.mavlink.items import NAV_LAND, NAV_WAYPOINT
 
+CHECKOUT = Path(__file__).resolve().parents[1]
 FLEET = ('--uavs', '2', '--start', '0,0;0,500', '--goal', '2000,0;2000,500',
          '--min-separation', '100')
 
@@ -209,3 +212,27 @@ def test_a_fleet_keeps_out_of_the_fence_file_and_within_each_budget(tmp_path, ca
     assert data['min_throughput'] >= max(data['single_uav_throughputs'].values())
     drawn = (tmp_path / 'f.svg').read_text()
     assert 'keep-out zone' in drawn and '5 m margin' in drawn and 'UAV 2' in drawn
+
+
+def test_each_vehicles_mission_keeps_out_of_the_fence(tmp_path, capsys):
+    """The example fence's block between the nodes: every leg of each vehicle's mission, read
+    back through pymavlink, keeps the 5 m margin (less the geodesy's centimetres)."""
+    home = default_home('ardupilot')
+    fence = CHECKOUT / 'docs' / 'fence_example.geojson'
+    mission = tmp_path / 'm.waypoints'
+    status, out, err = run(capsys, 'plan', '--uavs', '2', '--start', '0,300;0,550',
+                           '--goal', '1000,300;1000,550', '--min-separation', '50',
+                           '--nodes', '300,200;800,450', '--speed', '8', '--horizon', '250',
+                           '--slots', '50', f'--home={home.latitude_deg},{home.longitude_deg},'
+                           f'{home.altitude_m}', '--fence', str(fence), '--mission', str(mission))
+    assert status == 0, err
+    zones = read_zones(fence, home)
+    for k in (1, 2):
+        items = [item for item in read_waypoints(tmp_path / f'm_uav{k}.waypoints')
+                 if item.command == NAV_WAYPOINT]
+        east, north, _ = geodetic_to_enu(np.array([item.x for item in items]),
+                                         np.array([item.y for item in items]), 0.0, home)
+        points = np.column_stack([east, north])
+        for zone in zones.keep_out:
+            least = min(zone.segment_clearance(a, b) for a, b in zip(points[:-1], points[1:]))
+            assert least >= zones.margin_m - 0.05, (k, least)
