@@ -103,17 +103,18 @@ def fleet_request(args: argparse.Namespace, base: Scenario, home: Home) -> Fleet
 
 
 def vehicle_figures(result: FleetPlan) -> dict:
-    """Each UAV's horizon energy (Wh, with an airframe) and its path's least clearance from
-    the zones (metres, with zones), None where the scenario has none."""
-    energy, clearance = [], []
+    """Each UAV's horizon energy and budget (Wh, with an airframe) and its path's least
+    clearance from the zones (metres, with zones), None where the scenario has none."""
+    energy, budgets, clearance = [], [], []
     for k, vehicle in enumerate(result.fleet.vehicles):
         q = result.trajectories[k]
         if vehicle.airframe is not None:
             energy.append(horizon_energy_j(q, vehicle, vehicle.airframe) / JOULES_PER_WH)
+            budgets.append(vehicle.energy_budget_wh)
         if vehicle.zones is not None and not vehicle.zones.empty:
             clearance.append(vehicle.zones.path_clearance(flown_path(q, vehicle)))
     return {'energy_wh': energy or None,
-            'energy_budget_wh': result.fleet.scenario.energy_budget_wh,
+            'energy_budget_wh': budgets if any(b is not None for b in budgets) else None,
             'zone_clearance_m': clearance or None}
 
 
@@ -247,8 +248,8 @@ def format_fleet(result: FleetPlan) -> str:
                  f'{result.solve_time_s:.2f} s')
     lines += [f'start {name!r} left out: {why}' for name, why in result.left_out.items()]
     figures = vehicle_figures(result)
-    budget = figures['energy_budget_wh']
-    for k, energy in enumerate(figures['energy_wh'] or ()):
+    budgets = figures['energy_budget_wh'] or [None] * fleet.num_uavs
+    for k, (energy, budget) in enumerate(zip(figures['energy_wh'] or (), budgets)):
         lines.append(f'UAV {k + 1} horizon energy {energy:.4g} Wh'
                      + ('' if budget is None else f' (budget {budget:.4g} Wh)'))
     if figures['zone_clearance_m'] is not None:

@@ -45,12 +45,15 @@ class FleetScenario:
     min_separation_m: d_min, the least horizontal distance between any two UAVs at every slot
     q_j[m], q_k[m] (m = 1..M; the ends, which are given, must keep it too). All UAVs fly at the
     same altitude H, so d_min is their distance.
+    energy_budgets_wh: each UAV's own budget, K numbers (None: ``scenario.energy_budget_wh``
+    for every UAV), for UAVs whose batteries differ; needs the scenario's airframe.
     """
 
     scenario: Scenario
     starts_m: tuple[tuple[float, float], ...]
     goals_m: tuple[tuple[float, float], ...]
     min_separation_m: float = 0.0
+    energy_budgets_wh: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.scenario, Scenario):
@@ -70,6 +73,7 @@ class FleetScenario:
             raise InvalidScenarioError(
                 f'min_separation_m must be >= 0 and finite, got {self.min_separation_m!r}')
         object.__setattr__(self, 'min_separation_m', separation)
+        object.__setattr__(self, 'energy_budgets_wh', self._budgets(len(starts)))
         self.vehicles                  # each UAV's ends valid and its goal reachable
         for name, ends in (('starts', starts), ('goals', goals)):
             for j, k in itertools.combinations(range(len(ends)), 2):
@@ -79,6 +83,24 @@ class FleetScenario:
                         f'{name} of UAV {j + 1} and UAV {k + 1} are {apart:.1f} m apart, less '
                         f'than the separation {separation:g} m: move them apart or lower '
                         f'min_separation_m')
+
+    def _budgets(self, count: int) -> tuple[float, ...] | None:
+        """``energy_budgets_wh`` checked: None, or ``count`` numbers with an airframe (each
+        checked again, against the horizon's least energy, by its UAV's :class:`Scenario`)."""
+        budgets = self.energy_budgets_wh
+        if budgets is None:
+            return None
+        if isinstance(budgets, (str, bytes)) or not isinstance(budgets, (Sequence, np.ndarray)):
+            raise InvalidScenarioError(
+                f'energy_budgets_wh must be {count} numbers (one per UAV), got {budgets!r}')
+        budgets = tuple(real_number('energy_budgets_wh', value) for value in budgets)
+        if len(budgets) != count:
+            raise InvalidScenarioError(
+                f'energy_budgets_wh: one per UAV, {count} UAVs but {len(budgets)} budgets')
+        if self.scenario.airframe is None:
+            raise InvalidScenarioError('energy_budgets_wh needs an airframe (its propulsion '
+                                       'model): give the scenario one')
+        return budgets
 
     @property
     def num_uavs(self) -> int:
@@ -91,9 +113,11 @@ class FleetScenario:
 
     @functools.cached_property
     def vehicles(self) -> tuple[Scenario, ...]:
-        """Every UAV's scenario, in order (each validated: its ends, its goal reachable)."""
-        return tuple(self.scenario.replace(start_m=start, goal_m=goal)
-                     for start, goal in zip(self.starts_m, self.goals_m))
+        """Every UAV's scenario, in order (each validated: its ends, its goal reachable, its
+        energy budget)."""
+        budgets = self.energy_budgets_wh or (self.scenario.energy_budget_wh,) * self.num_uavs
+        return tuple(self.scenario.replace(start_m=start, goal_m=goal, energy_budget_wh=budget)
+                     for start, goal, budget in zip(self.starts_m, self.goals_m, budgets))
 
     @property
     def pairs(self) -> tuple[tuple[int, int], ...]:

@@ -216,7 +216,8 @@ def check_shared_band(fleet: FleetScenario) -> None:
     """Refuse (InvalidScenarioError) a fleet with zones or an energy budget: the shared band's
     trajectory block keeps the speed limits and the separation only."""
     s = fleet.scenario
-    if (s.zones is not None and not s.zones.empty) or s.energy_budget_wh is not None:
+    if (s.zones is not None and not s.zones.empty) or any(
+            vehicle.energy_budget_wh is not None for vehicle in fleet.vehicles):
         raise InvalidScenarioError(
             'the shared band is planned without zones or an energy budget: its trajectory '
             'block has the speed limits and the separation only (plan on orthogonal channels)')
