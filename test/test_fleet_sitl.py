@@ -49,6 +49,10 @@ def test_two_vehicles_fly_the_fleet_plan_on_time_and_apart(tmp_path):
     base = fleet.scenario
     plan = plan_fleet(fleet)
     flight = fly_fleet(plan, tmp_path, home=HOME, instances=INSTANCES)
+    print(f'off the plan at the slots: {flight.slot_errors_m.max(axis=1)} m at most; flown / '
+          f'stated min throughput {flight.flown_min_throughput / plan.min_throughput:.7f} '
+          f'({plan.min_throughput:.6g} bit/s); apart {flight.closest_at_slots_m:.1f} m at the '
+          f'slots, {flight.closest_m:.1f} m over the flight')
     # On time: at every slot time each vehicle is within a tenth of a slot's travel
     # (V delta = 25 m) of its planned point.
     assert flight.slot_errors_m.max() <= 0.1 * base.max_step_m, flight.slot_errors_m.max(axis=1)
