@@ -244,6 +244,7 @@ class _Vehicle:
         duration = self.reference.duration_s
         times, latitudes, longitudes, altitudes = [], [], [], []
         phase = 0 if self.cut is not None and self.cut.uav == self.key else 2
+        cut_s = math.inf
         while True:
             message = self._position(link)
             elapsed = message.time_boot_ms / 1000.0 - t0_s
@@ -257,8 +258,8 @@ class _Vehicle:
             if phase == 0 and elapsed >= self.cut.at_s:
                 proxy.cut()
                 self.clocks.mark()
-                phase = 1
-            elif phase == 1 and elapsed >= self.cut.at_s + self.cut.for_s:
+                phase, cut_s = 1, elapsed
+            elif phase == 1 and elapsed >= cut_s + self.cut.for_s:
                 proxy.restore()
                 self.clocks.mark()
                 phase = 2
