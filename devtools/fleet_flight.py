@@ -229,7 +229,7 @@ class _Vehicle:
             t0 = self._position(link).time_boot_ms / 1000.0 + HOLD_S
             stream.start(StreamJob(self.reference, t0, self.altitude_m, 'hold',
                                    lambda elapsed_s: 0))
-            times, latitudes, longitudes, altitudes = self._record(link, proxy, t0)
+            times, latitudes, longitudes, altitudes = self._record(link, proxy, stream, t0)
         finally:
             bridge.stop()
             proxy.close()
@@ -238,9 +238,11 @@ class _Vehicle:
         return VehicleTrack(np.array(times), np.column_stack([east, north]), tuple(events),
                             (outage[0], outage[1]) if len(outage) == 2 else None)
 
-    def _record(self, link, proxy: LinkProxy, t0_s: float) -> tuple[list, list, list, list]:
-        """The positions from the plan clock's start to :data:`AFTER_S` after qF; the cut,
-        when it is this vehicle's, at its times."""
+    def _record(self, link, proxy: LinkProxy, stream: TargetStream,
+                t0_s: float) -> tuple[list, list, list, list]:
+        """The positions from the plan clock's start to :data:`AFTER_S` after qF and the end
+        of the stream (it ends itself at qF, on its own link's positions); the cut, when it is
+        this vehicle's, at its times."""
         duration = self.reference.duration_s
         times, latitudes, longitudes, altitudes = [], [], [], []
         phase = 0 if self.cut is not None and self.cut.uav == self.key else 2
@@ -248,7 +250,7 @@ class _Vehicle:
         while True:
             message = self._position(link)
             elapsed = message.time_boot_ms / 1000.0 - t0_s
-            if elapsed > duration + AFTER_S:
+            if elapsed > duration + AFTER_S and not stream.active:
                 return times, latitudes, longitudes, altitudes
             if elapsed > 2 * (duration + HOLD_S + AFTER_S) + 60.0:
                 raise VehicleLinkError('the fleet flight took too long')
