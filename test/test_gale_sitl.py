@@ -91,6 +91,11 @@ def test_a_gale_is_refused_once_and_the_vehicle_ends_at_qf_or_holding(gale_fligh
     goal, start = np.array(HELD_OUT['goal_m']), np.array(HELD_OUT['start_m'])
     at_clock: dict[str, float] = {}
     last: dict[str, float] = {}
+    # No replan loop: the wind's replans in flight are those of the rising estimate before the
+    # gale, at most one per wind_replan_mps up to the airspeed, and the gale makes none; the
+    # plans flown are at most one more (the first). Checked as the flight goes, so that a loop
+    # fails the test at once.
+    steps = math.ceil(node.config.vehicle.airspeed_mps / node.config.node.wind_replan_mps)
 
     def during(mission_s: float, telemetry: Telemetry) -> None:
         progress = node.progress
@@ -100,6 +105,7 @@ def test_a_gale_is_refused_once_and_the_vehicle_ends_at_qf_or_holding(gale_fligh
             for name, value in GALE.items():
                 f.link.mav.param_set_send(f.link.target_system, f.link.target_component,
                                           name.encode(), value, MAV.MAV_PARAM_TYPE_REAL32)
+        assert len(progress.segments) <= steps + 1, f'a replan loop: {len(progress.segments)}'
         mission_end = progress.segments[0].start_s + progress.mission.horizon_s
         if not last and telemetry.now_s >= mission_end - progress.mission.slot_s:
             last.update(at=telemetry.now_s, uploads=node.vehicle.uploads_verified,
@@ -136,9 +142,6 @@ def test_a_gale_is_refused_once_and_the_vehicle_ends_at_qf_or_holding(gale_fligh
     assert 'cannot hold its position' in said[0] or 'goal unreachable' in said[0]
     assert wind.refused
     assert any(level == DiagnosticStatus.WARN for level, _, _ in f.states_of(PLANNER))
-    # No replan loop: the wind's replans are those of the rising estimate before the gale,
-    # at most one per wind_replan_mps up to the airspeed, and the gale makes none.
-    steps = math.ceil(node.config.vehicle.airspeed_mps / node.config.node.wind_replan_mps)
     assert wind.replans - at_clock['replans'] <= steps
     assert len(progress.segments) <= steps + 1
     # Nothing restarted once the last slot has begun, and the vehicle did not turn back.
