@@ -113,8 +113,7 @@ class MissionFlight(_RefusalReports):
         self._on_plan_s = -math.inf
         #: The autopilot time a caught-up rest was asked at, and of which plan in force.
         self._catch_up: tuple[float, int, int] | None = None
-        #: Whether the measured wind is refused (no plan can take it): no replan from the
-        #: UAV's position meanwhile.
+        #: A wind no plan can take is refused (:mod:`.wind`): no replan from positions then.
         self.wind_refused = False
 
     def on_position(self, time_s: float, x_m: float, y_m: float, *, source: str,
@@ -166,10 +165,8 @@ class MissionFlight(_RefusalReports):
         elapsed = time_s - segment.start_s
         left_s = (self.progress.mission.num_slots - segment.first_slot
                   - segment.slots_begun(time_s)) * segment.result.scenario.slot_s
-        if left_s < output.replan_interval_s or self._catching_up(time_s):
-            return              # too late for a replan to be flown, or a caught-up one comes
-        if self.wind_refused:
-            return              # a gale no plan can take: a replan would fall behind again
+        if left_s < output.replan_interval_s or self._catching_up(time_s) or self.wind_refused:
+            return      # too late to be flown, a caught-up rest comes, or a gale is refused
         reason = off_plan(segment.result, elapsed, (x_m, y_m),
                           distance_m=output.replan_distance_m, delay_s=output.replan_delay_s)
         if not reason:
