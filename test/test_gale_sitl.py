@@ -32,14 +32,14 @@ pytestmark = [pytest.mark.sitl,
 
 INSTANCES = (95, 99)
 SPEEDUP = 5
-#: The gale the planner is not told, set when the mission clock starts (the vehicle could not
-#: reach q0 against it): the autopilot estimates it with the quad's drag model, on from the
-#: start.
+#: The gale the planner is not told, set when the mission clock starts (set before, it kept the
+#: vehicle from reaching q0); still air until then, the quad's drag model on from the start so
+#: that the autopilot estimates the wind.
 GALE = {'SIM_WIND_SPD': 10.0, 'SIM_WIND_TURB': 3.0}
 STILL = {'SIM_WIND_SPD': 0.0, 'SIM_WIND_DIR': 90.0, 'SIM_WIND_TURB': 0.0, **DRAG}
 #: After the last slot has passed, the vehicle is watched until it is within REACH_RADIUS_M
-#: of qF or has held still (slower than HOLD_SPEED_MPS) for HELD_S, or for AFTER_S at most
-#: (autopilot seconds).
+#: of qF or holding (in BRAKE, moved less than HOLD_SPEED_MPS x HELD_S over HELD_S), or for
+#: AFTER_S at most (autopilot seconds).
 HELD_S = 5.0
 AFTER_S = 300.0
 #: The vehicle does not fly back towards q0: from the last slot on it never gets farther from
