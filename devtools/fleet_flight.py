@@ -1,6 +1,6 @@
 """A fleet's plan flown on ArduCopter SITL, every vehicle at once, each on its own instance.
 
-Each UAV's part of the plan (:func:`~uav_comm_planner.tools.fleet_cli.uav_result`) is flown as
+Each UAV's part of the plan (:func:`~uav_comm_planner.mission.fleet.uav_result`) is flown as
 the streamed mode flies a single plan: its smooth reference through the plan's points at their
 times (:func:`~uav_comm_planner.vehicle.stream.stream_reference`, within the vehicle's speed,
 acceleration and jerk), sent as GUIDED position, velocity and acceleration targets, one per
@@ -29,7 +29,7 @@ from devtools.sitl import open_link, set_parameter, start_sitl, take_off
 from uav_comm_planner.core.fleet.model import fleet_rates
 from uav_comm_planner.core.fleet.planner import FleetPlan
 from uav_comm_planner.errors import VehicleLinkError
-from uav_comm_planner.tools.fleet_cli import uav_result
+from uav_comm_planner.mission.fleet import uav_result
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.guided import send_target, set_mode, StreamJob
