@@ -29,7 +29,7 @@ FLEET_DESCRIPTIONS = {
             f'start-up); 1: one UAV from start_m to goal_m over mavlink_url; K >= 2: each '
             f'vehicle\'s outputs under uav1/ ... uavK/ (docs/node.md#a-fleet)',
     'uav_starts_m': 'with uavs >= 2: each UAV\'s launch point q0_k as a flat list x1, y1, x2, '
-                    'y2, ... in frame_id (m), K points; start_m is not used',
+                    'y2, ... in frame_id (m), K points; start_m and goal_m are not used',
     'uav_goals_m': 'with uavs >= 2: each UAV\'s landing point qF_k, K points as uav_starts_m',
     'mavlink_urls': 'with uavs >= 2: one vehicle link per UAV, in order, as mavlink_url takes '
                     'it (each vehicle gets its own mission); empty: no links',
@@ -70,6 +70,15 @@ class FleetNodeSettings:
     @property
     def is_fleet(self) -> bool:
         return self.uavs > 1
+
+
+def first_vehicle_ends(fleet: FleetNodeSettings) -> dict[str, Point]:
+    """With ``uavs`` >= 2 and the ends given, UAV 1's start and goal as the scenario's
+    ``start_m`` and ``goal_m`` (which a fleet does not use otherwise), so that the scenario's
+    own checks hold for a UAV that flies; else nothing."""
+    if fleet.is_fleet and fleet.uav_starts_m and fleet.uav_goals_m:
+        return {'start_m': fleet.uav_starts_m[0], 'goal_m': fleet.uav_goals_m[0]}
+    return {}
 
 
 def fleet_of(fleet: FleetNodeSettings, scenario: Scenario, node, vehicle: VehicleLimits
@@ -113,4 +122,4 @@ def fleet_of(fleet: FleetNodeSettings, scenario: Scenario, node, vehicle: Vehicl
     return planned
 
 
-__all__ = ['FLEET_DESCRIPTIONS', 'FleetNodeSettings', 'fleet_of']
+__all__ = ['FLEET_DESCRIPTIONS', 'first_vehicle_ends', 'FleetNodeSettings', 'fleet_of']

@@ -33,7 +33,8 @@ from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.mission.energy import with_named_airframe
 from uav_comm_planner.mission.request import check_goal_in_time, vehicle_limits
 from uav_comm_planner.ros.fences import FenceReader
-from uav_comm_planner.ros.fleet_params import FLEET_DESCRIPTIONS, fleet_of, FleetNodeSettings
+from uav_comm_planner.ros.fleet_params import (first_vehicle_ends, FLEET_DESCRIPTIONS, fleet_of,
+                                               FleetNodeSettings)
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.flyable import check_speed
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
@@ -544,6 +545,8 @@ def config_from_parameters(values: Mapping[str, Any],
         node_fields.update(zip(HOME_PARAMETERS_IN_ORDER,
                                FIRMWARES[node_fields['mission_firmware']].sitl_home))
     settings = SolverSettings(**chosen[SolverSettings])
+    fleet = FleetNodeSettings(**chosen[FleetNodeSettings])
+    chosen[Scenario].update(first_vehicle_ends(fleet))
     # The limit first: the scenario's own checks cost more the more nodes there are.
     settings.check_node_count(len(chosen[Scenario]['ground_nodes_m']))
     node = NodeSettings(**chosen[NodeSettings])
@@ -565,7 +568,6 @@ def config_from_parameters(values: Mapping[str, Any],
     if node.vehicle_aware:
         check_speed(scenario, vehicle)
         check_goal_in_time(scenario, vehicle, node.mission_firmware)
-    fleet = FleetNodeSettings(**chosen[FleetNodeSettings])
     return PlannerConfig(scenario, settings, node, vehicle,
                          fleet_of(fleet, scenario, node, vehicle), fleet.mavlink_urls)
 
