@@ -27,7 +27,7 @@ from uav_comm_planner.vehicle.mavlink.urls import parse_link_url
 FLEET_DESCRIPTIONS = {
     'uavs': f'number of UAVs K planned jointly (1 to {MAX_UAVS}; read-only: fixed at '
             f'start-up); 1: one UAV from start_m to goal_m over mavlink_url; K >= 2: each '
-            f'vehicle\'s outputs under uav1/ ... uavK/ (docs/node.md#a-fleet)',
+            f'vehicle\'s outputs under uav1/ ... uavK/',
     'uav_starts_m': 'with uavs >= 2: each UAV\'s launch point q0_k as a flat list x1, y1, x2, '
                     'y2, ... in frame_id (m), K points; start_m and goal_m are not used',
     'uav_goals_m': 'with uavs >= 2: each UAV\'s landing point qF_k, K points as uav_starts_m',

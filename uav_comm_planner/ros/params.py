@@ -352,6 +352,7 @@ RANGES = {
     'energy_budget_wh': (0.0, 1.0e6),
     'battery_wh': (0.0, 1.0e6),
     'battery_reserve': (0.0, 0.99),
+    'min_separation_m': (0.0, 1.0e5),
 }
 #: Fields whose value must be above the low limit of :data:`RANGES`, not at it (0 is refused):
 #: a descriptor's range is inclusive, so theirs is stated in words instead.
