@@ -10,6 +10,7 @@ from pathlib import Path as FilePath
 import re
 
 from diagnostic_msgs.msg import DiagnosticArray
+from fake_vehicle import FakeVehicle
 from helpers import (NODES_A, NODES_B, SLOW_FLEET, slow_fleet, SLOW_FLEET_STARTS,
                      small_scenario)
 from nav_msgs.msg import Path
@@ -31,7 +32,8 @@ from uav_comm_planner.ros.publishing import (OUTPUT_QOS, STATUS_QOS, TOPIC_MIN_T
 from uav_comm_planner.vehicle.geodesy import default_home, geodetic_to_enu
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.files import read_waypoints, write_mission_file
-from uav_comm_planner.vehicle.mavlink.items import build_mission_items, mismatches, Q0_SEQ
+from uav_comm_planner.vehicle.mavlink.items import (build_mission_items, from_message,
+                                                    mismatches, Q0_SEQ)
 
 STARTS = ((0.0, 0.0), (0.0, 250.0))
 GOALS = ((1500.0, 0.0), (1500.0, 250.0))
@@ -214,3 +216,34 @@ def test_each_vehicle_gets_its_own_mission_file(harness, tmp_path: FilePath):
                                          home)
         assert math.dist((east[0], north[0]), SLOW_FLEET_STARTS[k]) < 0.2
     assert not (tmp_path / 'fleet.waypoints').exists()
+
+
+def held(vehicle: FakeVehicle) -> list:
+    """The mission ``vehicle`` stores, as mission items."""
+    return [from_message(message) for message in vehicle.stored]
+
+
+def test_each_link_gets_its_own_vehicle_s_mission_and_the_links_follow_mavlink_urls(harness):
+    cmac = default_home('ardupilot')
+    home = (cmac.latitude_deg, cmac.longitude_deg, cmac.altitude_m)
+    with FakeVehicle('good', home=home) as first, FakeVehicle('good', home=home) as second:
+        h = harness(**SLOW_FLEET, mavlink_urls=[first.url, second.url])
+        probe = FleetProbe(h)
+        links = h.node.fleet.links
+
+        def uploaded(outcome) -> bool:
+            return links.verified_tag == [outcome.request.start_ns] * 2
+        outcome = probe.plan(1)
+        h.spin_until(lambda: uploaded(outcome), 'both missions uploaded')
+        assert mismatches(outcome.vehicles[0].plan.items, held(first)) == []
+        assert mismatches(outcome.vehicles[1].plan.items, held(second)) == []
+        assert mismatches(held(first), held(second)) != []       # each its own
+
+        # The links given in the other order: the links are made again and the fleet planned
+        # again; each vehicle is given the mission of the UAV its link now stands for.
+        assert set_parameter(h, 'mavlink_urls', [second.url, first.url]).successful
+        again = probe.plan(2)
+        h.spin_until(lambda: uploaded(again), 'both missions uploaded again')
+        assert mismatches(again.vehicles[0].plan.items, held(second)) == []
+        assert mismatches(again.vehicles[1].plan.items, held(first)) == []
+        assert h.node.stats.error_count == 0, h.node.stats.last_error

@@ -175,7 +175,10 @@ class NodeFleet:
         self._worker: LatestOnlyWorker[FleetRequest] = LatestOnlyWorker(
             lambda request: self._handoff.put(plan_fleet_request(request, folder)),
             name=f'{node.get_name()}.fleet')
-        node.add_post_set_parameters_callback(lambda _changes: self.connect())
+        # rclpy calls the post-set callbacks added last first, before the node's settings
+        # change: the links are remade on the executor, once the change is applied.
+        reconnect = node.create_guard_condition(self.connect)
+        node.add_post_set_parameters_callback(lambda _changes: reconnect.trigger())
         self.connect()
 
     def connect(self) -> None:
