@@ -282,3 +282,25 @@ def test_a_fleet_from_ros_arguments_takes_whole_numbers_and_empty_lists(tmp_path
         if node is not None:
             node.destroy_node()
         context.try_shutdown()
+
+
+def test_a_fleet_plan_that_fails_is_refused_and_the_last_good_plan_stays(harness, tmp_path):
+    """Goals swapped, the two paths cross: the missions, as ArduCopter times them, bring the
+    vehicles closer than d_min however the plan's slots are kept apart, so the plan is refused
+    on planner_status, with the reason, and the plan in force and its mission files stay."""
+    h = harness(**SLOW_FLEET, mission_dir=str(tmp_path), mission_file='fleet.waypoints')
+    probe = FleetProbe(h)
+    before = probe.plan(1)
+    files = {path.name: path.read_text() for path in tmp_path.iterdir()}
+    assert set(files) == {'fleet_uav1.waypoints', 'fleet_uav2.waypoints'}
+    errors = h.node.stats.error_count
+    assert set_parameter(h, 'uav_goals_m', [25.0, 500.0, -25.0, 500.0]).successful
+    h.errors_after(errors)
+    assert h.node.stats.last_error.startswith(
+        'fleet planning failed (parameters uav_goals_m); the last good plan stays '
+        'published: the missions, flown as ardupilot times them'), h.node.stats.last_error
+    h.spin_until(lambda: any(s.message.startswith('refused: fleet planning failed')
+                             for m in probe.received[TOPIC_STATUS] for s in m.status),
+                 'the refusal on planner_status')
+    assert h.node.fleet.current is before and h.node.stats.plans_published == 1
+    assert {path.name: path.read_text() for path in tmp_path.iterdir()} == files
