@@ -176,6 +176,10 @@ def test_parameters_that_disagree_are_refused_and_the_last_good_plan_stays(harne
     ({'uav_starts_m': flat_pairs(STARTS[:1])},
      'uav_starts_m set but uavs is 1: one UAV flies from start_m to goal_m'),
     ({**FLEET, 'flight_mode': 'stream'}, "flight_mode 'stream' is for one UAV"),
+    ({**FLEET, 'num_slots': 20, 'horizon_s': 40.0, 'max_speed_mps': 100.0,
+      'vehicle_aware': False, 'max_node_slots': 100},
+     'problem too large: K x N x M = 2 UAVs x 3 nodes x 20 slots = 120 exceeds the compute '
+     'budget max_node_slots = 100'),
 ])
 def test_a_node_started_with_parameters_that_disagree_says_why(ros_context, values, reason):
     with pytest.raises(PlannerError, match=re.escape(reason)):

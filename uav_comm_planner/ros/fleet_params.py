@@ -17,8 +17,9 @@ from dataclasses import dataclass
 import math
 
 from uav_comm_planner.core.fleet import FleetScenario
+from uav_comm_planner.core.fleet.planner import check_budget
 from uav_comm_planner.core.fleet.scenario import MAX_UAVS
-from uav_comm_planner.core.scenario import Point, Scenario
+from uav_comm_planner.core.scenario import Point, Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.mission.request import check_goal_in_time
 from uav_comm_planner.vehicle.limits import VehicleLimits
@@ -81,13 +82,13 @@ def first_vehicle_ends(fleet: FleetNodeSettings) -> dict[str, Point]:
     return {}
 
 
-def fleet_of(fleet: FleetNodeSettings, scenario: Scenario, node, vehicle: VehicleLimits
-             ) -> FleetScenario | None:
+def fleet_of(fleet: FleetNodeSettings, scenario: Scenario, settings: SolverSettings, node,
+             vehicle: VehicleLimits) -> FleetScenario | None:
     """The fleet the parameters describe (None with one UAV), over ``scenario`` (every UAV's
-    nodes, radio, speed, horizon and slots), with ``node``'s settings (a
-    :class:`~uav_comm_planner.ros.params.NodeSettings`) and the vehicle's limits ``vehicle``:
-    a vehicle-aware fleet must reach each goal in time. Raises InvalidScenarioError with what
-    to change."""
+    nodes, radio, speed, horizon and slots), within the compute budget of ``settings`` (K x N
+    x M), with ``node``'s settings (a :class:`~uav_comm_planner.ros.params.NodeSettings`) and
+    the vehicle's limits ``vehicle``: a vehicle-aware fleet must reach each goal in time.
+    Raises InvalidScenarioError with what to change."""
     if not fleet.is_fleet:
         given = [name for name in ('uav_starts_m', 'uav_goals_m', 'mavlink_urls')
                  if getattr(fleet, name)] + (['min_separation_m'] if fleet.min_separation_m
@@ -116,6 +117,7 @@ def fleet_of(fleet: FleetNodeSettings, scenario: Scenario, node, vehicle: Vehicl
                                    f'flies its missions (flight_mode mission)')
     planned = FleetScenario(scenario, fleet.uav_starts_m, fleet.uav_goals_m,
                             fleet.min_separation_m)
+    check_budget(planned, settings)
     if node.vehicle_aware:
         for own in planned.vehicles:
             check_goal_in_time(own, vehicle, node.mission_firmware)

@@ -570,7 +570,7 @@ def config_from_parameters(values: Mapping[str, Any],
         check_speed(scenario, vehicle)
         check_goal_in_time(scenario, vehicle, node.mission_firmware)
     return PlannerConfig(scenario, settings, node, vehicle,
-                         fleet_of(fleet, scenario, node, vehicle), fleet.mavlink_urls)
+                         fleet_of(fleet, scenario, settings, node, vehicle), fleet.mavlink_urls)
 
 
 def node_battery(node: NodeSettings) -> Battery | None:
