@@ -9,7 +9,7 @@ import math
 from pathlib import Path as FilePath
 import re
 
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from fake_vehicle import FakeVehicle
 from helpers import (NODES_A, NODES_B, SLOW_FLEET, slow_fleet, SLOW_FLEET_STARTS,
                      small_scenario)
@@ -24,6 +24,7 @@ from uav_comm_planner import PlannerError, SolverSettings
 from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
 from uav_comm_planner.core.model import average_rates
 from uav_comm_planner.mission.fleet import plan_for_missions, uav_result
+from uav_comm_planner.ros.diagnostics import DIAGNOSTICS_QOS, TOPIC_DIAGNOSTICS
 from uav_comm_planner.ros.messages import nanoseconds_of
 from uav_comm_planner.ros.node import PlannerNode
 from uav_comm_planner.ros.params import flat_pairs
@@ -55,7 +56,8 @@ class FleetProbe:
         self.h = h
         self.received: dict[str, list] = {}
         topics = [(Float64, TOPIC_MIN_THROUGHPUT, OUTPUT_QOS),
-                  (DiagnosticArray, TOPIC_STATUS, STATUS_QOS)]
+                  (DiagnosticArray, TOPIC_STATUS, STATUS_QOS),
+                  (DiagnosticArray, TOPIC_DIAGNOSTICS, DIAGNOSTICS_QOS)]
         for k in range(1, count + 1):
             topics += [(Path, f'uav{k}/{TOPIC_PATH}', OUTPUT_QOS),
                        (Float64MultiArray, f'uav{k}/{TOPIC_POWER}', OUTPUT_QOS),
@@ -67,6 +69,16 @@ class FleetProbe:
     def latest(self, topic: str):
         return self.received[topic][-1] if self.received[topic] else None
 
+    def planner_diagnostics(self, level: int, message: str):
+        """Spin until ``/diagnostics`` says the planner is at ``level`` with a message starting
+        with ``message``; that status."""
+        def found():
+            return next((s for m in reversed(self.received[TOPIC_DIAGNOSTICS]) for s in m.status
+                         if s.name.endswith(': planner') and s.level == level
+                         and s.message.startswith(message)), None)
+        self.h.spin_until(lambda: found() is not None, f'planner diagnostics {message!r}')
+        return found()
+
     def plan(self, plans: int):
         """Spin until the node has published ``plans`` fleet plans and every topic has had
         one message per plan (the paths with the stamp of the last); the fleet outcome."""
@@ -77,7 +89,7 @@ class FleetProbe:
         def arrived() -> bool:
             paths = [self.latest(f'uav{k}/{TOPIC_PATH}') for k in (1, 2)]
             return (all(len(messages) >= plans for topic, messages in self.received.items()
-                        if topic != TOPIC_STATUS)
+                        if topic not in (TOPIC_STATUS, TOPIC_DIAGNOSTICS))
                     and all(nanoseconds_of(p.header.stamp) == stamp for p in paths))
         self.h.spin_until(arrived, 'every vehicle\'s plan')
         return node.fleet.current
@@ -124,6 +136,8 @@ def test_two_uavs_publish_their_own_plans_equal_to_the_core_fleet_plan(harness):
     values = {v.key: v.value for v in status.values}
     assert float(values['min_throughput_bps']) == pytest.approx(core.min_throughput, rel=1e-9)
     assert values['uavs'] == '2'
+    planner = probe.planner_diagnostics(DiagnosticStatus.OK, 'fleet plan: min throughput')
+    assert {v.key: v.value for v in planner.values}['uavs'] == '2'
 
     # A new node set replans the fleet jointly, on the same topics.
     h.send_nodes(NODES_B)
@@ -307,4 +321,6 @@ def test_a_fleet_plan_that_fails_is_refused_and_the_last_good_plan_stays(harness
                              for m in probe.received[TOPIC_STATUS] for s in m.status),
                  'the refusal on planner_status')
     assert h.node.fleet.current is before and h.node.stats.plans_published == 1
+    # A plan stays in force: the planner's diagnostics warn, they do not say there is none.
+    probe.planner_diagnostics(DiagnosticStatus.WARN, 'fleet planning failed')
     assert {path.name: path.read_text() for path in tmp_path.iterdir()} == files

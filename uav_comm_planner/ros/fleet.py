@@ -226,13 +226,15 @@ class NodeFleet:
         for publisher, vehicle in zip(self._publishers, outcome.vehicles):
             publisher.publish(vehicle)
         self._throughput.publish(Float64(data=plan.min_throughput))
+        values = {'nodes': nodes_text(plan.fleet.scenario.ground_nodes_m),
+                  'min_throughput_bps': repr(plan.min_throughput), 'uavs': plan.fleet.num_uavs,
+                  'slots': plan.fleet.scenario.num_slots,
+                  'closest_approach_m': repr(closest_approach_m(plan.trajectories))}
         self._status.publish(status_message(
             request.start_ns, request=request.reason, planned=True, message=line,
-            values={'nodes': nodes_text(plan.fleet.scenario.ground_nodes_m),
-                    'min_throughput_bps': repr(plan.min_throughput),
-                    'uavs': plan.fleet.num_uavs, 'slots': plan.fleet.scenario.num_slots,
-                    'closest_approach_m': repr(closest_approach_m(plan.trajectories))},
-            hardware_id=self._node.get_fully_qualified_name()))
+            values=values, hardware_id=self._node.get_fully_qualified_name()))
+        self._node.diagnostics.fleet_planned(line, {'request': request.reason,
+                                                    'plan_stamp_ns': request.start_ns, **values})
         self._node.stats.plans_published += 1
         self.links.upload(outcome.vehicles, request.start_ns)
         for k, vehicle in enumerate(outcome.vehicles):
