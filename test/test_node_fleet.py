@@ -19,6 +19,7 @@ import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64, Float64MultiArray
+from std_srvs.srv import Trigger
 
 from uav_comm_planner import PlannerError, SolverSettings
 from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
@@ -324,3 +325,13 @@ def test_a_fleet_plan_that_fails_is_refused_and_the_last_good_plan_stays(harness
     # A plan stays in force: the planner's diagnostics warn, they do not say there is none.
     probe.planner_diagnostics(DiagnosticStatus.WARN, 'fleet planning failed')
     assert {path.name: path.read_text() for path in tmp_path.iterdir()} == files
+
+
+def test_start_and_export_mission_say_what_a_fleet_does_instead(harness, tmp_path):
+    h = harness(**SLOW_FLEET, mission_dir=str(tmp_path), mission_file='fleet.waypoints')
+    FleetProbe(h).plan(1)
+    for service in ('start', 'export_mission'):
+        answer = h.call(service, Trigger.Request())
+        assert not answer.success
+        assert answer.message.startswith('a fleet (uavs >= 2) has no mission clock yet'), \
+            answer.message
