@@ -18,7 +18,7 @@ import math
 
 from uav_comm_planner.core.fleet import FleetScenario
 from uav_comm_planner.core.fleet.planner import check_budget
-from uav_comm_planner.core.fleet.scenario import MAX_UAVS
+from uav_comm_planner.core.fleet.scenario import DEFAULT_SEPARATION_M, MAX_UAVS
 from uav_comm_planner.core.scenario import Point, Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.mission.request import check_goal_in_time
@@ -34,8 +34,9 @@ FLEET_DESCRIPTIONS = {
     'uav_goals_m': 'with uavs >= 2: each UAV\'s landing point qF_k, K points as uav_starts_m',
     'mavlink_urls': 'with uavs >= 2: one vehicle link per UAV, in order, as mavlink_url takes '
                     'it (each vehicle gets its own mission); empty: no links',
-    'min_separation_m': 'with uavs >= 2: d_min, the least distance between any two UAVs at '
-                        'every slot (m); the missions keep it as the autopilot times them',
+    'min_separation_m': f'with uavs >= 2: d_min, the least distance between any two UAVs at '
+                        f'every slot (m; default {DEFAULT_SEPARATION_M:g}, Wu 2018\'s); the '
+                        f'missions keep it as the autopilot times them; 0: they may meet',
 }
 
 
@@ -47,7 +48,7 @@ class FleetNodeSettings:
     uav_starts_m: tuple[Point, ...] = ()
     uav_goals_m: tuple[Point, ...] = ()
     mavlink_urls: tuple[str, ...] = ()
-    min_separation_m: float = 0.0
+    min_separation_m: float = DEFAULT_SEPARATION_M
 
     def __post_init__(self) -> None:
         if isinstance(self.uavs, bool) or not isinstance(self.uavs, int) \
@@ -91,8 +92,8 @@ def fleet_of(fleet: FleetNodeSettings, scenario: Scenario, settings: SolverSetti
     Raises InvalidScenarioError with what to change."""
     if not fleet.is_fleet:
         given = [name for name in ('uav_starts_m', 'uav_goals_m', 'mavlink_urls')
-                 if getattr(fleet, name)] + (['min_separation_m'] if fleet.min_separation_m
-                                             else [])
+                 if getattr(fleet, name)] + (
+            ['min_separation_m'] if fleet.min_separation_m != DEFAULT_SEPARATION_M else [])
         if given:
             raise InvalidScenarioError(
                 f'{", ".join(given)} set but uavs is 1: one UAV flies from start_m to goal_m '
