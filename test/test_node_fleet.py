@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from pathlib import Path as FilePath
 import re
+import socket
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from fake_vehicle import FakeVehicle
@@ -335,3 +336,29 @@ def test_start_and_export_mission_say_what_a_fleet_does_instead(harness, tmp_pat
         assert not answer.success
         assert answer.message.startswith('a fleet (uavs >= 2) has no mission clock yet'), \
             answer.message
+
+
+def test_a_vehicle_whose_link_is_down_does_not_keep_the_other_from_its_mission(harness):
+    cmac = default_home('ardupilot')
+    with socket.socket() as probe_socket:       # a port nothing listens on
+        probe_socket.bind(('127.0.0.1', 0))
+        dead = f'tcp:127.0.0.1:{probe_socket.getsockname()[1]}'
+    with FakeVehicle('good', home=(cmac.latitude_deg, cmac.longitude_deg,
+                                   cmac.altitude_m)) as vehicle:
+        h = harness(**SLOW_FLEET, mavlink_urls=[dead, vehicle.url])
+        probe = FleetProbe(h)
+        statuses: list = []
+        h.probe.create_subscription(DiagnosticArray, f'uav1/{TOPIC_STATUS}', statuses.append,
+                                    STATUS_QOS)
+        links = h.node.fleet.links
+        outcome = probe.plan(1)
+        h.spin_until(lambda: links.verified_tag[1] == outcome.request.start_ns,
+                     'UAV 2\'s mission uploaded')
+        assert mismatches(outcome.vehicles[1].plan.items, held(vehicle)) == []
+        h.spin_until(lambda: links.last_error[0] != '', 'UAV 1\'s link error')
+        assert links.verified_tag[0] is None and not links.link_up[0] and links.link_up[1]
+        assert links.last_error[1] == ''
+        h.spin_until(lambda: any(s.message.startswith('refused: ') and dead in s.message
+                                 for m in statuses for s in m.status),
+                     'UAV 1\'s link error on uav1/planner_status')
+        assert h.node.stats.last_error.startswith('uav1: '), h.node.stats.last_error
