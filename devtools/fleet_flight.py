@@ -1,6 +1,6 @@
 """A fleet's plan flown on ArduCopter SITL, every vehicle at once, each on its own instance.
 
-Each UAV's part of the plan (:func:`~uav_comm_planner.tools.fleet_cli.uav_result`) is streamed
+Each UAV's part of the plan (:func:`~uav_comm_planner.mission.fleet.uav_result`) is streamed
 by the single vehicle's own code: a :class:`~uav_comm_planner.vehicle.mavlink.telemetry.
 VehicleBridge` running a :class:`~uav_comm_planner.vehicle.mavlink.guided.TargetStream` of its
 smooth reference through the plan's points at their times (:func:`~uav_comm_planner.vehicle.
@@ -44,7 +44,7 @@ from uav_comm_planner.core.fleet.model import fleet_rates
 from uav_comm_planner.core.fleet.planner import FleetPlan
 from uav_comm_planner.core.model import average_rates
 from uav_comm_planner.errors import InvalidScenarioError, VehicleLinkError
-from uav_comm_planner.tools.fleet_cli import uav_result
+from uav_comm_planner.mission.fleet import uav_result
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, StreamJob, TargetStream
