@@ -16,6 +16,11 @@ from uav_comm_planner.errors import InvalidScenarioError
 
 #: The most UAVs a fleet plan takes: the trajectory step grows with K^2 separation rows.
 MAX_UAVS = 8
+#: d_min when none is given, metres: Wu, Zeng and Zhang's (IEEE TWC 2018) separation, at the
+#: letter's scale (nodes kilometres apart, H = 100 m) a cost of a fraction of a percent of the
+#: min throughput, and far above what a multirotor's GPS and tracking errors take (metres).
+#: Without it the joint plan lets two UAVs meet over a node they both serve.
+DEFAULT_SEPARATION_M = 100.0
 
 
 def _points(name: str, value: Sequence) -> tuple[tuple[float, float], ...]:
@@ -43,8 +48,9 @@ class FleetScenario:
     energy within ``energy_budget_wh``, its own battery's); its start and goal are not used.
     starts_m, goals_m: q0_k and qF_k, K pairs each, metres.
     min_separation_m: d_min, the least horizontal distance between any two UAVs at every slot
-    q_j[m], q_k[m] (m = 1..M; the ends, which are given, must keep it too). All UAVs fly at the
-    same altitude H, so d_min is their distance.
+    q_j[m], q_k[m] (m = 1..M; the ends, which are given, must keep it too), by default
+    :data:`DEFAULT_SEPARATION_M`; 0 lets them meet. All UAVs fly at the same altitude H, so
+    d_min is their distance.
     energy_budgets_wh: each UAV's own budget, K numbers (None: ``scenario.energy_budget_wh``
     for every UAV), for UAVs whose batteries differ; needs the scenario's airframe.
     """
@@ -52,7 +58,7 @@ class FleetScenario:
     scenario: Scenario
     starts_m: tuple[tuple[float, float], ...]
     goals_m: tuple[tuple[float, float], ...]
-    min_separation_m: float = 0.0
+    min_separation_m: float = DEFAULT_SEPARATION_M
     energy_budgets_wh: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
@@ -75,14 +81,9 @@ class FleetScenario:
         object.__setattr__(self, 'min_separation_m', separation)
         object.__setattr__(self, 'energy_budgets_wh', self._budgets(len(starts)))
         self.vehicles                  # each UAV's ends valid and its goal reachable
-        for name, ends in (('starts', starts), ('goals', goals)):
-            for j, k in itertools.combinations(range(len(ends)), 2):
-                apart = math.dist(ends[j], ends[k])
-                if apart < separation:
-                    raise InvalidScenarioError(
-                        f'{name} of UAV {j + 1} and UAV {k + 1} are {apart:.1f} m apart, less '
-                        f'than the separation {separation:g} m: move them apart or lower '
-                        f'min_separation_m')
+        close = ends_too_close(starts, goals, separation)
+        if close:
+            raise InvalidScenarioError(f'{close}: move them apart or lower min_separation_m')
 
     def _budgets(self, count: int) -> tuple[float, ...] | None:
         """``energy_budgets_wh`` checked: None, or ``count`` numbers with an airframe (each
@@ -127,4 +128,16 @@ class FleetScenario:
         return tuple(itertools.combinations(range(self.num_uavs), 2))
 
 
-__all__ = ['FleetScenario', 'MAX_UAVS']
+def ends_too_close(starts: Sequence, goals: Sequence, separation_m: float) -> str:
+    """Which two UAVs' starts (or goals) are closer than ``separation_m``, and how far apart,
+    said in a few words; empty when every pair keeps it."""
+    for name, ends in (('starts', starts), ('goals', goals)):
+        for j, k in itertools.combinations(range(len(ends)), 2):
+            apart = math.dist(ends[j], ends[k])
+            if apart < separation_m:
+                return (f'{name} of UAV {j + 1} and UAV {k + 1} are {apart:.1f} m apart, less '
+                        f'than the separation {separation_m:g} m')
+    return ''
+
+
+__all__ = ['DEFAULT_SEPARATION_M', 'ends_too_close', 'FleetScenario', 'MAX_UAVS']
