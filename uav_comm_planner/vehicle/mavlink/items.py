@@ -57,6 +57,9 @@ DEGREE_DECIMALS = 8
 #: Holds (s) and speeds (m/s) are rounded to 1e-6, so that a file holds 6.38, not the
 #: 6.380000000002752 that timing arithmetic leaves (MAVLink carries them as float32 anyway).
 VALUE_DECIMALS = 6
+#: A plan's own altitudes are rounded to the centimetre: ArduPilot stores a waypoint's
+#: altitude in whole centimetres (and reads 88.9528 m back as 88.95 m).
+ALTITUDE_DECIMALS = 2
 #: A hold split into more waypoints than this (about 49 days for ArduPilot) is refused.
 MAX_HOLD_PARTS = 64
 #: MISSION_ITEM_INT carries latitude and longitude in 1e-7 degree.
@@ -156,7 +159,7 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
     altitude = scenario.altitude_m
 
     def height(value: float | None) -> float:
-        return altitude if value is None else float(value)
+        return altitude if value is None else round(float(value), ALTITUDE_DECIMALS)
 
     # The rows in order, each waypoint first as (position, hold) and all of them converted to
     # latitude and longitude in one call (the same numbers as one call each, several times
@@ -195,7 +198,7 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
             latitude, longitude = next(places)
             row = MissionItem(NAV_WAYPOINT, FRAME_RELATIVE_ALT, (row[1], 0.0, 0.0, yaw),
                               round(latitude, DEGREE_DECIMALS), round(longitude, DEGREE_DECIMALS),
-                              round(row[2], VALUE_DECIMALS))
+                              row[2])
         items.append(row)
     last = items[-1]
     if end == 'land':
