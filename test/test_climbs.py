@@ -5,10 +5,13 @@ and bad input refused."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
+from pymavlink import mavwp
 import pytest
+from test_altitude import recomputed
 
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.core.altitude import AltitudeLimits
@@ -16,6 +19,8 @@ from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.optimizer import plan_along
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.mission.altitude import plan_altitude_for_vehicle
+from uav_comm_planner.tools import cli
+from uav_comm_planner.tools.serialize import scenario_from_dict
 from uav_comm_planner.vehicle.climbs import (check_climb_rate, ClimbLimits, kinematic_limit,
                                              leg_limits)
 from uav_comm_planner.vehicle.flyable import flown_result, schedule_flight, VehiclePlan
@@ -147,3 +152,31 @@ def test_a_plan_climbing_faster_than_the_vehicle_descends_is_refused():
     with pytest.raises(InvalidScenarioError, match='ardupilot only'):
         plan_altitude_for_vehicle(SLOW, AltitudeLimits((30.0, 90.0), 1.0),
                                   firmware='px4')
+
+
+def test_command_line_writes_a_mission_with_altitudes_and_states_it_as_flown(tmp_path, capsys):
+    mission, result_file = tmp_path / 'm.waypoints', tmp_path / 'r.json'
+    status = cli.main(['plan', '--nodes', '300,0', '--nodes', '900,100', '--start', '0,0',
+                       '--goal', '1200,0', '--speed', '10', '--horizon', '240', '--slots', '24',
+                       '--bandwidth', '1e6', '--noise-dbm', '-145', '--budget', '0.1',
+                       '--channel', 'los:urban', '--altitude-range', '30,120',
+                       '--mission', str(mission), '--json', str(result_file)])
+    out, _ = capsys.readouterr()
+    assert status == 0 and 'as the vehicle flies it' in out
+    data = json.loads(result_file.read_text())
+    flown = data['flown']
+    scenario = scenario_from_dict(data)
+    # The stated throughput is the gain written out at the flown positions and altitudes.
+    assert flown['min_throughput'] == pytest.approx(recomputed(
+        'urban', flown['trajectory'], flown['altitudes_m'], flown['power'], scenario), rel=1e-6)
+    assert flown['min_throughput'] <= data['min_throughput'] * (1 + 1e-9)
+    loader = mavwp.MAVWPLoader()
+    loader.load(str(mission))
+    rows = [loader.wp(i) for i in range(loader.count())]
+    assert rows[1].command == TAKEOFF
+    waypoints = [row for row in rows if row.command == WAYPOINT][1:]
+    assert rows[1].z == pytest.approx(waypoints[0].z) == pytest.approx(
+        data['altitudes_m'][0], abs=0.005)
+    assert all(30.0 - 1e-6 <= row.z <= 120.0 + 1e-6 for row in waypoints)
+    climbs = np.diff(data['altitudes_m'])
+    assert np.abs(climbs).max() <= 1.5 * scenario.slot_s + 1e-6   # the vehicle's descent rate
