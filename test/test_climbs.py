@@ -170,6 +170,7 @@ def test_command_line_writes_a_mission_with_altitudes_and_states_it_as_flown(tmp
     assert flown['min_throughput'] == pytest.approx(recomputed(
         'urban', flown['trajectory'], flown['altitudes_m'], flown['power'], scenario), rel=1e-6)
     assert flown['min_throughput'] <= data['min_throughput'] * (1 + 1e-9)
+    assert flown['min_throughput'] >= flown['alternative_throughput']   # never below level
     loader = mavwp.MAVWPLoader()
     loader.load(str(mission))
     rows = [loader.wp(i) for i in range(loader.count())]

@@ -7,11 +7,15 @@ with its climbs (:func:`~uav_comm_planner.vehicle.flyable.schedule_flight` with 
 predicted to be at the slot times, at the altitude it is predicted to fly, with the power
 optimal there. The mission takes off to q0's altitude. A flight that cannot keep the horizon
 is planned again slower (:data:`~uav_comm_planner.vehicle.flyable.SLOWER_PLANNING`), as a
-level plan for the vehicle is.
+level plan for the vehicle is. The level plan at the best fixed altitude, made for the vehicle
+(:func:`~uav_comm_planner.mission.policy.plan_for_vehicle`), is planned too, and the plan
+stated is the better of the two as flown: with a vehicle too, a plan with altitudes is never
+below the best fixed altitude's.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 import time
 
@@ -24,6 +28,7 @@ from uav_comm_planner.core.optimizer import plan_along
 from uav_comm_planner.core.power import waterfilling_power
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+from uav_comm_planner.mission.policy import plan_for_vehicle
 from uav_comm_planner.vehicle.climbs import check_climb_rate, ClimbLimits
 from uav_comm_planner.vehicle.flyable import (check_speed, flown_result, schedule_flight,
                                               SLOWER_PLANNING, VehiclePlan)
@@ -43,7 +48,9 @@ class AltitudeVehiclePlan:
     waypoints carry their altitudes (what :func:`~uav_comm_planner.vehicle.mavlink.items.
     build_mission_items` takes); trajectory (M, 2) and altitudes (M,) metres: the vehicle's
     predicted position at the slot times; power (N, M) watts, optimal there; rates (N,) bit/s;
-    min_throughput: the one to state.
+    min_throughput: the one to state; level: whether the level plan at the best fixed altitude
+    was kept (it flies better than the plan with altitudes); alternative_throughput: what the
+    other of the two states.
     """
 
     ideal: AltitudePlan
@@ -55,6 +62,8 @@ class AltitudeVehiclePlan:
     rates: np.ndarray
     min_throughput: float
     solve_time_s: float
+    level: bool = False
+    alternative_throughput: float = float('nan')
 
     @property
     def scenario(self) -> Scenario:
@@ -69,7 +78,8 @@ class AltitudeVehiclePlan:
         heights = np.concatenate([self.altitudes[:1], self.altitudes, self.altitudes[-1:]])
         first = self.mission.schedule.stops[0].altitude_m
         last = self.mission.schedule.stops[-1].altitude_m
-        heights[0], heights[-1] = first, last
+        if first is not None:
+            heights[0], heights[-1] = first, last
         return points, heights, scenario.slot_s * np.arange(len(points), dtype=float)
 
 
@@ -110,8 +120,37 @@ def plan_altitude_for_vehicle(scenario: Scenario, altitude_limits: AltitudeLimit
                 error = exc
                 continue
             mission = VehiclePlan(carrier, flown_result(carrier, schedule), schedule, limits)
-            return _as_flown(ideal, mission, climb, began)
+            return _better(_as_flown(ideal, mission, climb, began),
+                           _level(scenario, ideal, limits, settings, firmware), began)
     raise error
+
+
+def _level(scenario: Scenario, ideal: AltitudePlan, limits: VehicleLimits,
+           settings: SolverSettings | None, firmware: str) -> VehiclePlan | None:
+    """The level plan at ``ideal``'s best fixed altitude made for the vehicle (None when the
+    vehicle cannot fly it on time)."""
+    try:
+        return plan_for_vehicle(scenario.replace(altitude_m=ideal.fixed_altitude_m), limits,
+                                settings, firmware=firmware)
+    except InfeasibleHorizonError:
+        return None
+
+
+def _better(climbing: AltitudeVehiclePlan, level: VehiclePlan | None,
+            began: float) -> AltitudeVehiclePlan:
+    """The plan with altitudes, or the level one where it flies better."""
+    if level is None:
+        return climbing
+    flown = level.flown
+    if flown.min_throughput <= climbing.min_throughput:
+        return dataclasses.replace(climbing, alternative_throughput=flown.min_throughput,
+                                   solve_time_s=time.perf_counter() - began)
+    altitudes = np.full(flown.scenario.num_slots, flown.scenario.altitude_m)
+    return dataclasses.replace(
+        climbing, mission=level, trajectory=flown.trajectory, altitudes=altitudes,
+        power=flown.power, rates=flown.rates, min_throughput=flown.min_throughput, level=True,
+        alternative_throughput=climbing.min_throughput,
+        solve_time_s=time.perf_counter() - began)
 
 
 def _as_flown(ideal: AltitudePlan, mission: VehiclePlan, climb: ClimbLimits,

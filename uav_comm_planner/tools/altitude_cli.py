@@ -151,21 +151,27 @@ def format_flown_altitudes(flown: AltitudeVehiclePlan) -> str:
     """The plan as the vehicle flies it, and its mission's timing."""
     schedule = flown.mission.schedule
     scenario = flown.scenario
+    kept = (f'the level plan at {flown.altitudes[0]:.1f} m flies better than the plan with '
+            f'altitudes ({flown.alternative_throughput:.4f}) and is kept' if flown.level else
+            f'the level plan at the best fixed altitude flies {flown.alternative_throughput:.4f}')
     return '\n'.join([
         f'{"as the vehicle flies it (the plan to state)":<42}{flown.min_throughput:>28.4f}',
+        kept,
         f'vehicle: climb {flown.climb.up_mps:g} m/s, descent {flown.climb.down_mps:g} m/s; '
         f'{counted(len(schedule.legs), "leg")}, {counted(len(schedule.stops) - 2, "stop")}, '
-        f'take-off to {schedule.stops[0].altitude_m:.1f} m, qF reached at '
+        f'take-off to {flown.planned_points()[1][0]:.1f} m, qF reached at '
         f'{schedule.arrival_s:.1f} s of {scenario.slot_s * (scenario.num_slots + 1):g}'])
 
 
 def flown_record(flown: AltitudeVehiclePlan) -> dict[str, Any]:
     """The JSON result's part for the plan as flown: ``flown`` with its trajectory,
-    altitudes, power, rates and min throughput."""
+    altitudes, power, rates and min throughput, whether the level plan at the best fixed
+    altitude was kept, and what the other of the two flies."""
     return {'flown': {'trajectory': flown.trajectory.tolist(),
                       'altitudes_m': flown.altitudes.tolist(), 'power': flown.power.tolist(),
                       'rates': flown.rates.tolist(), 'min_throughput': flown.min_throughput,
-                      'arrival_s': flown.mission.schedule.arrival_s}}
+                      'arrival_s': flown.mission.schedule.arrival_s, 'level': flown.level,
+                      'alternative_throughput': flown.alternative_throughput}}
 
 
 __all__ = ['add_arguments', 'altitude_limits', 'altitude_record', 'DEFAULT_CLIMB_MPS',
