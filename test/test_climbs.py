@@ -26,6 +26,7 @@ from uav_comm_planner.vehicle.climbs import (check_climb_rate, ClimbLimits, kine
 from uav_comm_planner.vehicle.flyable import flown_result, schedule_flight, VehiclePlan
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.mavlink.files import read_mission_file, write_mission_file
 from uav_comm_planner.vehicle.mavlink.items import build_mission_items
 from uav_comm_planner.vehicle.timing import leg_time, Profile
 
@@ -81,7 +82,7 @@ def climbing_plan():
     return result, altitudes
 
 
-def test_the_mission_carries_every_waypoints_altitude_and_takes_off_to_q0s():
+def test_the_mission_carries_every_waypoints_altitude_and_takes_off_to_q0s(tmp_path):
     result, altitudes = climbing_plan()
     schedule = schedule_flight(result, VehicleLimits(), altitudes=altitudes)
     points = flown_path(result.trajectory, result.scenario)
@@ -97,6 +98,11 @@ def test_the_mission_carries_every_waypoints_altitude_and_takes_off_to_q0s():
         assert np.hypot(*(points[nearest] - (x, y))) < 0.1
         assert item.z == pytest.approx(heights[nearest], abs=0.005)   # whole centimetres
     assert {round(item.z, 3) for item in waypoints} == {30.0, 35.0, 90.0}   # the profile's bends
+    # Both files keep the altitudes, read back as written.
+    for name in ('m.waypoints', 'm.plan'):
+        path = write_mission_file(items, tmp_path / name, HOME)
+        assert [item.z for item in read_mission_file(path)][1:] == pytest.approx(
+            [item.z for item in items][1:], abs=1e-6)
 
 
 def test_the_predicted_flight_climbs_and_descends_within_the_vehicles_limits():
