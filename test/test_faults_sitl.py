@@ -22,13 +22,13 @@ import time
 from typing import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from link_proxy import LinkProxy
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from devtools.link_proxy import LinkProxy
 from devtools.sitl import (MAV, open_link, set_mode, set_parameter, start_sitl, take_off,
                            why_not_runnable)
 from uav_comm_planner import paper_scenario, plan, SolverSettings

@@ -26,7 +26,8 @@ from uav_comm_planner.vehicle.waypoints import simplify, turn_angles_deg
 from uav_comm_planner.vehicle.leg_models import MIN_STOP_HOLD_S
 from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
 from uav_comm_planner.vehicle.timing import (LEG_LATENCY_S, leg_time, peak_speed, Profile,
-                                             ramp_distance, speed_for_time)
+                                             ramp_distance, slowest_speed_for,
+                                             speed_for_time)
 
 DEFAULTS = VehicleLimits()
 A, J, TJ = DEFAULTS.max_accel_mpss, DEFAULTS.max_jerk_mpsss, DEFAULTS.jerk_time_s
@@ -105,6 +106,35 @@ def test_speed_for_time_inverts_leg_time():
         speed = speed_for_time(length_m, duration_s, 10.0, DEFAULTS)
         assert leg_time(length_m, speed, DEFAULTS) == pytest.approx(duration_s, abs=1e-6)
     assert speed_for_time(500.0, 10.0, 10.0, DEFAULTS) == 10.0   # too little time: at most V
+
+
+def test_the_slowest_speed_for_a_time_is_found_to_its_tolerance_on_a_stepped_clock():
+    """A leg's time a + b / v read off a clock that ticks every 0.02 s (as the PX4 model's):
+    the speed found makes the time and the speed one tolerance below does not, as a plain
+    bisection over the same clock decides, in fewer timings."""
+    rng = np.random.default_rng(5)
+    searched = bisected = 0
+    for _ in range(50):
+        a, b, top = rng.uniform(0.0, 20.0), rng.uniform(10.0, 2000.0), rng.uniform(2.0, 15.0)
+        duration = a + b / top * rng.uniform(1.01, 6.0)
+        timed = []
+
+        def seconds_at(v: float) -> float:
+            timed.append(v)
+            return math.ceil((a + b / v) / 0.02) * 0.02
+
+        speed = slowest_speed_for(seconds_at, duration, top, tolerance_mps=0.005)
+        searched += len(timed)
+        assert speed <= top and seconds_at(speed) <= duration
+        assert seconds_at(speed - 0.005) > duration
+        low, high = 0.0, top                # the bisection, independently
+        while high - low > 0.005:
+            bisected += 1
+            middle = 0.5 * (low + high)
+            low, high = (low, middle) if seconds_at(middle) <= duration else (middle, high)
+        assert abs(speed - high) <= 0.005
+    assert searched < 0.7 * bisected
+    assert slowest_speed_for(lambda v: 100.0 / v, 5.0, 10.0) == 10.0   # at most the top speed
 
 
 def test_limits_are_validated_and_read_from_ground_station_files(tmp_path):

@@ -30,11 +30,11 @@ import dataclasses
 from dataclasses import dataclass
 import math
 import time
-import warnings
 
 import cvxpy as cp
 import numpy as np
 
+from uav_comm_planner.core.conic import solve_usable
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.model import (snr_scale, spectral_efficiencies,
                                          spectral_efficiency_to_rate,
@@ -47,7 +47,7 @@ from uav_comm_planner.core.sca.channel_bound import coefficients_at
 from uav_comm_planner.core.sca.legs import LegLimits
 from uav_comm_planner.core.sca.surrogate import KM
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
-from uav_comm_planner.errors import InvalidScenarioError, SolverError
+from uav_comm_planner.errors import InvalidScenarioError
 
 #: D is this times the grid's largest ratio.
 ALTITUDE_MARGIN = 1.1
@@ -198,15 +198,7 @@ def altitude_step(q_k: np.ndarray, h_k: np.ndarray, p: np.ndarray, scenario: Sce
     if m > 1:
         constraints.append(cp.abs(cp.diff(h)) <= limits.max_climb_mps * scenario.slot_s / KM)
     problem = cp.Problem(cp.Maximize(v.t), constraints)
-    try:
-        with warnings.catch_warnings():
-            # cvxpy warns of every inaccurate answer; Algorithm 1 judges the step instead.
-            warnings.filterwarnings('ignore', message='Solution may be inaccurate')
-            problem.solve(solver='CLARABEL')
-    except cp.error.SolverError as exc:
-        raise SolverError(f'altitude step: Clarabel failed ({exc})') from None
-    if problem.status not in ('optimal', 'optimal_inaccurate') or v.z.value is None:
-        raise SolverError(f'altitude step: Clarabel returned status {problem.status!r}')
+    solve_usable(problem, 'altitude step')
     heights = np.clip(np.asarray(h.value) * KM, low, high)
     return frame.metres(np.asarray(v.z.value)), heights
 

@@ -38,6 +38,27 @@ class Certificate:
         return self.gap <= self.tolerance
 
 
+def _attempt(problem: cp.Problem, solver: str, options: dict) -> str:
+    """Solve ``problem`` once; '' when its status is usable, else what went wrong."""
+    try:
+        with warnings.catch_warnings():
+            # cvxpy warns of every inaccurate answer; the caller's check decides instead.
+            warnings.filterwarnings('ignore', message='Solution may be inaccurate')
+            problem.solve(solver=solver, **options)
+    except cp.error.SolverError as exc:
+        return f'failed ({exc})'
+    return '' if problem.status in _USABLE else f'returned status {problem.status!r}'
+
+
+def solve_usable(problem: cp.Problem, step: str, solver: str = 'CLARABEL', **options) -> None:
+    """Solve ``problem`` once, with its status checked: optimal or nearly so (the caller, an
+    SCA step judged by the iteration around it, accepts either). Raises :class:`SolverError`
+    naming ``step`` otherwise."""
+    failure = _attempt(problem, solver, options)
+    if failure:
+        raise SolverError(f'{step}: {solver} {failure}')
+
+
 def solve_checked(problem: cp.Problem, step: str, solver: str,
                   attempts: Sequence[dict], check: Callable[[], Certificate]) -> Certificate:
     """Solve ``problem`` with ``solver`` under each option set of ``attempts`` in turn, until an
@@ -48,16 +69,9 @@ def solve_checked(problem: cp.Problem, step: str, solver: str,
     """
     failures = []
     for options in attempts:
-        try:
-            with warnings.catch_warnings():
-                # cvxpy warns of every inaccurate answer; here the check decides instead.
-                warnings.filterwarnings('ignore', message='Solution may be inaccurate')
-                problem.solve(solver=solver, **options)
-        except cp.error.SolverError as exc:
-            failures.append(f'failed ({exc})')
-            continue
-        if problem.status not in _USABLE:
-            failures.append(f'returned status {problem.status!r}')
+        failure = _attempt(problem, solver, options)
+        if failure:
+            failures.append(failure)
             continue
         certificate = check()
         if certificate.holds:

@@ -105,9 +105,9 @@ def screened_runs(scenario: Scenario, starts: Mapping[str, Callable[[Scenario], 
 
 
 def search(scenario: Scenario, runs: dict[str, Run], letter: set[str],
-            settings: SolverSettings, run_from: Callable[..., Run],
-            trajectory_solver: TrajectorySolver, draws: Mapping[str, tuple],
-            value_of: Callable[[np.ndarray], float], closed_form: float | None) -> list[str]:
+           settings: SolverSettings, run_from: Callable[..., Run],
+           trajectory_solver: TrajectorySolver, draws: Mapping[str, tuple],
+           value_of: Callable[[np.ndarray], float], closed_form: float | None) -> list[str]:
     """:func:`screened_runs`' search after the letter's run, on ``runs`` (every start
     screened), in place: the splits searched, the shortlist and the best continued, whose
     names it returns."""
@@ -137,7 +137,7 @@ def search(scenario: Scenario, runs: dict[str, Run], letter: set[str],
 
 
 def continued(begun: Run, settings: SolverSettings, run_from: Callable[..., Run],
-               trajectory_solver: TrajectorySolver) -> Run:
+              trajectory_solver: TrajectorySolver) -> Run:
     """``begun`` continued to convergence (:func:`screened_runs`), or ``begun`` itself if
     that ends below it."""
     sca_steps = 1 if settings.fast_steps else None

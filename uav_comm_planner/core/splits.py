@@ -105,24 +105,33 @@ def resplit(scenario: Scenario, draw: tuple, value_of: Callable[[np.ndarray], fl
     def value_of_a(split: np.ndarray) -> float:
         return value_of(a_rows[:, flier.slot_rows(split)])
 
-    value_of_split = value_of_a
-    if power_budget_w is not None:
-        a_base = a_rows[:, flier.slot_rows(np.zeros_like(hovers))]
-        a_stops = a_rows[:, flier.picked[flier.hover_at[:-1]]]        # (N, stops)
-        log_base, log_stops = np.log2(a_base).sum(axis=1), np.log2(a_stops)
-        inverse_base, inverse_stops = float((1.0 / a_base).sum()), (1.0 / a_stops).sum(axis=0)
-        # No split's least a_n[m] is below this, so the closed form is only taken where it
-        # holds (a stop is the last point of the leg to it, to round-off).
-        least = np.minimum(a_base.min(axis=1, initial=np.inf), a_stops.min(axis=1))
-
-        def value_of_split(split: np.ndarray) -> float:
-            bits = _all_active(log_base + log_stops @ split,
-                               inverse_base + float(inverse_stops @ split), least,
-                               scenario.num_slots, power_budget_w)
-            return value_of_a(split) if bits is None else bits
-
+    value_of_split = (value_of_a if power_budget_w is None else
+                      _closed_form(flier, a_rows, hovers, scenario.num_slots, power_budget_w,
+                                   value_of_a))
     split, _ = searched_split(hovers, value_of_split)
     return None if np.array_equal(split, hovers) else flier(split)
+
+
+def _closed_form(flier: TourFlier, a_rows: np.ndarray, hovers: np.ndarray, num_slots: int,
+                 power_budget_w: float, value_of_a: Callable[[np.ndarray], float]
+                 ) -> Callable[[np.ndarray], float]:
+    """A split's value by water-filling's closed form where every slot is active, else by
+    ``value_of_a`` (:func:`resplit`)."""
+    a_base = a_rows[:, flier.slot_rows(np.zeros_like(hovers))]
+    a_stops = a_rows[:, flier.picked[flier.hover_at[:-1]]]        # (N, stops)
+    log_base, log_stops = np.log2(a_base).sum(axis=1), np.log2(a_stops)
+    inverse_base, inverse_stops = float((1.0 / a_base).sum()), (1.0 / a_stops).sum(axis=0)
+    # No split's least a_n[m] is below this, so the closed form is only taken where it
+    # holds (a stop is the last point of the leg to it, to round-off).
+    least = np.minimum(a_base.min(axis=1, initial=np.inf), a_stops.min(axis=1))
+
+    def value_of_split(split: np.ndarray) -> float:
+        bits = _all_active(log_base + log_stops @ split,
+                           inverse_base + float(inverse_stops @ split), least,
+                           num_slots, power_budget_w)
+        return value_of_a(split) if bits is None else bits
+
+    return value_of_split
 
 
 __all__ = ['MIN_GAIN', 'resplit', 'searched_split']

@@ -447,6 +447,12 @@ def _command_upload(args: argparse.Namespace) -> int:
     return 0
 
 
+def _simulator_homes() -> str:
+    """Each firmware's simulator home, as ``--home`` takes it."""
+    return '; '.join(f'{name} ' + ','.join(f'{v:.10g}' for v in firmware.sitl_home)
+                     for name, firmware in FIRMWARES.items())
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineArgumentParser(
         prog=PROG,
@@ -465,9 +471,7 @@ def build_parser() -> argparse.ArgumentParser:
                              help='where x = east, y = north metres start: degrees, degrees, '
                                   "metres above sea level (default: the --firmware simulator's "
                                   'home, %s; give your own field\'s)'
-                                  % '; '.join(f'{name} ' + ','.join(f'{v:.10g}' for v in
-                                                                     firmware.sitl_home)
-                                              for name, firmware in FIRMWARES.items()))
+                                  % _simulator_homes())
     plan_parser.add_argument('--fence', type=Path, metavar='FENCE.plan|FENCE.geojson',
                              help="where the vehicle may fly: a .plan file's geoFence or a "
                                   'GeoJSON FeatureCollection, anchored at --home '

@@ -104,5 +104,5 @@ def energy_record(result: PlanResult, request: EnergyRequest | None) -> dict:
     return record
 
 
-__all__ = ['add_airframe_argument', 'add_energy_arguments', 'energy_record', 'energy_request', 'EnergyRequest',
-           'format_energy', 'planner_for']
+__all__ = ['add_airframe_argument', 'add_energy_arguments', 'energy_record', 'energy_request',
+           'EnergyRequest', 'format_energy', 'planner_for']

@@ -1,6 +1,7 @@
 """``uav-comm-planner plan --uavs K``: a fleet's plan on the command line.
 
-``--start "X,Y;X,Y" --goal "X,Y;X,Y"`` give each UAV's ends, ``--min-separation M`` d_min; the
+``--start "X,Y;X,Y" --goal "X,Y;X,Y"`` give each UAV's ends, ``--min-separation M`` d_min
+(default :data:`~uav_comm_planner.core.fleet.scenario.DEFAULT_SEPARATION_M`, 100 m); the
 other scenario flags (nodes, speed, horizon, budget...) are every UAV's. The JSON result holds
 ``trajectories`` (K x M x 2, metres) and ``power`` (K x N x M, watts) beside ``min_throughput``
 and ``rates``; ``--mission m.waypoints`` writes one mission per vehicle, ``m_uav1.waypoints``,
@@ -23,7 +24,8 @@ import numpy as np
 from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
 from uav_comm_planner.core.fleet.model import closest_approach_m
 from uav_comm_planner.core.fleet.planner import FleetPlan
-from uav_comm_planner.core.fleet.scenario import MAX_UAVS
+from uav_comm_planner.core.fleet.scenario import (DEFAULT_SEPARATION_M, ends_too_close,
+                                                  MAX_UAVS)
 from uav_comm_planner.core.fleet.shared_band import plan_shared_band, SharedBandPlan
 from uav_comm_planner.core.model import average_rates
 from uav_comm_planner.core.numbers import counted
@@ -61,7 +63,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             '"X,Y;X,Y;..."')
     group.add_argument('--min-separation', type=float, metavar='M',
                        help='least distance between any two UAVs in every slot, metres '
-                            '(with --uavs; default 0)')
+                            f'(with --uavs; default {DEFAULT_SEPARATION_M:g}, Wu 2018\'s d_min; '
+                            '0 lets them meet)')
     group.add_argument('--shared-band', action='store_true',
                        help="Wu 2018's model instead: one band B for all UAVs, each serving one "
                             'node per slot, the others interfering (with --uavs; --json and '
@@ -89,8 +92,13 @@ def fleet_request(args: argparse.Namespace, base: Scenario) -> FleetScenario:
             got = 'none' if ends is None else len(ends)
             raise PlannerError(f'--uavs {count} needs {count} points in --{name} "X,Y;X,Y;...", '
                                f'got {got}')
-    separation = 0.0 if args.min_separation is None else args.min_separation
-    return FleetScenario(base, tuple(args.start), tuple(args.goal), separation)
+    if args.min_separation is None:
+        close = ends_too_close(args.start, args.goal, DEFAULT_SEPARATION_M)
+        if close:
+            raise PlannerError(f'{close} (the default d_min): move them apart or give a '
+                               f'smaller --min-separation')
+        return FleetScenario(base, tuple(args.start), tuple(args.goal))
+    return FleetScenario(base, tuple(args.start), tuple(args.goal), args.min_separation)
 
 
 def uav_result(result: FleetPlan, k: int) -> PlanResult:

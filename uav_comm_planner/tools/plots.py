@@ -205,7 +205,8 @@ def plan_title(result: PlanResult, *, as_flown: bool = False) -> str:
 
 
 def draw_plan(result: PlanResult, *, title: str = '', as_flown: bool = False):
-    """The letter's Fig. 1 for one plan: trajectory, speed per leg, power per node per slot.
+    """The letter's Fig. 1 for one plan: trajectory, speed per leg, power per node per slot;
+    and, when the scenario has an airframe, the propulsion power per leg (:func:`draw_propulsion`).
 
     The title (by default :func:`plan_title`) says whether the throughput is as planned or,
     ``as_flown``, as the vehicle flies it. Returns the matplotlib figure; :func:`plan_figure`
@@ -213,8 +214,9 @@ def draw_plan(result: PlanResult, *, title: str = '', as_flown: bool = False):
     """
     plt = _pyplot()
     scenario = result.scenario
-    figure, (ax_path, ax_speed, ax_power) = plt.subplots(1, 3, figsize=(15, 5.2),
-                                                         layout='constrained')
+    panels = 3 if scenario.airframe is None else 4
+    figure, axes = plt.subplots(1, panels, figsize=(5 * panels, 5.2), layout='constrained')
+    ax_path, ax_speed, ax_power = axes[:3]
     path_xy = flown_path(result.trajectory, scenario)
     if scenario.zones is not None:
         _draw_zones(ax_path, scenario.zones, np.vstack([path_xy, scenario.nodes]))
@@ -252,8 +254,29 @@ def draw_plan(result: PlanResult, *, title: str = '', as_flown: bool = False):
                  title='transmit power')
     ax_power.set_ylim(bottom=0.0)            # from zero: a cut axis exaggerates differences
     _legend_below(ax_power, columns=min(scenario.num_nodes, 5))
+    if scenario.airframe is not None:
+        draw_propulsion(axes[3], result)
     figure.suptitle(title or plan_title(result, as_flown=as_flown))
     return figure
+
+
+def draw_propulsion(ax, result: PlanResult) -> None:
+    """The propulsion power of each leg q0 -> q[1] -> ... -> q[M] -> qF as the JSON result
+    states it (``propulsion_power_w``: the leg flown at constant velocity over its slot, at its
+    airspeed in the wind told), with its mean and the horizon's energy in the legend."""
+    from uav_comm_planner.core.energy import JOULES_PER_WH
+    from uav_comm_planner.mission.energy import energy_figures
+    scenario = result.scenario
+    figures = energy_figures(result)
+    powers = np.asarray(figures.leg_powers_w)
+    ax.step(scenario.path_times_s[1:], powers, where='pre', color='tab:orange',
+            label=f'propulsion power ({scenario.airframe.name})')
+    ax.axhline(powers.mean(), color='grey', linestyle=':',
+               label=f'mean {powers.mean():.1f} W: {figures.horizon_j / JOULES_PER_WH:.2f} Wh '
+                     f'over the horizon')
+    ax.set_ylim(0.0, 1.12 * powers.max(initial=1.0))
+    ax.set(xlabel='time (s)', ylabel='propulsion power (W)', title='propulsion power')
+    _legend_below(ax)
 
 
 #: Grid points per side on which the zones' margin is drawn (as the contour where the

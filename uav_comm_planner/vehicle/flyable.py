@@ -147,8 +147,8 @@ def _stop_runs(points: np.ndarray, slot_s: float, merge_radius_m: float,
             break
         chain = np.arange(run[1], following[0] + 1)
         kept = drop_short_steps(points[chain],
-                                 simplify(points[chain], path_tolerance_m, keeps),
-                                 min_step_m, keeps)
+                                simplify(points[chain], path_tolerance_m, keeps),
+                                min_step_m, keeps)
         sharp = turn_angles_deg(points[chain[kept]]) > MAX_TURN_DEG
         stops += [(int(chain[k]), int(chain[k])) for k, turn in zip(kept[1:-1], sharp) if turn]
     return stops

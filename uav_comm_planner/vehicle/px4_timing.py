@@ -99,36 +99,52 @@ def _velocity_step(a: float, v: float, target: float, accel: float, jerk: float,
                    dt: float) -> tuple[float, float, float]:
     """(a, v, ds) after ``dt`` of the time-optimal jerk-limited change of the velocity from
     (a, v) towards ``target``: jerk +-J up to the acceleration A, constant acceleration,
-    jerk -+J down to zero acceleration as the velocity reaches the target."""
+    jerk -+J down to zero acceleration as the velocity reaches the target. (Written out piece
+    by piece: a leg's simulation takes thousands of these.)"""
     # The velocity reached if the acceleration is brought to zero at once.
     settle = v + a * abs(a) / (2.0 * jerk)
-    direction = 1.0 if target > settle else -1.0 if target < settle else (
-        1.0 if a > 0 else -1.0 if a < 0 else 0.0)
-    if direction == 0.0:
+    if target > settle or (target == settle and a > 0):
+        direction = 1.0
+    elif target < settle or a < 0:
+        direction = -1.0
+    else:
         return 0.0, v, v * dt
     j = direction * jerk
     dv = target - v
-    # Peak acceleration of the triangle, then the trapezoid if it exceeds A.
     peak_sq = 0.5 * (2.0 * j * dv + a * a) if j * dv + 0.5 * a * a >= 0 else 0.0
-    peak = direction * min(math.sqrt(max(peak_sq, 0.0)), accel)
-    t1 = max((peak - a) / j, 0.0)
-    t3 = max(peak / j, 0.0)
+    root = math.sqrt(peak_sq) if peak_sq > 0.0 else 0.0
+    peak = direction * (root if root < accel else accel)
+    t1 = (peak - a) / j
+    t1 = t1 if t1 > 0.0 else 0.0
+    t3 = peak / j
+    t3 = t3 if t3 > 0.0 else 0.0
     v1 = v + a * t1 + 0.5 * j * t1 * t1
     v3_gain = peak * t3 - 0.5 * j * t3 * t3
-    t2 = max((target - v1 - v3_gain) / peak, 0.0) if abs(peak) > 1e-12 else 0.0
-    ds = 0.0
-    left = dt
-    for duration, piece_jerk in ((t1, j), (t2, 0.0), (t3, -j), (math.inf, None)):
-        if left <= 0.0:
-            break
-        if piece_jerk is None:       # at the target velocity
-            a = 0.0
-            piece_jerk = 0.0
-        x = min(left, duration)
-        ds += v * x + 0.5 * a * x * x + piece_jerk * x ** 3 / 6.0
-        v += a * x + 0.5 * piece_jerk * x * x
-        a += piece_jerk * x
+    if abs(peak) > 1e-12:
+        t2 = (target - v1 - v3_gain) / peak
+        t2 = t2 if t2 > 0.0 else 0.0
+    else:
+        t2 = 0.0
+    # Jerk j for t1, none for t2, -j for t3, then at the target velocity.
+    x = dt if dt <= t1 else t1
+    ds = v * x + 0.5 * a * x * x + j * x ** 3 / 6.0
+    v += a * x + 0.5 * j * x * x
+    a += j * x
+    left = dt - x
+    if left > 0.0:
+        x = left if left <= t2 else t2
+        ds += v * x + 0.5 * a * x * x
+        v += a * x
         left -= x
+        if left > 0.0:
+            x = left if left <= t3 else t3
+            ds += v * x + 0.5 * a * x * x + -j * x ** 3 / 6.0
+            v += a * x + 0.5 * -j * x * x
+            a += -j * x
+            left -= x
+            if left > 0.0:
+                a = 0.0
+                ds += v * left
     return a, v, ds
 
 
@@ -217,6 +233,10 @@ def _flown(vertex_bytes: bytes, count: int, speed: float, accel: float, jerk: fl
     # Python floats: the loop below runs thousands of steps a leg, each on a few of them.
     arc, ends, scale = arc.tolist(), ends.tolist(), scale.tolist()
     b = 4.0 * accel * accel / jerk
+    # stopping_speed's terms, and the names the loop reads, bound once.
+    b_squared, eight_accel = b * b, 8.0 * accel
+    end_terms = [4.0 * end * end for end in ends]
+    sqrt, lag, most_error, step = math.sqrt, TRACKING_LAG_S, MAX_POSITION_ERROR_M, _velocity_step
     times, distances = [0.0], [0.0]
     t = s = v = a = 0.0               # the trajectory: along-track distance, speed, accel
     x = u = 0.0                       # the vehicle following it
@@ -237,10 +257,15 @@ def _flown(vertex_bytes: bytes, count: int, speed: float, accel: float, jerk: fl
         if (hold_start is not None and abs(total - x) <= REST_DISTANCE_M and abs(u) < 0.05
                 and abs(v) < 0.05):
             break
-        wanted = min(speed, stopping_speed(left, ends[slow], accel, jerk))
-        behind = TRACKING_LAG_S * v
+        # min(speed, stopping_speed(left, ends[slow], accel, jerk)), written out.
+        wanted = 0.5 * (-b + sqrt(b_squared + eight_accel * (left if left >= 0.0 else 0.0)
+                                  + end_terms[slow]))
+        if wanted >= speed:
+            wanted = speed
+        behind = lag * v
         x = s - behind
-        stretch = 1.0 - min(max(behind / MAX_POSITION_ERROR_M, 0.0), 1.0)
+        error = behind / most_error
+        stretch = 1.0 - (0.0 if error < 0.0 else 1.0 if error > 1.0 else error)
         if wanted >= speed and abs(v - speed) < 1e-6 and a == 0.0:
             # Cruising, settled: jump to where the braking curve falls below the cruise (the
             # trajectory and the vehicle move at constant speeds until then).
@@ -257,11 +282,12 @@ def _flown(vertex_bytes: bytes, count: int, speed: float, accel: float, jerk: fl
                 times.append(t)
                 distances.append(x)
                 continue
-        a, v, ds = _velocity_step(a, v, wanted, accel * scale[k], jerk * scale[k],
-                                  dt * stretch)
-        s = min(s + ds, total)
+        a, v, ds = step(a, v, wanted, accel * scale[k], jerk * scale[k], dt * stretch)
+        s += ds
+        if s > total:
+            s = total
         u = v * stretch
-        x = s - TRACKING_LAG_S * v
+        x = s - lag * v
         t += dt
         times.append(t)
         distances.append(x)
@@ -287,9 +313,8 @@ def px4_speed_for_time(vertices: np.ndarray, duration_s: float, max_speed_mps: f
     """The cruise (to 0.005 m/s) that reaches the end of ``vertices`` from rest
     (:func:`px4_reach_time`) in ``duration_s`` or less; ``max_speed_mps`` when even that is
     too slow."""
-    steps = max(1, math.ceil(math.log2(max_speed_mps / 0.005)))
     return slowest_speed_for(lambda speed: px4_reach_time(vertices, speed, limits), duration_s,
-                             max_speed_mps, iterations=steps)
+                             max_speed_mps, tolerance_mps=0.005)
 
 
 __all__ = ['ACCEPTANCE_RADIUS_M', 'SampledProfile', 'corner_speed', 'px4_leg_time',

@@ -108,7 +108,7 @@ def _span_gap(xy: list[tuple[float, float]], first: int, last: int) -> float:
 
 
 def drop_short_steps(points: np.ndarray, kept: list[int], min_step_m: float,
-                      keeps: SegmentCheck = None) -> list[int]:
+                     keeps: SegmentCheck = None) -> list[int]:
     """Remove fly-through waypoints that leave a step shorter than ``min_step_m``, the one
     whose removal moves the line least first; with ``keeps``, only those whose removal leaves
     a segment that passes it."""

@@ -34,11 +34,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-import warnings
 
 import cvxpy as cp
 import numpy as np
 
+from uav_comm_planner.core.conic import solve_usable
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.fleet.scenario import FleetScenario
 from uav_comm_planner.core.fleet.separation import keeps_separation, separation_rows
@@ -46,7 +46,7 @@ from uav_comm_planner.core.fleet.step import fleet_frames
 from uav_comm_planner.core.sca.block import Variables
 from uav_comm_planner.core.sca.legs import LegLimits
 from uav_comm_planner.core.sca.surrogate import KM
-from uav_comm_planner.errors import InvalidScenarioError, SolverError
+from uav_comm_planner.errors import InvalidScenarioError
 
 #: Below this a schedule entry is left out of the power and trajectory blocks (its term is
 #: worth nothing to the objective).
@@ -78,17 +78,6 @@ def node_throughputs(alpha: np.ndarray, p: np.ndarray, q: np.ndarray,
     return (alpha * link_rates(p, gains(q, fleet))).sum(axis=0).mean(axis=1)
 
 
-def _solve(problem: cp.Problem, block: str) -> None:
-    try:
-        with warnings.catch_warnings():
-            warnings.filterwarnings('ignore', message='Solution may be inaccurate')
-            problem.solve(solver='CLARABEL')
-    except cp.error.SolverError as exc:
-        raise SolverError(f'shared band, {block}: CLARABEL failed ({exc})') from exc
-    if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-        raise SolverError(f'shared band, {block}: CLARABEL returned status {problem.status!r}')
-
-
 def schedule_block(rates: np.ndarray) -> np.ndarray:
     """The max-min schedule alpha (K, N, M) for link rates (K, N, M): a linear program."""
     k, n, m = rates.shape
@@ -100,7 +89,7 @@ def schedule_block(rates: np.ndarray) -> np.ndarray:
     per_uav = [cp.sum(cp.reshape(alpha[j], (n, m), order='C'), axis=0) <= 1 for j in range(k)]
     problem = cp.Problem(cp.Maximize(t), [per_node >= t, cp.sum(alpha, axis=0) <= 1,
                                           alpha <= 1, *per_uav])
-    _solve(problem, 'schedule')
+    solve_usable(problem, 'shared band, schedule')
     return np.clip(alpha.value, 0.0, 1.0).reshape(k, n, m)
 
 
@@ -127,7 +116,7 @@ def power_block(alpha: np.ndarray, p: np.ndarray, gamma: np.ndarray,
     rows = (cp.sum(cp.multiply(weight, cp.log(total)) - tangent, axis=1) - constant.sum(axis=1))
     problem = cp.Problem(cp.Maximize(t), [rows / (m * _LN2) >= t,
                                           cp.sum(x, axis=1) <= budget_w])
-    _solve(problem, 'power')
+    solve_usable(problem, 'shared band, power')
     return np.maximum(x.value, 0.0)
 
 
@@ -197,7 +186,7 @@ def trajectory_block(alpha: np.ndarray, p: np.ndarray, q: np.ndarray,
                                  slack)
     bound = (constant - spread - interference) / (m * _LN2)
     problem = cp.Problem(cp.Maximize(t), constraints + [bound >= t])
-    _solve(problem, 'trajectory')
+    solve_usable(problem, 'shared band, trajectory')
     return np.stack([project_onto_speed_limit(frame.metres(z_j.value), frame.scenario)
                      for frame, z_j in zip(frames, z)])
 

@@ -23,13 +23,13 @@ the same constraints in cvxpy, the legs by :meth:`LegLimits.constraints`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-import warnings
 
 import clarabel
 import cvxpy as cp
 import numpy as np
 from scipy import sparse
 
+from uav_comm_planner.core.conic import solve_usable
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.fleet.scenario import FleetScenario
 from uav_comm_planner.core.fleet.separation import (keeps_separation, separation_rows,
@@ -78,14 +78,7 @@ def step_cvxpy(fleet: FleetScenario, frames: list[Frame], rates: list[NodeRates]
     for (j, k), a, rhs in zip(fleet.pairs, data.separation.direction, data.separation.rhs):
         constraints.append(cp.sum(cp.multiply(a, z[j] - z[k]), axis=1) >= rhs)
     problem = cp.Problem(cp.Maximize(t), constraints)
-    try:
-        with warnings.catch_warnings():
-            warnings.filterwarnings('ignore', message='Solution may be inaccurate')
-            problem.solve(solver='CLARABEL')
-    except cp.error.SolverError as exc:
-        raise SolverError(f'fleet trajectory step: CLARABEL failed ({exc})') from exc
-    if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-        raise SolverError(f'fleet trajectory step: CLARABEL returned status {problem.status!r}')
+    solve_usable(problem, 'fleet trajectory step')
     return np.stack([z_k.value for z_k in z])
 
 
