@@ -153,7 +153,11 @@ def test_command_line_altitude_range_and_json(tmp_path, capsys):
 
 @pytest.mark.parametrize('argv, reason', [
     (['--climb-rate', '3'], 'needs --altitude-range'),
-    (['--altitude-range', '30,300', '--mission', 'm.waypoints'], 'does not combine'),
+    (['--altitude-range', '30,300', '--figure', 'f.png'], 'does not combine'),
+    (['--altitude-range', '30,300', '--mission', 'm.waypoints', '--speed', '10',
+      '--horizon', '400', '--climb-rate', '2.5'], 'WPNAV_SPEED_DN'),
+    (['--altitude-range', '30,300', '--mission', 'm.waypoints', '--speed', '10',
+      '--horizon', '400', '--firmware', 'px4', '--climb-rate', '1'], 'ardupilot only'),
     (['--altitude-range', '300,30'], 'lowest <= highest'),
     (['--altitude-range', '30'], 'MIN,MAX')])
 def test_command_line_refuses_bad_altitude_options_in_one_line(argv, reason, capsys, tmp_path,
