@@ -35,7 +35,7 @@ import cvxpy as cp
 import numpy as np
 from scipy import sparse
 
-from uav_comm_planner.core.conic import solve_usable
+from uav_comm_planner.core.conic import CLARABEL_ATTEMPTS, solve_usable
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.fleet.scenario import FleetScenario
 from uav_comm_planner.core.fleet.separation import (keeps_separation, separation_rows,
@@ -52,8 +52,7 @@ STEP_METHODS = ('clarabel', 'cvxpy')
 #: the energy block's power cones in cvxpy's form can stall at the default iterations, and
 #: then at more (seen on the letter's nodes over 100 s with a binding budget, where a smaller
 #: static regularisation solves it).
-REFERENCE_ATTEMPTS = ({}, {'max_iter': 400},
-                      {'max_iter': 400, 'static_regularization_constant': 1e-7})
+REFERENCE_ATTEMPTS = CLARABEL_ATTEMPTS
 
 
 def fleet_frames(fleet: FleetScenario) -> list[Frame]:
@@ -110,14 +109,7 @@ def step_cvxpy(fleet: FleetScenario, frames: list[Frame], rates: list[NodeRates]
     for (j, k), a, rhs in zip(fleet.pairs, data.separation.direction, data.separation.rhs):
         constraints.append(cp.sum(cp.multiply(a, z[j] - z[k]), axis=1) >= rhs)
     problem = cp.Problem(cp.Maximize(t), constraints)
-    for options in REFERENCE_ATTEMPTS[:-1]:
-        try:
-            solve_usable(problem, 'fleet trajectory step', **options)
-            break
-        except SolverError:
-            continue
-    else:
-        solve_usable(problem, 'fleet trajectory step', **REFERENCE_ATTEMPTS[-1])
+    solve_usable(problem, 'fleet trajectory step', attempts=REFERENCE_ATTEMPTS)
     return np.stack([z_k.value for z_k in z])
 
 
