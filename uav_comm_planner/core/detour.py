@@ -19,9 +19,11 @@ A request with no path around the zones, or none that fits the horizon at V, is 
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
 import math
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 from scipy.sparse import csr_matrix
@@ -260,6 +262,31 @@ def clear(zones: Zones, a: np.ndarray, b: np.ndarray) -> bool:
     return bool(segments_clear(zones, a, b)[0])
 
 
+#: The check a plan asks while it works round the zones (:func:`asking`); None: none.
+_CHECK: contextvars.ContextVar[Callable[[], None] | None] = contextvars.ContextVar(
+    'zone_check', default=None)
+
+
+@contextlib.contextmanager
+def asking(check: Callable[[], None]) -> Iterator[None]:
+    """Within it, every visibility graph built and every path searched round the zones (in
+    this thread) asks ``check``, which raises to give up (a plan being cancelled): the graph
+    between its chunks, :func:`shortest_path` before it searches. The starts round the zones
+    are made in it without a check of their own."""
+    token = _CHECK.set(check)
+    try:
+        yield
+    finally:
+        _CHECK.reset(token)
+
+
+def _ask(check: Callable[[], None] | None) -> None:
+    """``check``, or the one :func:`asking` set, if any."""
+    check = check if check is not None else _CHECK.get()
+    if check is not None:
+        check()
+
+
 #: The visibility graphs built, by their zones (:func:`corner_graph`).
 GRAPHS: RecentlyUsed[tuple[np.ndarray, np.ndarray]] = RecentlyUsed(GRAPHS_KEPT)
 
@@ -279,21 +306,20 @@ def corner_graph(zones: Zones, check: Callable[[], None] | None = None,
     graph = GRAPHS.get(key)
     if graph is not None:
         return graph
+    _ask(check)
     corners, back, ahead, alone = _graph_chain(zones, whole)
     count = len(corners)
     candidates = [(np.zeros(0, dtype=int), np.zeros(0, dtype=int))]
     rows_per_chunk = max(1, GRAPH_CHUNK * 50 // max(count, 1))
     for first in range(0, count, rows_per_chunk):
-        if check is not None:
-            check()
+        _ask(check)
         candidates.append(tangent_pairs(corners, back, ahead, alone,
                                         slice(first, first + rows_per_chunk)))
     i = np.concatenate([pair[0] for pair in candidates])
     j = np.concatenate([pair[1] for pair in candidates])
     visible = np.zeros(len(i), dtype=bool)
     for first in range(0, len(i), GRAPH_CHUNK):
-        if check is not None:
-            check()
+        _ask(check)
         pairs = slice(first, first + GRAPH_CHUNK)
         visible[pairs] = segments_clear(zones, corners[i[pairs]], corners[j[pairs]])
     lengths = np.zeros((count, count))
@@ -309,7 +335,8 @@ def shortest_path(zones: Zones, start: np.ndarray, goal: np.ndarray,
                   check: Callable[[], None] | None = None) -> np.ndarray | None:
     """The shortest polyline (K, 2) from ``start`` to ``goal`` through the graph's corners
     whose every segment keeps the margin; None when there is none. ``check`` is asked as in
-    :func:`corner_graph` while a graph is built for it."""
+    :func:`corner_graph` before the search and while a graph is built for it."""
+    _ask(check)
     start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
     if clear(zones, start, goal):
         return np.array([start, goal])
@@ -536,6 +563,6 @@ def _joined(pieces: list[np.ndarray],
     return np.vstack(path), np.concatenate(counts), stops[:-1]
 
 
-__all__ = ['GRAPHS', 'around_zones', 'corner_graph', 'graph_corners',
+__all__ = ['GRAPHS', 'around_zones', 'asking', 'corner_graph', 'graph_corners',
            'hover_start', 'outside_point', 'shortest_path',
            'static_start', 'straight_start']
