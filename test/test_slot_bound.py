@@ -8,11 +8,10 @@ import dataclasses
 import json
 
 import pytest
-
 from test_hardening import one_line_refusal, peak_bytes
+
 from uav_comm_planner import ComputeBudgetError, paper_scenario, plan
 from uav_comm_planner.core.scenario import MAX_SLOTS, SolverSettings
-from uav_comm_planner.tools import cli
 
 
 def one_node(slots: int):

@@ -9,8 +9,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from test_detour_scaling import compare_paths, old_shortest_length, star
+
 from uav_comm_planner.core.detour import (corner_graph, GRAPH_CLEARANCE_M, graph_corners,
                                           GRAPHS, shortest_path)
 from uav_comm_planner.core.zone_hulls import isolation_m, wrapped_hulls, zones_holding

@@ -9,8 +9,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-
 from test_detour_scaling import star
+
 from uav_comm_planner import paper_scenario
 from uav_comm_planner.core import detour
 from uav_comm_planner.core.detour import corner_graph, GRAPHS
