@@ -107,7 +107,16 @@ def _polygon_chain(vertices: np.ndarray, radius: float,
 
 def graph_corners(zones: Zones, whole: frozenset[int] = frozenset()) -> np.ndarray:
     """The visibility graph's corners (K, 2) metres that keep the margin."""
-    return _graph_chain(zones, whole)[0]
+    return _placed_corners(zones, whole)[0]
+
+
+@functools.lru_cache(maxsize=16)
+def _own_corners(zones: Zones) -> np.ndarray:
+    """The corners round every zone's own vertices, none wrapped by its hull (K, 2)."""
+    radius = zones.margin_m + GRAPH_CLEARANCE_M
+    corners = graph_corners(zones, frozenset(wrapped_hulls(zones, radius)))
+    corners.setflags(write=False)
+    return corners
 
 
 def _graph_chain(zones: Zones, whole: frozenset[int] = frozenset()
@@ -118,6 +127,21 @@ def _graph_chain(zones: Zones, whole: frozenset[int] = frozenset()
     :func:`_alone_distance` of it. A zone wrapped by its hull
     (:func:`~uav_comm_planner.core.zone_hulls.wrapped_hulls`) has the corners round its hull,
     unless its place is in ``whole``."""
+    corners, back, ahead, owner = _placed_corners(zones, whole)
+    alone = np.ones(len(corners), dtype=bool)
+    reach = _alone_distance(zones)
+    for number, zone in enumerate((*zones.keep_out, *(() if zones.area is None
+                                                      else (zones.area,)))):
+        others = owner != number
+        if others.any():
+            alone[others] &= zone.clearance(corners[others]) >= reach
+    return corners, back, ahead, alone
+
+
+def _placed_corners(zones: Zones, whole: frozenset[int]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_graph_chain`'s corners, directions back and ahead, and each one's zone (K,):
+    its place in ``zones.keep_out``, or after them the area."""
     radius = zones.margin_m + GRAPH_CLEARANCE_M
     hulls = wrapped_hulls(zones, radius)
     chain: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
@@ -137,20 +161,11 @@ def _graph_chain(zones: Zones, whole: frozenset[int] = frozenset()
         chain += more
         owners += [len(zones.keep_out)] * len(more)
     if not chain:
-        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, dtype=bool)
+        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, dtype=int)
     corners, back, ahead = (np.array(part) for part in zip(*chain))
     # Each corner as a segment of no length: it keeps the margin (it is never on an edge).
     keep = segments_clear(zones, corners, corners)
-    corners, back, ahead = corners[keep], back[keep], ahead[keep]
-    owner = np.array(owners)[keep]
-    alone = np.ones(len(corners), dtype=bool)
-    reach = _alone_distance(zones)
-    for number, zone in enumerate((*zones.keep_out, *(() if zones.area is None
-                                                      else (zones.area,)))):
-        others = owner != number
-        if others.any():
-            alone[others] &= zone.clearance(corners[others]) >= reach
-    return corners, back, ahead, alone
+    return corners[keep], back[keep], ahead[keep], np.array(owners)[keep]
 
 
 def _alone_distance(zones: Zones) -> float:
@@ -455,13 +470,14 @@ def _waypoints(path: np.ndarray, counts: np.ndarray, hovers: np.ndarray) -> np.n
 def outside_point(zones: Zones, point: np.ndarray) -> np.ndarray | None:
     """``point`` if it keeps the margin, else the nearest point found that does: the point
     pushed out of each zone it is too close to, along the way to that zone's nearest edge
-    (radially for a circle), to the margin and :data:`GRAPH_CLEARANCE_M` beyond, or a graph
-    corner; None when none keeps the margin."""
+    (radially for a circle), to the margin and :data:`GRAPH_CLEARANCE_M` beyond, or a corner
+    round a zone's own vertices (a zone's pockets' too, where the graph wraps it by its hull);
+    None when none keeps the margin."""
     point = np.asarray(point, dtype=float)
     if zones.clearance([point])[0] >= zones.margin_m:
         return point
     reach = zones.margin_m + GRAPH_CLEARANCE_M
-    candidates = [corner_graph(zones)[0]]
+    candidates = [_own_corners(zones)]     # the pockets' corners too, as ever
     for zone in (*zones.keep_out, *(() if zones.area is None else (zones.area,))):
         if zone.clearance([point])[0] >= zones.margin_m:
             continue
