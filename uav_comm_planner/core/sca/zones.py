@@ -42,6 +42,18 @@ class ZoneStepRows:
     rows: ZoneRows
     every: ZoneRows
 
+    @property
+    def normals(self) -> np.ndarray:
+        return self.rows.normals
+
+    @property
+    def offsets(self) -> np.ndarray:
+        return self.rows.offsets
+
+    def slack(self, q: np.ndarray) -> np.ndarray:
+        """The imposed rows' slack at q (M, 2) metres (:meth:`ZoneRows.slack`)."""
+        return self.rows.slack(q)
+
 
 class ZoneHalfPlanes(Block):
     """The zones' rows at q^k (module docstring); build it only for a scenario with zones.
