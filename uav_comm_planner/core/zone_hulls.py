@@ -79,13 +79,14 @@ def _hull_alone(hull: np.ndarray, others: tuple, zones: Zones, distance: float) 
 
 
 def zones_holding(zones: Zones, reach_m: float, points: np.ndarray) -> frozenset[int]:
-    """The wrapped zones (:func:`wrapped_hulls`) whose hull grown by ``reach_m`` holds one of
-    ``points`` (K, 2): a path from there may need the zone's own corners."""
+    """The wrapped zones (:func:`wrapped_hulls` with ``reach_m``) whose hull grown by the
+    margin holds one of ``points`` (K, 2) inside it: a path from there may need the zone's own
+    corners (from a point on that grown hull or beyond, none does)."""
     points = np.atleast_2d(np.asarray(points, dtype=float))
     holding = set()
     for number, hull in wrapped_hulls(zones, reach_m).items():
         ring = point_segment_distance(points[:, None], hull, np.roll(hull, -1, axis=0))
-        if (ring.min(axis=1) <= reach_m).any() or inside_polygon(points, hull).any():
+        if (ring.min(axis=1) < zones.margin_m).any() or inside_polygon(points, hull).any():
             holding.add(number)
     return frozenset(holding)
 
