@@ -17,6 +17,7 @@ from scipy.sparse.csgraph import dijkstra
 from uav_comm_planner.core.detour import (CHUNK_PAIRS, CIRCLE_SIDES, corner_graph,
                                           GRAPH_CLEARANCE_M, graph_corners, GRAPHS,
                                           MAX_ARC_STEP_RAD, segments_clear, shortest_path)
+from uav_comm_planner.core.zone_hulls import wrapped_hulls, zones_holding
 from uav_comm_planner.core.zones import (_first_crossing, _segment_meets_edges, _segments_cross,
                                          closest_on_segments,
                                          inside_polygon, KeepOutCircle, KeepOutPolygon,
@@ -149,11 +150,14 @@ def old_segments_clear(zones: Zones, a: np.ndarray, b: np.ndarray, *,
     return ok
 
 
-def old_shortest_length(zones: Zones, start: np.ndarray, goal: np.ndarray) -> float:
-    """The length of the shortest path through the reference graph (inf: none)."""
+def old_shortest_length(zones: Zones, start: np.ndarray, goal: np.ndarray,
+                        corners: np.ndarray | None = None) -> float:
+    """The length of the shortest path through the reference graph, every pair of
+    ``corners`` (the reference's own by default) tested zone by zone (inf: none)."""
     if old_segments_clear(zones, start[None], goal[None])[0]:
         return float(np.linalg.norm(goal - start))
-    corners = old_graph_corners(zones)
+    if corners is None:
+        corners = old_graph_corners(zones)
     i, j = np.triu_indices(len(corners), k=1)
     count = len(corners) + 2
     lengths = np.zeros((count, count))
@@ -199,10 +203,12 @@ def random_zones(seed: int) -> Zones:
     return Zones(area, tuple(zones), margin_m=float(rng.uniform(0.0, 20.0)))
 
 
-def compare_paths(seed: int) -> tuple[int, int, float]:
-    """Shortest paths between random points round ``random_zones(seed)``, by the package and
-    by the reference: (paths compared, paths of equal length, the largest relative excess)."""
-    zones = random_zones(seed)
+def compare_paths(seed: int, zones: Zones | None = None) -> tuple[int, int, float]:
+    """Shortest paths between random points round ``random_zones(seed)`` (or ``zones``), by
+    the package and by the reference graph of every pair of the package's corners (the
+    reference's own where no zone is wrapped by its hull), never longer than the reference's
+    own corners give: (paths compared, paths of equal length, the largest relative excess)."""
+    zones = random_zones(seed) if zones is None else zones
     rng = np.random.default_rng(seed)
     compared = equal = 0
     worst = 0.0
@@ -210,16 +216,24 @@ def compare_paths(seed: int) -> tuple[int, int, float]:
         start, goal = rng.uniform([-50.0, -1000.0], [2050.0, 1000.0], (2, 2))
         if min(zones.clearance([start])[0], zones.clearance([goal])[0]) < zones.margin_m:
             continue
-        expected = old_shortest_length(zones, start, goal)
+        reference = old_shortest_length(zones, start, goal)
+        corners = graph_corners(zones, zones_holding(
+            zones, zones.margin_m + GRAPH_CLEARANCE_M, np.array([start, goal])))
+        expected = old_shortest_length(zones, start, goal, corners)
         path = shortest_path(zones, start, goal)
         if math.isinf(expected):
-            assert path is None
+            assert path is None and math.isinf(reference)
             continue
         compared += 1
         length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
         assert zones.path_clearance(path) >= zones.margin_m - 1e-9
-        # The tangent graph is part of the reference graph: never shorter.
+        # The tangent graph is part of the graph of every pair: never shorter; and its
+        # corners (round the hulls of the wrapped zones) give no longer paths than the
+        # reference's own.
         assert length >= expected * (1 - 1e-12)
+        assert length <= reference * (1 + 2e-5)
+        if not wrapped_hulls(zones, zones.margin_m + GRAPH_CLEARANCE_M):
+            np.testing.assert_array_equal(corners, old_graph_corners(zones))
         equal += length <= expected * (1 + 1e-12)
         worst = max(worst, length / expected - 1)
     return compared, equal, worst
@@ -246,7 +260,8 @@ def test_the_visibility_tests_are_the_references(make):
     """Every pair of corners (tangent or not) and random segments: the vectorised test is the
     zone-by-zone reference."""
     zones = make()
-    corners = graph_corners(zones)
+    # Every zone with its own corners (none wrapped by its hull): the reference's corners.
+    corners = graph_corners(zones, frozenset(range(len(zones.keep_out))))
     np.testing.assert_array_equal(corners, old_graph_corners(zones))
     i, j = np.triu_indices(len(corners), k=1)
     rng = np.random.default_rng(0)

@@ -19,17 +19,21 @@ A request with no path around the zones, or none that fits the horizon at V, is 
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
 import math
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from uav_comm_planner.core import initial
+from uav_comm_planner.core.edge_tree import against_edges, EdgeTree, point_segment_distance
 from uav_comm_planner.core.recent import RecentlyUsed
 from uav_comm_planner.core.scenario import Scenario
+from uav_comm_planner.core.zone_hulls import wrapped_hulls, zones_holding
 from uav_comm_planner.core.zones import (closest_on_segments, inside_polygon, KeepOutCircle,
                                          Zones)
 from uav_comm_planner.errors import InfeasibleHorizonError, WalledInError
@@ -101,38 +105,29 @@ def _polygon_chain(vertices: np.ndarray, radius: float,
     return corners
 
 
-def graph_corners(zones: Zones) -> np.ndarray:
+def graph_corners(zones: Zones, whole: frozenset[int] = frozenset()) -> np.ndarray:
     """The visibility graph's corners (K, 2) metres that keep the margin."""
-    return _graph_chain(zones)[0]
+    return _placed_corners(zones, whole)[0]
 
 
-def _graph_chain(zones: Zones) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+@functools.lru_cache(maxsize=16)
+def _own_corners(zones: Zones) -> np.ndarray:
+    """The corners round every zone's own vertices, none wrapped by its hull (K, 2)."""
+    radius = zones.margin_m + GRAPH_CLEARANCE_M
+    corners = graph_corners(zones, frozenset(wrapped_hulls(zones, radius)))
+    corners.setflags(write=False)
+    return corners
+
+
+def _graph_chain(zones: Zones, whole: frozenset[int] = frozenset()
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The graph's corners (K, 2) that keep the margin; for each the unit directions (K, 2)
     along the polygon of corners round its zone to its neighbours, back and ahead; and whether
     its zone is the only one near it (K,): no other zone comes within
-    :func:`_alone_distance` of it."""
-    radius = zones.margin_m + GRAPH_CLEARANCE_M
-    chain: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-    owners: list[int] = []
-    for number, zone in enumerate(zones.keep_out):
-        if isinstance(zone, KeepOutCircle):
-            centre = np.array(zone.center_m)
-            more = _circle_chain(centre, zone.radius_m + radius)
-        else:
-            more = _polygon_chain(zone.vertices_m, radius, outside=True)
-        chain += more
-        owners += [number] * len(more)
-    if zones.area is not None:
-        more = _polygon_chain(zones.area.vertices_m, radius, outside=False)
-        chain += more
-        owners += [len(zones.keep_out)] * len(more)
-    if not chain:
-        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, dtype=bool)
-    corners, back, ahead = (np.array(part) for part in zip(*chain))
-    # Each corner as a segment of no length: it keeps the margin (it is never on an edge).
-    keep = segments_clear(zones, corners, corners)
-    corners, back, ahead = corners[keep], back[keep], ahead[keep]
-    owner = np.array(owners)[keep]
+    :func:`_alone_distance` of it. A zone wrapped by its hull
+    (:func:`~uav_comm_planner.core.zone_hulls.wrapped_hulls`) has the corners round its hull,
+    unless its place is in ``whole``."""
+    corners, back, ahead, owner = _placed_corners(zones, whole)
     alone = np.ones(len(corners), dtype=bool)
     reach = _alone_distance(zones)
     for number, zone in enumerate((*zones.keep_out, *(() if zones.area is None
@@ -141,6 +136,36 @@ def _graph_chain(zones: Zones) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
         if others.any():
             alone[others] &= zone.clearance(corners[others]) >= reach
     return corners, back, ahead, alone
+
+
+def _placed_corners(zones: Zones, whole: frozenset[int]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_graph_chain`'s corners, directions back and ahead, and each one's zone (K,):
+    its place in ``zones.keep_out``, or after them the area."""
+    radius = zones.margin_m + GRAPH_CLEARANCE_M
+    hulls = wrapped_hulls(zones, radius)
+    chain: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    owners: list[int] = []
+    for number, zone in enumerate(zones.keep_out):
+        if isinstance(zone, KeepOutCircle):
+            centre = np.array(zone.center_m)
+            more = _circle_chain(centre, zone.radius_m + radius)
+        else:
+            outline = hulls[number] if number in hulls and number not in whole \
+                else zone.vertices_m
+            more = _polygon_chain(outline, radius, outside=True)
+        chain += more
+        owners += [number] * len(more)
+    if zones.area is not None:
+        more = _polygon_chain(zones.area.vertices_m, radius, outside=False)
+        chain += more
+        owners += [len(zones.keep_out)] * len(more)
+    if not chain:
+        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, dtype=int)
+    corners, back, ahead = (np.array(part) for part in zip(*chain))
+    # Each corner as a segment of no length: it keeps the margin (it is never on an edge).
+    keep = segments_clear(zones, corners, corners)
+    return corners[keep], back[keep], ahead[keep], np.array(owners)[keep]
 
 
 def _alone_distance(zones: Zones) -> float:
@@ -189,56 +214,6 @@ def tangent_pairs(corners: np.ndarray, back: np.ndarray, ahead: np.ndarray,
     return first[i], j
 
 
-def _orient(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-    return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) \
-        - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
-
-
-def _point_segment(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distances of points to segments ab, broadcasting over leading axes."""
-    return np.linalg.norm(points - closest_on_segments(points, a, b), axis=-1)
-
-
-def _against_edges(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray,
-                   margin: float) -> tuple[np.ndarray, np.ndarray]:
-    """For segments ab (S, 2) and edges cd (E, 2) each: whether each segment meets an edge,
-    and its least distance to them when it meets none (0 where it does; inf where no edge
-    comes within ``margin`` of it, as their bounding boxes show: only the segment-edge pairs
-    whose boxes, one grown by the margin, overlap are measured)."""
-    low_s, high_s = np.minimum(a, b), np.maximum(a, b)
-    low_e, high_e = np.minimum(c, d) - margin, np.maximum(c, d) + margin
-    meets = np.zeros(len(a), dtype=bool)
-    distance = np.full(len(a), np.inf)
-    rows = max(1, CHUNK_PAIRS // max(len(c), 1))
-    for first in range(0, len(a), rows):
-        part = slice(first, first + rows)
-        near = ((low_s[part, None, 0] <= high_e[None, :, 0])
-                & (high_s[part, None, 0] >= low_e[None, :, 0])
-                & (low_s[part, None, 1] <= high_e[None, :, 1])
-                & (high_s[part, None, 1] >= low_e[None, :, 1]))
-        segment, edge = np.nonzero(near)
-        if not len(segment):
-            continue
-        segment = segment + first
-        a2, b2, c2, d2 = a[segment], b[segment], c[edge], d[edge]
-        o1, o2 = _orient(a2, b2, c2), _orient(a2, b2, d2)
-        o3, o4 = _orient(c2, d2, a2), _orient(c2, d2, b2)
-        crossing = (o1 * o2 < 0) & (o3 * o4 < 0)
-        meets[segment[crossing]] = True
-        # Distances only for the segments that cross no edge (the others are out already).
-        keep = ~meets[segment]
-        segment, a2, b2, c2, d2 = segment[keep], a2[keep], b2[keep], c2[keep], d2[keep]
-        apart = np.minimum.reduce([_point_segment(a2, c2, d2), _point_segment(b2, c2, d2),
-                                   _point_segment(c2, a2, b2), _point_segment(d2, a2, b2)])
-        np.minimum.at(distance, segment, apart)
-    # A proper crossing, or touching (distance 0: a margin of 0 then still keeps off the
-    # boundary). Orientations alone would count any segment on the line through an edge,
-    # however far from it, and any hover (a zero-length leg) on such a line.
-    meets |= distance <= 0.0
-    distance[meets] = 0.0
-    return meets, distance
-
-
 def _inside_any(points: np.ndarray, polygons: tuple[np.ndarray, ...]) -> np.ndarray:
     """Whether each point (S, 2) is inside any of the polygons (only those whose bounding box
     holds it are tested)."""
@@ -252,19 +227,18 @@ def _inside_any(points: np.ndarray, polygons: tuple[np.ndarray, ...]) -> np.ndar
 
 
 @functools.lru_cache(maxsize=16)
-def _zone_edges(zones: Zones) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+def _zone_edges(zones: Zones) -> tuple[np.ndarray, np.ndarray, EdgeTree, EdgeTree | None,
                                        tuple[np.ndarray, ...]]:
-    """The keep-out zones as arrays: circles' centres (C, 2) and radii (C,); every keep-out
-    polygon's edges, starts and ends (E, 2) each; the polygons."""
+    """The keep-out zones as arrays: circles' centres (C, 2) and radii (C,); the trees of
+    every keep-out polygon's edges and of the operating area's (None without one); the
+    polygons."""
     circles = [zone for zone in zones.keep_out if isinstance(zone, KeepOutCircle)]
     polygons = tuple(zone.vertices_m for zone in zones.keep_out
                      if not isinstance(zone, KeepOutCircle))
     centres = np.array([zone.center_m for zone in circles]).reshape(-1, 2)
     radii = np.array([zone.radius_m for zone in circles])
-    starts = np.vstack(polygons) if polygons else np.zeros((0, 2))
-    ends = np.vstack([np.roll(v, -1, axis=0) for v in polygons]) if polygons \
-        else np.zeros((0, 2))
-    return centres, radii, starts, ends, polygons
+    area = None if zones.area is None else EdgeTree.of_rings([zones.area.vertices_m])
+    return centres, radii, EdgeTree.of_rings(polygons), area, polygons
 
 
 def segments_clear(zones: Zones, a: np.ndarray, b: np.ndarray, *,
@@ -277,25 +251,24 @@ def segments_clear(zones: Zones, a: np.ndarray, b: np.ndarray, *,
     tests use)."""
     a, b = np.atleast_2d(np.asarray(a, float)), np.atleast_2d(np.asarray(b, float))
     margin = zones.margin_m if margin_m is None else margin_m
-    centres, radii, starts, ends, polygons = _zone_edges(zones)
+    centres, radii, edges, area_edges, polygons = _zone_edges(zones)
     ok = np.ones(len(a), dtype=bool)
     if len(radii):
         rows = max(1, CHUNK_PAIRS // len(radii))
         for first in range(0, len(a), rows):
             part = slice(first, first + rows)
-            reach = _point_segment(centres[None], a[part, None], b[part, None])
+            reach = point_segment_distance(centres[None], a[part, None], b[part, None])
             ok[part] &= (reach >= radii + margin).all(axis=1)
     # A segment that meets no edge is wholly inside or wholly outside each polygon: its end a
     # tells which (asked only of the segments still clear).
-    if len(starts):
-        meets, distance = _against_edges(a, b, starts, ends, margin)
+    if polygons:
+        meets, distance = against_edges(a, b, edges, margin)
         ok &= ~meets & (distance >= margin)
         ok[ok] = ~_inside_any(a[ok], polygons)
-    if zones.area is not None:
-        vertices = zones.area.vertices_m
-        meets, distance = _against_edges(a, b, vertices, np.roll(vertices, -1, axis=0), margin)
+    if area_edges is not None:
+        meets, distance = against_edges(a, b, area_edges, margin)
         ok &= ~meets & (distance >= margin)
-        ok[ok] = _inside_any(a[ok], (vertices,))
+        ok[ok] = _inside_any(a[ok], (zones.area.vertices_m,))
     return ok
 
 
@@ -304,12 +277,37 @@ def clear(zones: Zones, a: np.ndarray, b: np.ndarray) -> bool:
     return bool(segments_clear(zones, a, b)[0])
 
 
+#: The check a plan asks while it works round the zones (:func:`asking`); None: none.
+_CHECK: contextvars.ContextVar[Callable[[], None] | None] = contextvars.ContextVar(
+    'zone_check', default=None)
+
+
+@contextlib.contextmanager
+def asking(check: Callable[[], None]) -> Iterator[None]:
+    """Within it, every visibility graph built and every path searched round the zones (in
+    this thread) asks ``check``, which raises to give up (a plan being cancelled): the graph
+    between its chunks, :func:`shortest_path` before it searches. The starts round the zones
+    are made in it without a check of their own."""
+    token = _CHECK.set(check)
+    try:
+        yield
+    finally:
+        _CHECK.reset(token)
+
+
+def _ask(check: Callable[[], None] | None) -> None:
+    """``check``, or the one :func:`asking` set, if any."""
+    check = check if check is not None else _CHECK.get()
+    if check is not None:
+        check()
+
+
 #: The visibility graphs built, by their zones (:func:`corner_graph`).
 GRAPHS: RecentlyUsed[tuple[np.ndarray, np.ndarray]] = RecentlyUsed(GRAPHS_KEPT)
 
 
-def corner_graph(zones: Zones, check: Callable[[], None] | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def corner_graph(zones: Zones, check: Callable[[], None] | None = None,
+                 whole: frozenset[int] = frozenset()) -> tuple[np.ndarray, np.ndarray]:
     """The graph's corners (K, 2) and their visibility (K, K), lengths or 0 (none), built
     once per zones and kept: only corner pairs tangent at both ends (:func:`tangent_pairs`)
     are tested and joined, in chunks of :data:`GRAPH_CHUNK` pairs. The building is the work
@@ -317,25 +315,26 @@ def corner_graph(zones: Zones, check: Callable[[], None] | None = None
     between the rows of pairs the tangents are found for) and raises to give up (a plan being
     cancelled), nothing being kept then. A planner given a way to be cancelled builds the
     graph first with it (:func:`~uav_comm_planner.core.optimizer.plan`); the paths and starts
-    then use the graph kept."""
-    graph = GRAPHS.get(zones)
+    then use the graph kept. The zones wrapped by their hulls whose places are in ``whole``
+    have their own corners (a path from inside such a hull, :func:`shortest_path`)."""
+    key = zones if not whole else (zones, whole)
+    graph = GRAPHS.get(key)
     if graph is not None:
         return graph
-    corners, back, ahead, alone = _graph_chain(zones)
+    _ask(check)
+    corners, back, ahead, alone = _graph_chain(zones, whole)
     count = len(corners)
     candidates = [(np.zeros(0, dtype=int), np.zeros(0, dtype=int))]
     rows_per_chunk = max(1, GRAPH_CHUNK * 50 // max(count, 1))
     for first in range(0, count, rows_per_chunk):
-        if check is not None:
-            check()
+        _ask(check)
         candidates.append(tangent_pairs(corners, back, ahead, alone,
                                         slice(first, first + rows_per_chunk)))
     i = np.concatenate([pair[0] for pair in candidates])
     j = np.concatenate([pair[1] for pair in candidates])
     visible = np.zeros(len(i), dtype=bool)
     for first in range(0, len(i), GRAPH_CHUNK):
-        if check is not None:
-            check()
+        _ask(check)
         pairs = slice(first, first + GRAPH_CHUNK)
         visible[pairs] = segments_clear(zones, corners[i[pairs]], corners[j[pairs]])
     lengths = np.zeros((count, count))
@@ -343,17 +342,21 @@ def corner_graph(zones: Zones, check: Callable[[], None] | None = None
     lengths[i, j] = np.linalg.norm(corners[j] - corners[i], axis=1)
     for array in (corners, lengths):
         array.setflags(write=False)
-    GRAPHS.put(zones, (corners, lengths))
+    GRAPHS.put(key, (corners, lengths))
     return corners, lengths
 
 
-def shortest_path(zones: Zones, start: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
+def shortest_path(zones: Zones, start: np.ndarray, goal: np.ndarray,
+                  check: Callable[[], None] | None = None) -> np.ndarray | None:
     """The shortest polyline (K, 2) from ``start`` to ``goal`` through the graph's corners
-    whose every segment keeps the margin; None when there is none."""
+    whose every segment keeps the margin; None when there is none. ``check`` is asked as in
+    :func:`corner_graph` before the search and while a graph is built for it."""
+    _ask(check)
     start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
     if clear(zones, start, goal):
         return np.array([start, goal])
-    corners, corner_lengths = corner_graph(zones)
+    whole = zones_holding(zones, zones.margin_m + GRAPH_CLEARANCE_M, np.array([start, goal]))
+    corners, corner_lengths = corner_graph(zones, check, whole)
     count = len(corners) + 2
     lengths = np.zeros((count, count))
     lengths[2:, 2:] = corner_lengths
@@ -467,13 +470,14 @@ def _waypoints(path: np.ndarray, counts: np.ndarray, hovers: np.ndarray) -> np.n
 def outside_point(zones: Zones, point: np.ndarray) -> np.ndarray | None:
     """``point`` if it keeps the margin, else the nearest point found that does: the point
     pushed out of each zone it is too close to, along the way to that zone's nearest edge
-    (radially for a circle), to the margin and :data:`GRAPH_CLEARANCE_M` beyond, or a graph
-    corner; None when none keeps the margin."""
+    (radially for a circle), to the margin and :data:`GRAPH_CLEARANCE_M` beyond, or a corner
+    round a zone's own vertices (a zone's pockets' too, where the graph wraps it by its hull);
+    None when none keeps the margin."""
     point = np.asarray(point, dtype=float)
     if zones.clearance([point])[0] >= zones.margin_m:
         return point
     reach = zones.margin_m + GRAPH_CLEARANCE_M
-    candidates = [corner_graph(zones)[0]]
+    candidates = [_own_corners(zones)]     # the pockets' corners too, as ever
     for zone in (*zones.keep_out, *(() if zones.area is None else (zones.area,))):
         if zone.clearance([point])[0] >= zones.margin_m:
             continue
@@ -575,6 +579,6 @@ def _joined(pieces: list[np.ndarray],
     return np.vstack(path), np.concatenate(counts), stops[:-1]
 
 
-__all__ = ['GRAPHS', 'around_zones', 'corner_graph', 'graph_corners',
+__all__ = ['GRAPHS', 'around_zones', 'asking', 'corner_graph', 'graph_corners',
            'hover_start', 'outside_point', 'shortest_path',
            'static_start', 'straight_start']

@@ -373,9 +373,10 @@ def plan(scenario: Scenario, settings: SolverSettings | None = None, *,
         raise InvalidScenarioError(f'should_stop must be callable, got {should_stop!r}')
     check_stop = stop_checker(should_stop)
     offsets = checked_offsets(offsets, scenario.num_nodes)
-    prepare_zones(scenario, check_stop)
-    return _best_plan(scenario, settings, power_method, trajectory_method, should_stop,
-                      check_stop, offsets, extra_starts, tuple(blocks))
+    with detour.asking(check_stop):
+        prepare_zones(scenario, check_stop)
+        return _best_plan(scenario, settings, power_method, trajectory_method, should_stop,
+                          check_stop, offsets, extra_starts, tuple(blocks))
 
 
 def prepare_zones(scenario: Scenario, check_stop: Callable[[], None]) -> None:

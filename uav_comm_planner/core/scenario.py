@@ -38,6 +38,11 @@ MAX_COORDINATE_M = 1.0e7
 MIN_STEP_M = 1.0e-6
 #: Default compute budget: the largest N x M (nodes times slots) a plan accepts.
 MAX_NODE_SLOTS = 100_000
+#: The most slots M a plan accepts, whatever N: each trajectory step is a cone programme
+#: over every slot, and at M = 20 000 a default plan's nine steps take about 20 s on one core
+#: (at M = 100 000, with N = 1 within the budget, well over a minute). 20 000 slots of a
+#: second are five and a half hours of flight.
+MAX_SLOTS = 20_000
 
 
 def _point(name: str, value: Sequence[float]) -> Point:
@@ -490,7 +495,8 @@ class SolverSettings:
                 f'{self.max_nodes}')
 
     def check(self, scenario: Scenario) -> None:
-        """Refuse a scenario beyond the limits: ``max_nodes`` and the compute budget N x M."""
+        """Refuse a scenario beyond the limits: ``max_nodes``, the compute budget N x M and
+        :data:`MAX_SLOTS`."""
         if not isinstance(scenario, Scenario):
             raise InvalidScenarioError(
                 f'plan needs a Scenario, got {type(scenario).__name__}')
@@ -501,6 +507,10 @@ class SolverSettings:
                 f'problem too large: N x M = {scenario.num_nodes} nodes x '
                 f'{scenario.num_slots} slots = {size} exceeds the compute budget '
                 f'max_node_slots = {self.max_node_slots}; lower num_slots or the node count')
+        if scenario.num_slots > MAX_SLOTS:
+            raise ComputeBudgetError(
+                f'too many slots: M = {scenario.num_slots} exceeds the most a plan takes, '
+                f'MAX_SLOTS = {MAX_SLOTS}; lower num_slots (longer slots)')
 
 
 PAPER_NODES_M = ((200.0, 400.0), (1000.0, 200.0), (1800.0, 400.0))

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import functools
+from typing import Sequence
 
 import numpy as np
 
@@ -111,6 +112,32 @@ class ZoneModel:
     def rows_per_slot(self) -> int:
         """K: a row per hull edge and two per keep-out piece."""
         return len(self.hull_offsets) + 2 * self.num_pieces
+
+    def pieces_rows_per_slot(self, pieces: int | None) -> int:
+        """K with at most ``pieces`` polygon pieces per slot (None: all of them)."""
+        chosen = len(self.polygons) if pieces is None else min(pieces, len(self.polygons))
+        return len(self.hull_offsets) + 2 * (len(self.radii) + chosen)
+
+    def nearest_rows(self, rows: ZoneRows, points: Sequence[np.ndarray],
+                     pieces: int) -> ZoneRows:
+        """Of ``rows`` (:meth:`rows`), each slot's hull and circle rows and the rows of the
+        ``pieces`` polygon pieces nearest it (least slack of their two rows at any of
+        ``points``, slot points (M, 2) each), in the order of :meth:`rows`: (M,
+        :meth:`pieces_rows_per_slot`) rows."""
+        fixed = len(self.hull_offsets) + 2 * len(self.radii)
+        count = len(self.polygons)
+        if pieces >= count:
+            return rows
+        slots = len(points[0])
+        slack = np.min([rows.slack(q)[:, fixed:].reshape(slots, count, 2).min(axis=2)
+                        for q in points], axis=0)
+        nearest = np.sort(np.argpartition(slack, pieces - 1, axis=1)[:, :pieces],
+                          axis=1)                                                  # (M, k)
+        columns = np.concatenate([np.broadcast_to(np.arange(fixed), (slots, fixed)),
+                                  fixed + (2 * nearest[:, :, None] + np.arange(2))
+                                  .reshape(slots, -1)], axis=1)
+        return ZoneRows(np.take_along_axis(rows.normals, columns[:, :, None], axis=1),
+                        np.take_along_axis(rows.offsets, columns, axis=1))
 
     def rows(self, path: np.ndarray, *, cushion_m: float = ZONE_CUSHION_M) -> ZoneRows:
         """The restriction at the current path q0, q^k[1..M], qF ((M + 2, 2) metres), each

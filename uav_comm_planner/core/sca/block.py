@@ -244,6 +244,11 @@ class Block:
         zones' restriction or the path budget). A start it does not admit is left out."""
         return True
 
+    def complete(self, q: np.ndarray, data: Any) -> bool:
+        """Whether a solver's answer q (M, 2) metres keeps the constraints the block left out
+        of the step (True by default: a block imposes all of them)."""
+        return True
+
     def repair(self, q: np.ndarray, data: Any) -> np.ndarray:
         """A solver's answer q (M, 2) metres moved to keep the block exactly (q by default)."""
         return q

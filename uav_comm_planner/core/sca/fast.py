@@ -23,6 +23,7 @@ import numpy as np
 from uav_comm_planner.core.sca.block import BlockFactory, Expansion, Frame
 from uav_comm_planner.core.sca.program import cone_program, step_blocks
 from uav_comm_planner.core.sca.surrogate import KM, TrajectoryStep
+from uav_comm_planner.core.sca.zones import NEAREST_PIECES
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import SolverError
 
@@ -128,13 +129,16 @@ class ClarabelTrajectoryStep:
         self.frame = Frame.of(scenario)
         self.centre_m = self.frame.centre_m
         self.attempt = 0
+        self.zone_pieces: int | None = NEAREST_PIECES
+        self.zone_also: np.ndarray | None = None
         self._configure()
 
     def _configure(self) -> None:
         """Set up the form of :data:`ATTEMPTS` [self.attempt]; the solver is built on use."""
         partial_sums, self.refine = ATTEMPTS[self.attempt]
         self.blocks = step_blocks(self.frame, keep_path_length=self.keep_path_length,
-                                  partial_sums=partial_sums, extra=self.extra_blocks)
+                                  partial_sums=partial_sums, extra=self.extra_blocks,
+                                  zone_pieces=self.zone_pieces, zone_also=self.zone_also)
         self.program = cone_program(self.blocks)
         self.b_fixed = np.concatenate([block.right_hand_side() for block in self.blocks])
         self.objective = np.zeros(self.program.num_columns)
@@ -231,7 +235,9 @@ class ClarabelTrajectoryStep:
             if solution.status == clarabel.SolverStatus.Solved or (
                     solution.status == clarabel.SolverStatus.AlmostSolved
                     and self.within_blocks(None if z is None else self.frame.metres(z), data)):
-                break
+                if self._complete(self.frame.metres(z), data):
+                    break
+                continue
             self._solver = None
             if self.attempt == len(ATTEMPTS) - 1:
                 raise SolverError(
@@ -247,6 +253,21 @@ class ClarabelTrajectoryStep:
             q = block.repair(q, block_data)
         return TrajectoryStep(q=q, bound_of=functools.partial(
             data[0].bound, self.frame.km(q), self.frame.nodes))
+
+    def _complete(self, q: np.ndarray, data: Sequence) -> bool:
+        """Whether q (M, 2) metres keeps what the blocks left out of the step; if not, the
+        zones' rows come from twice the pieces from then on, for this step those nearest q^k
+        or q too (the step is solved again, until an answer keeps them all), so the step's
+        answer is always the whole problem's."""
+        if all(block.complete(q, block_data) for block, block_data in zip(self.blocks, data)):
+            if self.zone_also is not None:
+                self.zone_also = None
+                self._configure()
+            return True
+        self.zone_pieces = 2 * self.zone_pieces
+        self.zone_also = q
+        self._configure()
+        return False
 
     def within_blocks(self, q: np.ndarray | None, data: Sequence) -> bool:
         """Whether an AlmostSolved step's q (M, 2) metres keeps every block to

@@ -32,19 +32,21 @@ from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
 
 
 def step_blocks(frame: Frame, *, keep_path_length: bool = False, partial_sums: bool = True,
-                extra: Sequence[BlockFactory] = ()) -> list[Block]:
+                extra: Sequence[BlockFactory] = (), zone_pieces: int | None = None,
+                zone_also: np.ndarray | None = None) -> list[Block]:
     """The blocks of the SCA step for ``frame``'s scenario: the node rates (always first: they
     define t; :class:`ChannelRates` for a channel with a line-of-sight probability), the legs,
     the zones where there are some, the energy budget where there is one, the ``extra``
     blocks, and with
     ``keep_path_length`` the path budget (last: its certificate picks its multiplier's
-    direction against the others')."""
+    direction against the others'). ``zone_pieces`` (None: all) bounds the zone pieces whose
+    rows each slot gets, the nearest to q^k and to ``zone_also`` (:class:`ZoneHalfPlanes`)."""
     rates = ChannelRates if frame.scenario.channel_model.has_cusp else NodeRates
     blocks: list[Block] = [rates(frame, partial_sums=partial_sums),
                            LegLimits(frame, lengths=keep_path_length)]
     model = zone_model(frame.scenario.zones)
     if model is not None and model.rows_per_slot:
-        blocks.append(ZoneHalfPlanes(frame))
+        blocks.append(ZoneHalfPlanes(frame, zone_pieces, zone_also))
     if frame.scenario.energy_budget_wh is not None:
         blocks.append(EnergyBudget(frame))
     blocks.extend(make(frame) for make in extra)

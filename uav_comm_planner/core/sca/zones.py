@@ -11,6 +11,7 @@ Dual certificate: eta_{m,k} >= 0 adds eta (a . z[m] - b'), supergradient eta a i
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Sequence
 
 import clarabel
@@ -24,17 +25,58 @@ from uav_comm_planner.core.sca.block import (Block, Columns, DualBound, Entries,
 from uav_comm_planner.core.sca.surrogate import KM
 from uav_comm_planner.core.zone_rows import zone_model, ZoneRows
 
+#: The fast step's rows per slot come from this many polygon pieces at the most, the nearest
+#: (:class:`ZoneHalfPlanes`); a step that breaks one left out is solved again with them all.
+NEAREST_PIECES = 24
+#: A broken row of the restriction that the step left out, in metres beyond this, makes the
+#: step :meth:`ZoneHalfPlanes.complete` false (the solvers' own tolerance is about 1e-5 m
+#: on the rows they have; the rows ask for a millimetre more than the margin).
+LEFT_OUT_SLACK_M = 1e-6
+
+
+@dataclass(frozen=True)
+class ZoneStepRows:
+    """The rows a step imposes (``rows``) and the whole restriction at q^k (``every``): the
+    same object when the step imposes all of them."""
+
+    rows: ZoneRows
+    every: ZoneRows
+
+    @property
+    def normals(self) -> np.ndarray:
+        return self.rows.normals
+
+    @property
+    def offsets(self) -> np.ndarray:
+        return self.rows.offsets
+
+    def slack(self, q: np.ndarray) -> np.ndarray:
+        """The imposed rows' slack at q (M, 2) metres (:meth:`ZoneRows.slack`)."""
+        return self.rows.slack(q)
+
 
 class ZoneHalfPlanes(Block):
-    """The zones' rows at q^k (module docstring); build it only for a scenario with zones."""
+    """The zones' rows at q^k (module docstring); build it only for a scenario with zones.
 
-    def __init__(self, frame: Frame):
+    With ``pieces`` only the rows of the ``pieces`` polygon pieces nearest each slot at q^k
+    (or at ``also``, slot points (M, 2) metres: an answer that broke rows left out) are
+    imposed (:meth:`~uav_comm_planner.core.zone_rows.ZoneModel.nearest_rows`; a 1000-vertex
+    star is 500 pieces, two rows each per slot); :meth:`complete` says whether the answer
+    keeps the rows left out, and a step whose answer does not is solved again with twice the
+    pieces, those nearest that answer among them
+    (:class:`~uav_comm_planner.core.sca.fast.ClarabelTrajectoryStep`), so the step's answer is
+    the whole restriction's."""
+
+    def __init__(self, frame: Frame, pieces: int | None = None,
+                 also: np.ndarray | None = None):
         super().__init__(frame)
         self.model = zone_model(frame.scenario.zones)
         if self.model is None:
             raise ValueError('ZoneHalfPlanes needs a scenario with zones')
         self.num_slots = frame.scenario.num_slots
-        self.per_slot = self.model.rows_per_slot
+        self.pieces = pieces
+        self.also = also
+        self.per_slot = self.model.pieces_rows_per_slot(pieces)
         count = self.num_slots * self.per_slot
         self.changing_entries = np.arange(2 * count)
         self.changing_rows = np.arange(count)
@@ -57,23 +99,36 @@ class ZoneHalfPlanes(Block):
     def right_hand_side(self) -> np.ndarray:
         return np.zeros(self.num_slots * self.per_slot)
 
-    def at(self, expansion: Expansion) -> ZoneRows:
-        return self.model.rows(flown_path(expansion.q_k, self.frame.scenario))
+    def at(self, expansion: Expansion) -> ZoneStepRows:
+        path = flown_path(expansion.q_k, self.frame.scenario)
+        every = self.model.rows(path)
+        if self.per_slot == self.model.rows_per_slot:
+            return ZoneStepRows(every, every)
+        points = [path[1:-1]] + ([] if self.also is None else [self.also])
+        return ZoneStepRows(self.model.nearest_rows(every, points, self.pieces), every)
+
+    def complete(self, q: np.ndarray, data: ZoneStepRows) -> bool:
+        """Whether q (M, 2) metres keeps every row of the restriction, those left out too."""
+        if data.rows is data.every:
+            return True
+        return bool(data.every.slack(q).min(initial=np.inf) >= -LEFT_OUT_SLACK_M)
 
     def offsets_km(self, rows: ZoneRows) -> np.ndarray:
         """(o - a . c) / 1000, (M, K): the rows' offsets in the frame."""
         return (rows.offsets - rows.normals @ self.frame.centre_m) / KM
 
-    def update(self, rows: ZoneRows) -> tuple[np.ndarray, np.ndarray]:
-        return -rows.normals.ravel(), -self.offsets_km(rows).ravel()
+    def update(self, data: ZoneStepRows) -> tuple[np.ndarray, np.ndarray]:
+        return -data.rows.normals.ravel(), -self.offsets_km(data.rows).ravel()
 
-    def constraints(self, v: Variables, rows: ZoneRows) -> list[cp.Constraint]:
+    def constraints(self, v: Variables, data: ZoneStepRows) -> list[cp.Constraint]:
+        rows = data.rows
         offsets = self.offsets_km(rows)
         return [cp.sum(cp.multiply(rows.normals[:, k, :], v.z), axis=1) >= offsets[:, k]
                 for k in range(self.per_slot)]
 
-    def certificate(self, z: np.ndarray, rows: ZoneRows, duals: Sequence,
+    def certificate(self, z: np.ndarray, data: ZoneStepRows, duals: Sequence,
                     bound: DualBound) -> DualBound | None:
+        rows = data.rows
         if not duals:
             return bound
         slack = np.einsum('mkj,mj->mk', rows.normals, z) - self.offsets_km(rows)
@@ -85,4 +140,4 @@ class ZoneHalfPlanes(Block):
                           np.einsum('mk,mkj->mj', eta, rows.normals))
 
 
-__all__ = ['ZoneHalfPlanes']
+__all__ = ['LEFT_OUT_SLACK_M', 'NEAREST_PIECES', 'ZoneHalfPlanes', 'ZoneStepRows']
