@@ -137,8 +137,8 @@ class PlannerNode(Node):
     def __init__(self, *, planner: Planner = plan, **node_options) -> None:
         super().__init__(NODE_NAME, **node_options)
         self._refusing_nodes: str | None = None
-        self._binding = ParameterBinding(self, self._on_parameters,
-                                         on_refused=self._on_parameters_refused)
+        self.binding = ParameterBinding(self, self._on_parameters,
+                                        on_refused=self._on_parameters_refused)
         self.stats = PlannerStats()
         self.current_plan: PlanOutcome | None = None
         self.flight = MissionFlight(self)
@@ -153,13 +153,13 @@ class PlannerNode(Node):
         self.mission_folder = open_mission_folder(self.config.node)
         self._trigger_services = PlannerServices(self)
         self._worker = PlanningWorker(self, planner, self._deliver, folder=self.mission_folder)
-        self.vehicle.connect(self.config.node, self._binding.explicit)
+        self.vehicle.connect(self.config.node, self.binding.explicit)
         self.flight.request_plan('start')
 
     @property
     def config(self) -> PlannerConfig:
         """The settings the parameters make now."""
-        return self._binding.config
+        return self.binding.config
 
     @property
     def progress(self):
@@ -209,7 +209,7 @@ class PlannerNode(Node):
         """An accepted change: replan unless only output parameters changed."""
         planning = [name for name in names if _replans(name, self.config.node)]
         if LINK_PARAMETERS & set(names):
-            self.vehicle.connect(self.config.node, self._binding.explicit)
+            self.vehicle.connect(self.config.node, self.binding.explicit)
         if not planning:
             self.get_logger().info(
                 f'parameters {", ".join(names)} set; they apply to the next plan (no replan)')

@@ -1,7 +1,7 @@
 """The vehicle side of the node: the MAVLink link's events on the executor, the vehicle's
 pose on ``vehicle_pose`` (advertised only while a link runs), every plan uploaded, the
-autopilot's wind estimates, the battery (:mod:`.battery`), and the streamed trajectory
-(:mod:`.stream`) started and stopped.
+autopilot's wind estimates, the battery (:mod:`.battery`), the vehicle's own limit parameters
+(:mod:`.vehicle_params`), and the streamed trajectory (:mod:`.stream`) started and stopped.
 
 A :class:`VehicleAdapter` takes the node (as tf2_ros's TransformListener does): with
 ``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge`,
@@ -36,10 +36,11 @@ from uav_comm_planner.ros.battery import BatteryWatch
 from uav_comm_planner.ros.handoff import ExecutorHandoff
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.ros.planning import PlanOutcome
+from uav_comm_planner.ros.vehicle_params import VehicleParameterWatch
 from uav_comm_planner.ros.vehicle_state import VehicleState
 from uav_comm_planner.ros.wind import WindTracker
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
-from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.limits import VehicleLimits, VehicleParameters
 from uav_comm_planner.vehicle.mavlink.battery import BatteryReport
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, StreamJob, TargetStream
 from uav_comm_planner.vehicle.mavlink.items import MissionItem, NAV_WAYPOINT, Q0_SEQ
@@ -101,6 +102,8 @@ class VehicleAdapter(VehicleState):
         #: The autopilot's wind estimate, smoothed and published (:mod:`.wind`).
         self.wind = WindTracker(node)
         self.battery = BatteryWatch(node)     # reported and acted on (:mod:`.battery`)
+        #: The vehicle's own limit parameters, planned with (:mod:`.vehicle_params`).
+        self.parameters = VehicleParameterWatch(node)
         #: The streamed trajectory on the link's thread (None without a link).
         self.stream: TargetStream | None = None
         #: Stream events seen: 'started', 'stopped' messages, in order (for tests).
@@ -267,6 +270,8 @@ class VehicleAdapter(VehicleState):
                 self._on_link_event(event)
             elif isinstance(event, Wind):
                 self.wind.add(event.time_s, event.east_mps, event.north_mps)
+            elif isinstance(event, VehicleParameters):
+                self.parameters.add(event)
             elif isinstance(event, StreamEvent):
                 self._stream_reported += 1
                 self.stream_events.append(event.message)
