@@ -137,13 +137,13 @@ class PlannerNode(Node):
     def __init__(self, *, planner: Planner = plan, **node_options) -> None:
         super().__init__(NODE_NAME, **node_options)
         self._refusing_nodes: str | None = None
-        self.binding = ParameterBinding(self, self._on_parameters,
-                                        on_refused=self._on_parameters_refused)
+        self._binding = ParameterBinding(self, self._on_parameters,
+                                         on_refused=self._on_parameters_refused)
         self.stats = PlannerStats()
         self.current_plan: PlanOutcome | None = None
         self.flight = MissionFlight(self)
         self.vehicle = VehicleAdapter(self, self._on_vehicle_position, self._on_vehicle_report,
-                                      frame_id=lambda: self.config.node.frame_id)
+                                      binding=self._binding)
         self._publisher = PlanPublisher(self)
         self.diagnostics = NodeDiagnostics(self)
         self.create_subscription(PoseArray, TOPIC_GROUND_NODES, self._on_ground_nodes,
@@ -153,13 +153,13 @@ class PlannerNode(Node):
         self.mission_folder = open_mission_folder(self.config.node)
         self._trigger_services = PlannerServices(self)
         self._worker = PlanningWorker(self, planner, self._deliver, folder=self.mission_folder)
-        self.vehicle.connect(self.config.node, self.binding.explicit)
+        self.vehicle.connect(self.config.node, self._binding.explicit)
         self.flight.request_plan('start')
 
     @property
     def config(self) -> PlannerConfig:
         """The settings the parameters make now."""
-        return self.binding.config
+        return self._binding.config
 
     @property
     def progress(self):
@@ -209,7 +209,7 @@ class PlannerNode(Node):
         """An accepted change: replan unless only output parameters changed."""
         planning = [name for name in names if _replans(name, self.config.node)]
         if LINK_PARAMETERS & set(names):
-            self.vehicle.connect(self.config.node, self.binding.explicit)
+            self.vehicle.connect(self.config.node, self._binding.explicit)
         if not planning:
             self.get_logger().info(
                 f'parameters {", ".join(names)} set; they apply to the next plan (no replan)')

@@ -33,6 +33,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.ros.battery import BatteryWatch
+from uav_comm_planner.ros.binding import ParameterBinding
 from uav_comm_planner.ros.handoff import ExecutorHandoff
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.ros.planning import PlanOutcome
@@ -92,18 +93,18 @@ class VehicleAdapter(VehicleState):
     ``upload_pending`` is True while the latest plan's upload is not yet verified or failed;
     ``last_error`` is the link's latest error ('' when none; a link error ends when the link is
     up again, a failed upload when an upload is verified).
-    ``frame_id`` gives the frame of the poses published on ``vehicle_pose``, a topic that
-    exists only while a link runs; mode, speed, home, link state: :class:`VehicleState`.
+    ``binding``'s ``frame_id`` is the frame of the poses published on ``vehicle_pose``, a topic
+    that exists only while a link runs; mode, speed, home, link state: :class:`VehicleState`.
     """
 
     def __init__(self, node: Node, on_position: PositionCallback, report: Reporter, *,
-                 frame_id: Callable[[], str]) -> None:
+                 binding: ParameterBinding) -> None:
         self._node = node
         #: The autopilot's wind estimate, smoothed and published (:mod:`.wind`).
         self.wind = WindTracker(node)
         self.battery = BatteryWatch(node)     # reported and acted on (:mod:`.battery`)
         #: The vehicle's own limit parameters, planned with (:mod:`.vehicle_params`).
-        self.parameters = VehicleParameterWatch(node)
+        self.parameters = VehicleParameterWatch(node, binding)
         #: The streamed trajectory on the link's thread (None without a link).
         self.stream: TargetStream | None = None
         #: Stream events seen: 'started', 'stopped' messages, in order (for tests).
@@ -112,7 +113,7 @@ class VehicleAdapter(VehicleState):
         self._prepared: tuple[PlanResult, StreamReference, tuple] | None = None
         self._on_position = on_position
         self._report = report
-        self._frame_id = frame_id
+        self._frame_id = lambda: binding.config.node.frame_id
         self._bridge: VehicleBridge | None = None
         self._events: ExecutorHandoff[tuple[int, Event]] = ExecutorHandoff(
             node, self._drain, maxlen=EVENTS_KEPT)

@@ -30,6 +30,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.mission.request import limit_sources
+from uav_comm_planner.ros.binding import ParameterBinding
 from uav_comm_planner.ros.params import PlannerConfig, PREFIXES
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.limits import VehicleLimits, VehicleParameters
@@ -47,7 +48,6 @@ class ParameterHost(Protocol):
     """What :class:`VehicleParameterWatch` asks of its node (the planner node provides it)."""
 
     config: PlannerConfig
-    binding: object
     flight: object
 
     def get_logger(self): ...
@@ -63,12 +63,14 @@ def timed_limits(limits: VehicleLimits) -> VehicleLimits:
 
 
 class VehicleParameterWatch:
-    """The vehicle's limit parameters in the node (module docstring): ``read`` is the latest
-    read (None before any), ``refusal`` why it was refused ('' when it is used), ``reads``
-    counts the reads that differed from the one before."""
+    """The vehicle's limit parameters in ``node``, planned with through its parameters'
+    ``binding`` (module docstring): ``read`` is the latest read (None before any),
+    ``refusal`` why it was refused ('' when it is used), ``reads`` counts the reads that
+    differed from the one before."""
 
-    def __init__(self, node: ParameterHost) -> None:
+    def __init__(self, node: ParameterHost, binding: ParameterBinding) -> None:
         self._node = node
+        self._binding = binding
         self.read: VehicleParameters | None = None
         self.refusal = ''
         self.reads = 0
@@ -78,7 +80,7 @@ class VehicleParameterWatch:
     def used(self) -> bool:
         """Whether the configuration is made with :attr:`read` (a refused read is used once
         a parameter change makes it fit)."""
-        return self.read is not None and self._node.binding.vehicle_read == self.read
+        return self.read is not None and self._binding.vehicle_read == self.read
 
     def add(self, read: VehicleParameters) -> None:
         """A read from the link (executor thread): planned with where nothing else sets a
@@ -89,7 +91,7 @@ class VehicleParameterWatch:
         self.read, self.reads = read, self.reads + 1
         before = timed_limits(node.config.vehicle)
         try:
-            node.binding.use_vehicle(read)
+            self._binding.use_vehicle(read)
         except PlannerError as exc:
             self.refusal = str(exc)
             node.refuse(SOURCE, f'{self.describe()}; not used: {exc}')
@@ -104,10 +106,10 @@ class VehicleParameterWatch:
         :data:`~uav_comm_planner.mission.request.SOURCES` entry); worked out again only when
         what it depends on changed (the parameter file is read then)."""
         node = self._node
-        explicit = frozenset(name[len(PREFIX):] for name in node.binding.explicit
+        explicit = frozenset(name[len(PREFIX):] for name in self._binding.explicit
                              if name.startswith(PREFIX))
         output = node.config.node
-        read = node.binding.vehicle_read
+        read = self._binding.vehicle_read
         key = (explicit, output.vehicle_params_file, output.mission_firmware, read)
         if self._sources is None or self._sources[0] != key:
             self._sources = (key, limit_sources(explicit, output.vehicle_params_file,
