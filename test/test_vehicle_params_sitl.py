@@ -5,7 +5,12 @@ before the node connects: the node reads it (PARAM_REQUEST_READ), says so once, 
 ``/diagnostics`` and plans for 7.5 m/s; WPNAV_SPEED set again while the node is linked
 (ArduCopter tells every link with PARAM_VALUE) replans for the new speed; and a node started
 with ``vehicle_max_speed_mps`` set explicitly plans for that speed whatever the vehicle says.
-SITL instances 100-104 (MAVLink TCP 5760 + 10 I); nothing is flown.
+
+A last test flies what it is for: on a vehicle slower to start and stop than ArduCopter's
+defaults (WPNAV_ACCEL 100 cm/s/s, WPNAV_SPEED 750 cm/s), the plan the node made with the
+values it read is flown with every planned point within a slot of its time (autopilot time);
+the same mission planned with the defaults, flown on the same vehicle, is printed beside it.
+SITL instances 100-104 (MAVLink TCP 5760 + 10 I).
 """
 
 from __future__ import annotations
@@ -15,7 +20,8 @@ import time
 from helpers import SpunNode
 import pytest
 
-from devtools.sitl import open_link, set_parameter, start_sitl, why_not_runnable
+from devtools.sitl import fly_plan, open_link, set_parameter, start_sitl, why_not_runnable
+from uav_comm_planner.mission.policy import plan_for_vehicle
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink.items import DO_CHANGE_SPEED
 
@@ -112,3 +118,41 @@ def test_an_explicit_speed_wins_over_the_vehicles(ros_context, sitl):
         assert 'WPNAV_SPEED 750 (vehicle_max_speed_mps set explicitly wins)' in watch.describe()
     finally:
         spun.stop()
+
+
+#: A vehicle slower to start and stop than ArduCopter's defaults (2.5 m/s/s, 10 m/s).
+SLOW_STARTS = {'WPNAV_ACCEL': 100.0, 'WPNAV_SPEED': 750.0}
+
+
+def test_the_plan_made_with_the_vehicles_values_is_flown_on_time(ros_context, sitl, tmp_path):
+    vehicle, link = sitl
+    for name, value in SLOW_STARTS.items():
+        set_parameter(link, name, value)
+    url = f'tcp:127.0.0.1:{5762 + 10 * vehicle.instance}'
+    spun = SpunNode(ros_context, {**PLAN, 'mavlink_url': url})
+    try:
+        node = spun.node
+        wait(lambda: planned_for(node, 7.5), 'plan for the vehicle read')
+        read_plan = node.current_plan.plan.vehicle_plan
+    finally:
+        spun.stop()
+    link.close()
+    vehicle.stop()
+    assert (read_plan.limits.max_accel_mpss, read_plan.limits.max_speed_mps) == (1.0, 7.5)
+    default_plan = plan_for_vehicle(read_plan.ideal.scenario)
+    reports = {}
+    for name, vehicle_plan in (('read from the vehicle', read_plan),
+                               ('firmware defaults', default_plan)):
+        folder = tmp_path / name.replace(' ', '_')
+        folder.mkdir()
+        flown = fly_plan(vehicle_plan, folder, home=HOME, parameters=SLOW_STARTS,
+                         instances=INSTANCES)
+        reports[name] = flown.report
+        scenario = vehicle_plan.ideal.scenario
+        print(f'\nplanned with the {name} ({vehicle_plan.limits.max_accel_mpss:g} m/s/s, '
+              f'{vehicle_plan.limits.max_speed_mps:g} m/s), flown on WPNAV_ACCEL 100, '
+              f'WPNAV_SPEED 750: {flown.report.summary()}; qF at {flown.arrival_s:.1f} s of '
+              f'{scenario.slot_s * (scenario.num_slots + 1):g}')
+    report = reports['read from the vehicle']
+    assert report.worst_reach_slots <= 1.0
+    assert report.flown_to_stated >= 0.99
