@@ -255,3 +255,19 @@ def test_vehicle_values_that_fit_no_plan_are_refused_then_used_once_they_fit(har
         assert answer.results[0].successful
         _planned_with(h, 5.0)
         assert watch.used and h.node.config.vehicle.max_speed_mps == 5.0
+
+
+@pytest.mark.slow
+def test_a_vehicle_of_another_firmware_than_the_plans_is_read_and_not_used(harness):
+    with FakeVehicle('good', positions=True) as vehicle:        # an ArduPilot heartbeat
+        vehicle.parameters = dict(COPTER)
+        h = harness(mavlink_url=vehicle.url, mission_firmware='px4',
+                    **{**MISSION, 'max_speed_mps': 5.0, 'vehicle_max_speed_mps': 5.0})
+        watch = h.node.vehicle.parameters
+        h.spin_until(lambda: watch.read is not None, 'the read')
+        assert h.node.config.vehicle.max_speed_mps == 5.0
+        assert h.node.config.vehicle.max_accel_mpss == 3.0         # PX4's default, not 1.8
+        line = watch.describe()
+        assert 'WPNAV_SPEED 750 (not used)' in line and 'WPNAV_ACCEL 180 (not used)' in line
+        assert line.endswith('not used: the plan is made for mission_firmware px4')
+        assert watch.status()[0] == DiagnosticStatus.WARN

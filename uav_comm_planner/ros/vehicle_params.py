@@ -120,9 +120,11 @@ class VehicleParameterWatch:
         """One line: what the vehicle holds, and which of its values the plan uses."""
         read, sources = self.read, self.sources()
         fields = FIRMWARES[read.firmware].parameters
+        firmware = self._node.config.node.mission_firmware
+        applies = self.used and read.firmware == firmware
         parts = []
         for name, value in read.values.items():
-            source = sources.get(fields[name][0]) if self.used else None
+            source = sources.get(fields[name][0]) if applies else None
             used = ('used' if source == 'vehicle' else
                     f'{PREFIX}{fields[name][0]} set explicitly wins' if source == 'explicit'
                     else 'vehicle_params_file wins' if source == 'parameter file'
@@ -131,7 +133,6 @@ class VehicleParameterWatch:
         line = f'vehicle parameters ({read.firmware}): ' + (', '.join(parts) or 'none answered')
         if read.missing:
             line += f'; not answered: {", ".join(read.missing)}'
-        firmware = self._node.config.node.mission_firmware
         if read.firmware != firmware:
             line += f'; not used: the plan is made for mission_firmware {firmware}'
         return line
