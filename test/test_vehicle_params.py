@@ -271,3 +271,18 @@ def test_a_vehicle_of_another_firmware_than_the_plans_is_read_and_not_used(harne
         assert 'WPNAV_SPEED 750 (not used)' in line and 'WPNAV_ACCEL 180 (not used)' in line
         assert line.endswith('not used: the plan is made for mission_firmware px4')
         assert watch.status()[0] == DiagnosticStatus.WARN
+
+
+def test_the_command_lines_vehicle_params_help_names_every_key_it_reads(capsys):
+    from uav_comm_planner.tools.cli import build_parser
+    from uav_comm_planner.vehicle.firmware import FIRMWARES
+
+    with pytest.raises(SystemExit) as stopped:
+        build_parser().parse_args(['plan', '--help'])
+    assert stopped.value.code == 0
+    text = ' '.join(capsys.readouterr().out.split())
+    help_text = text[text.index('--vehicle-params FILE parameter file'):]
+    help_text = help_text[:help_text.index('--wp-speed VEHICLE')]
+    for name, firmware in FIRMWARES.items():
+        assert f'{", ".join(firmware.parameters)} ({name})' in help_text
+    assert 'NAV_ACC_RAD' in help_text
