@@ -20,6 +20,7 @@ from typing import Sequence
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.files import write_text_atomic
+from uav_comm_planner.ros.fleet_params import FleetNodeSettings
 from uav_comm_planner.ros.params import NodeSettings, parameter_specs, ParameterSpec
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
@@ -35,7 +36,8 @@ ROS_TYPES = {'float': 'double', 'int': 'integer', 'bool': 'boolean', 'str': 'str
 HEADINGS = {Scenario: "Scenario (what is flown; defaults: the letter's case I at 10 m/s)",
             SolverSettings: 'Solver (how Algorithm 1 is run)',
             NodeSettings: 'Node (frame, mission file, vehicle-aware planning)',
-            VehicleLimits: "Vehicle (the autopilot's waypoint limits; defaults: ArduCopter's)"}
+            VehicleLimits: "Vehicle (the autopilot's waypoint limits; defaults: ArduCopter's)",
+            FleetNodeSettings: 'Fleet (several UAVs planned together; [A fleet](#a-fleet))'}
 
 
 def _literal(value: object) -> str:

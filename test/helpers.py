@@ -256,3 +256,25 @@ class Harness:
 
     def errors_after(self, count: int) -> None:
         self.spin_until(lambda: self.node.stats.error_count > count, 'error')
+
+
+#: A two-UAV fleet slow enough for ArduCopter's default waypoint limits (5 m/s, 5 s slots):
+#: two nodes, the UAVs' ends 50 m apart, d_min 40 m; as the node's parameters and as the core's
+#: fleet (:func:`slow_fleet`).
+SLOW_FLEET_NODES = ((-150.0, 150.0), (150.0, 350.0))
+SLOW_FLEET_STARTS = ((-25.0, 0.0), (25.0, 0.0))
+SLOW_FLEET_GOALS = ((-25.0, 500.0), (25.0, 500.0))
+SLOW_FLEET = {'ground_nodes': [v for p in SLOW_FLEET_NODES for v in p], 'max_speed_mps': 5.0,
+              'horizon_s': 200.0, 'num_slots': 40, 'altitude_m': 30.0, 'uavs': 2,
+              'uav_starts_m': [v for p in SLOW_FLEET_STARTS for v in p],
+              'uav_goals_m': [v for p in SLOW_FLEET_GOALS for v in p], 'min_separation_m': 40.0}
+
+
+def slow_fleet():
+    """:data:`SLOW_FLEET` as the core's :class:`~uav_comm_planner.core.fleet.FleetScenario`."""
+    from uav_comm_planner.core.fleet import FleetScenario
+
+    base = paper_scenario('I', ground_nodes_m=SLOW_FLEET_NODES, start_m=SLOW_FLEET_STARTS[0],
+                          goal_m=SLOW_FLEET_GOALS[0], max_speed_mps=5.0, horizon_s=200.0,
+                          num_slots=40, altitude_m=30.0)
+    return FleetScenario(base, SLOW_FLEET_STARTS, SLOW_FLEET_GOALS, 40.0)

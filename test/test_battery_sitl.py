@@ -15,28 +15,18 @@ left there. SITL instances 40-49, a fresh folder per flight, the SITL ended by i
 from __future__ import annotations
 
 import math
-import threading
-import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from pymavlink import mavutil
+from diagnostic_msgs.msg import DiagnosticStatus
 import pytest
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
-from rclpy.parameter import Parameter
+from sitl_node import flights, LinkedNode, Telemetry
 
-from devtools.sitl import (MAV, open_link, set_mode, set_parameter, start_sitl, take_off,
-                           why_not_runnable)
-from uav_comm_planner.ros.diagnostics import BATTERY, DIAGNOSTICS_QOS, TOPIC_DIAGNOSTICS
-from uav_comm_planner.ros.node import PlannerNode
-from uav_comm_planner.ros.publishing import STATUS_QOS, TOPIC_STATUS
-from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
-from uav_comm_planner.vehicle.mavlink.battery import END_MODES, JOULES_PER_HJ
+from devtools.sitl import set_mode, take_off, why_not_runnable
+from uav_comm_planner.ros.diagnostics import BATTERY
+from uav_comm_planner.vehicle.mavlink.battery import END_MODES
 
 pytestmark = [pytest.mark.sitl,
               pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())]
 
-HOME = Home(-35.363262, 149.165237, 584.0)
 INSTANCES = (40, 49)
 #: The real battery (the SITL's) and the one the node is told.
 REAL_AH = 3.3
@@ -49,143 +39,50 @@ WALL_LIMIT_S = 240.0
 DOWN_M = 0.5
 
 
-class Watch:
-    """The test's own telemetry, in autopilot time: positions (t, east, north, up, speed),
-    the modes (t, name) the heartbeat changed to, the battery (t, consumed J, remaining %),
-    the status texts (t, text)."""
-
-    def __init__(self, link) -> None:
-        self.link = link
-        self.rows: list[tuple[float, float, float, float, float]] = []
-        self.modes: list[tuple[float, str]] = []
-        self.battery: list[tuple[float, float, int]] = []
-        self.texts: list[tuple[float, str]] = []
-        for message_id, rate_hz in ((MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 10.0),
-                                    (MAV.MAVLINK_MSG_ID_BATTERY_STATUS, 2.0)):
-            link.mav.command_long_send(link.target_system, link.target_component,
-                                       MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id,
-                                       1e6 / rate_hz, 0, 0, 0, 0, 0)
-
-    @property
-    def now_s(self) -> float:
-        return self.rows[-1][0] if self.rows else 0.0
-
-    def poll(self) -> None:
-        message = self.link.recv_match(type=['GLOBAL_POSITION_INT', 'HEARTBEAT',
-                                             'BATTERY_STATUS', 'STATUSTEXT'],
-                                       blocking=True, timeout=1.0)
-        if message is None:
-            return
-        kind = message.get_type()
-        if kind == 'GLOBAL_POSITION_INT':
-            east, north, _ = geodetic_to_enu(message.lat / 1e7, message.lon / 1e7,
-                                             HOME.altitude_m, HOME)
-            speed = math.sqrt(message.vx ** 2 + message.vy ** 2 + message.vz ** 2) / 100.0
-            self.rows.append((message.time_boot_ms / 1000.0, float(east), float(north),
-                              message.relative_alt / 1000.0, speed))
-        elif kind == 'HEARTBEAT':
-            if message.get_srcComponent() == MAV.MAV_COMP_ID_AUTOPILOT1:
-                mode = mavutil.mode_string_v10(message)
-                if not self.modes or self.modes[-1][1] != mode:
-                    self.modes.append((self.now_s, mode))
-        elif kind == 'BATTERY_STATUS':
-            if message.id == 0:
-                self.battery.append((self.now_s, message.energy_consumed * JOULES_PER_HJ,
-                                     message.battery_remaining))
-        else:
-            self.texts.append((self.now_s, message.text))
-
-    def mode_at(self, names: tuple[str, ...]) -> float | None:
-        """The autopilot time the vehicle first took one of ``names`` (None: never)."""
-        return next((t for t, mode in self.modes if mode in names), None)
-
-
 #: The node's parameters of the first flight: case I from START_M over 320 s, told STATED_WH.
 TOLD = {'max_speed_mps': 10.0, 'horizon_s': 320.0, 'num_slots': 80, 'start_m': list(START_M),
         'compute_baselines': False, 'battery_wh': STATED_WH, 'battery_reserve': RESERVE}
 
 
-class BatteryFlight:
+class BatteryFlight(LinkedNode):
     """A SITL with a REAL_AH battery (and ``sitl`` parameters), the node told ``parameters``
     over TOLD, a probe of its outputs."""
 
     def __init__(self, ros_context, folder, sitl: dict[str, float] | None = None,
                  **parameters) -> None:
-        self.sitl = start_sitl(folder, HOME, instances=INSTANCES,
-                               frame={'battCapacityAh': REAL_AH})
-        self.node = self.probe = self.executor = self.spinner = None
-        self.link = open_link(self.sitl)
-        for name, value in {'FENCE_ENABLE': 0, **(sitl or {})}.items():
-            set_parameter(self.link, name, value)
-        url = f'tcp:127.0.0.1:{5762 + 10 * self.sitl.instance}'
-        self.node = PlannerNode(context=ros_context, parameter_overrides=[
-            Parameter(name, value=value)
-            for name, value in {**TOLD, 'mavlink_url': url, **parameters}.items()])
-        self.statuses: list[str] = []
-        self.battery_states: list[tuple[bytes, str, dict[str, str]]] = []
-        self.probe = Node('battery_probe', context=ros_context)
-        self.probe.create_subscription(
-            DiagnosticArray, TOPIC_STATUS,
-            lambda array: self.statuses.extend(s.message for s in array.status), STATUS_QOS)
-        self.probe.create_subscription(DiagnosticArray, TOPIC_DIAGNOSTICS, self._on_diagnostics,
-                                       DIAGNOSTICS_QOS)
-        self.executor = SingleThreadedExecutor(context=ros_context)
-        self.executor.add_node(self.node)
-        self.executor.add_node(self.probe)
-        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
-        self.spinner.start()
-        self.deadline = time.monotonic() + WALL_LIMIT_S
+        super().__init__(ros_context, folder, {**TOLD, **parameters}, instances=INSTANCES,
+                         sitl_parameters=sitl, frame={'battCapacityAh': REAL_AH},
+                         limit_s=WALL_LIMIT_S)
 
-    def _on_diagnostics(self, array: DiagnosticArray) -> None:
-        self.battery_states.extend(
-            (status.level, status.message, {kv.key: kv.value for kv in status.values})
-            for status in array.status if status.name.endswith(BATTERY))
+    @property
+    def battery_states(self) -> list[tuple[bytes, str, dict[str, str]]]:
+        """The battery's /diagnostics level, message and values."""
+        return self.states_of(BATTERY)
 
-    def fly(self) -> Watch:
+    def fly(self) -> Telemetry:
         """Take off, AUTO, and watch until the vehicle is down after an end of the mission, or
         has reached qF."""
-        while self.node.vehicle.uploads_verified < 1:
-            assert time.monotonic() < self.deadline, 'no mission on the vehicle'
-            time.sleep(0.05)
+        self.wait(lambda: self.node.vehicle.uploads_verified >= 1, 'mission on the vehicle')
         take_off(self.link, 100.0)
         set_mode(self.link, 'AUTO')
-        watch = Watch(self.link)
-        while True:
-            assert time.monotonic() < self.deadline, 'the flight did not end in time'
-            watch.poll()
+        watch = Telemetry(self.link)
+
+        def ended() -> bool:
             progress = self.node.progress
             over = progress.started and progress.over(watch.now_s) and not progress.ended
             down = (watch.rows and progress.ended and watch.rows[-1][3] < DOWN_M
                     and watch.rows[-1][4] < DOWN_M)
-            if over or down:
-                return watch
-
-    def close(self) -> None:
-        if self.executor is not None:
-            self.executor.shutdown()
-        if self.spinner is not None:
-            self.spinner.join(10)
-        for made in (self.node, self.probe):
-            if made is not None:
-                made.destroy_node()
-        self.sitl.stop()
+            return bool(over or down)
+        self.watch(watch, ended, 'end of the flight')
+        return watch
 
 
 @pytest.fixture
 def battery_flight(ros_context, tmp_path):
-    made = []
-
-    def make(**parameters) -> BatteryFlight:
-        folder = tmp_path / f'flight{len(made)}'
-        folder.mkdir()
-        made.append(BatteryFlight(ros_context, folder, **parameters))
-        return made[-1]
-    yield make
-    for each in made:
-        each.close()
+    yield from flights(ros_context, tmp_path, BatteryFlight)
 
 
-def check_the_end(f: BatteryFlight, watch: Watch, action: str, reserve: float) -> dict:
+def check_the_end(f: BatteryFlight, watch: Telemetry, action: str, reserve: float) -> dict:
     """The flight ended at qF with the reserve, or clearly: the reason on /diagnostics and
     planner_status, the vehicle in ``action``'s mode, down where that puts it at the landing
     speed with the reserve left. Returns the figures (autopilot seconds after the clock's

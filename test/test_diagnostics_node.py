@@ -6,6 +6,7 @@ from __future__ import annotations
 import socket
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+import numpy as np
 import pytest
 from rcl_interfaces.msg import Log
 from rcl_interfaces.srv import SetParameters
@@ -85,6 +86,32 @@ def test_diagnostics_carry_the_plan_the_link_and_the_clock(harness):
     # Without a link there is no vehicle pose to publish, so no such topic.
     h.spin_until(lambda: '/planned_path' in advertised(h), 'the node in the graph')
     assert '/' + TOPIC_VEHICLE_POSE not in advertised(h)
+
+
+def test_diagnostics_state_the_plan_s_propulsion_energy(harness):
+    """With an airframe the planner status carries the horizon's propulsion energy (each leg
+    at its speed over its slot, by eq. (12) written out here) and the mission's, takeoff and
+    landing added."""
+    h = harness(airframe='zeng2019', max_speed_mps=10.0, horizon_s=400.0, num_slots=100)
+    probe = DiagnosticsProbe(h)
+    h.published(1)
+    outcome = h.node.current_plan
+    h.spin_until(lambda: probe.status(PLANNER) is not None
+                 and probe.values(PLANNER).get('plan_stamp_ns') == str(outcome.request.start_ns),
+                 'the plan on /diagnostics')
+    values = probe.values(PLANNER)
+    scenario = outcome.result.scenario
+    assert values['airframe'] == 'zeng2019'
+    path = np.vstack([scenario.start_m, outcome.result.trajectory, scenario.goal_m])
+    v = np.linalg.norm(np.diff(path, axis=0), axis=1) / scenario.slot_s
+    # Zeng 2019 eq. (12) with Table I (P0, Pi, U_tip, v0, d0, rho, s, A).
+    blade = 79.86 * (1.0 + 3.0 * v ** 2 / 120.0 ** 2)
+    induced = 88.63 * np.sqrt(np.sqrt(1.0 + v ** 4 / (4.0 * 4.03 ** 4))
+                              - v ** 2 / (2.0 * 4.03 ** 2))
+    parasite = 0.5 * 0.6 * 1.225 * 0.05 * 0.503 * v ** 3
+    horizon_wh = float(((blade + induced + parasite) * scenario.slot_s).sum()) / 3600.0
+    assert float(values['propulsion_energy_wh']) == pytest.approx(horizon_wh, rel=1e-6)
+    assert float(values['mission_energy_wh']) > float(values['propulsion_energy_wh'])
 
 
 def test_a_refused_change_is_on_diagnostics_whole_with_its_fix(harness):

@@ -12,6 +12,7 @@ from rclpy.signals import SignalHandlerOptions
 from std_srvs.srv import Trigger
 
 from uav_comm_planner.errors import PlannerError
+from uav_comm_planner.ros.flight import SOURCE_TELEMETRY
 from uav_comm_planner.ros.messages import status_values
 from uav_comm_planner.ros.node import PlannerNode, TOPIC_GROUND_NODES
 from uav_comm_planner.ros.publishing import STATUS_QOS, TOPIC_STATUS
@@ -139,6 +140,61 @@ def test_a_wind_the_plan_cannot_fly_is_refused_once_not_replanned_at_every_inter
     h.spin_until(lambda: h.node.current_plan.request.scenario.wind_speed_mps > 1.0,
                  'plan for the tailwind')
     assert h.node.current_plan.request.reason == WIND_REASON and tracker.replans >= 1
+
+
+def _gale_harness(harness):
+    """A vehicle-aware node (airspeed 9 m/s) with its first plan published, and its
+    planner_status messages."""
+    h = harness(vehicle_aware=True, max_speed_mps=10.0, horizon_s=400.0, num_slots=20,
+                replan_interval_s=10.0)
+    statuses = _statuses(h)
+    h.published(1)
+    return h, statuses
+
+
+def test_a_rising_gale_is_refused_once_not_at_every_threshold_it_crosses(harness):
+    h, statuses = _gale_harness(harness)
+    tracker = h.node.vehicle.wind
+    airspeed = h.node.config.vehicle.airspeed_mps
+    requests = h.node.stats.requests_made
+    # Before the clock runs (the plan follows the wind to 0.5 m/s): a gale from the airspeed
+    # to 5 m/s above it over 100 s at 10 Hz, its smoothed estimate crossing 0.5 m/s steps
+    # many times.
+    for step in range(1000):
+        tracker.add(step * 0.1, -(airspeed + 0.005 * step), 0.0)
+    assert tracker.estimate.speed_mps > airspeed + 2.0
+    h.spin_until(lambda: _refusals(statuses, WIND_REASON), 'refusal of the gale')
+    for _ in range(20):
+        h.executor.spin_once(timeout_sec=0.05)
+    refusals = _refusals(statuses, WIND_REASON)
+    assert len(refusals) == 1, refusals
+    assert tracker.refused and h.node.flight.wind_refused
+    assert h.node.stats.requests_made == requests and tracker.replans == 0
+    # Once a plan can take the wind it is planned for, and the refusal no longer stands.
+    for step in range(1000, 2200):
+        tracker.add(step * 0.1, 3.0, 0.0)
+    h.spin_until(lambda: h.node.current_plan.request.scenario.wind_speed_mps > 1.0,
+                 'plan for the tailwind')
+    assert not tracker.refused and len(_refusals(statuses, WIND_REASON)) == 1
+
+
+@pytest.mark.parametrize('gale', [False, True])
+def test_a_uav_off_its_plan_in_a_refused_gale_is_not_replanned(harness, gale):
+    h, statuses = _gale_harness(harness)
+    flight = h.node.flight
+    start_s = h.node.clock_s()
+    flight.start_clock(start_s, 'test')
+    if gale:
+        for step in range(300):
+            h.node.vehicle.wind.add(step * 0.1, -h.node.config.vehicle.airspeed_mps - 1.0, 0.0)
+        h.spin_until(lambda: _refusals(statuses, WIND_REASON), 'refusal of the gale')
+    requests = h.node.stats.requests_made
+    # The UAV 300 m beside q0 for 30 s (three replan intervals): far off its plan.
+    x, y = h.node.config.scenario.start_m
+    for k in range(300):
+        flight.on_position(start_s + 0.1 * k, x, y + 300.0, source=SOURCE_TELEMETRY)
+    made = h.node.stats.requests_made - requests
+    assert made == 0 if gale else made >= 1, made
 
 
 def test_the_node_streams_a_px4_plan_at_10_mps_and_says_the_acceleration_it_asks():

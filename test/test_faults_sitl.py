@@ -17,33 +17,28 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import threading
 import time
 from typing import Callable
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from link_proxy import LinkProxy
+from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
+from sitl_node import DRAG, flights, HELD_OUT, HOME, LinkedNode, Telemetry
 
-from devtools.sitl import (MAV, open_link, set_mode, set_parameter, start_sitl, take_off,
-                           why_not_runnable)
+from devtools.sitl import MAV, open_link, start_sitl, why_not_runnable
 from uav_comm_planner import paper_scenario, plan, SolverSettings
 from uav_comm_planner.core.receding import mission_rates_flown
-from uav_comm_planner.ros.diagnostics import DIAGNOSTICS_QOS, TOPIC_DIAGNOSTICS, VEHICLE_LINK
+from uav_comm_planner.ros.diagnostics import VEHICLE_LINK
 from uav_comm_planner.ros.flight import HOLD_SPEED_MPS, START_HEIGHT_M, START_RADIUS_M
 from uav_comm_planner.ros.node import PlannerNode
-from uav_comm_planner.ros.publishing import STATUS_QOS, TOPIC_STATUS
 from uav_comm_planner.ros.wind import PREFLIGHT_RESOLUTION_MPS
 from uav_comm_planner.vehicle.evaluation import REACH_RADIUS_M
-from uav_comm_planner.vehicle.geodesy import default_home, geodetic_to_enu, Home
+from uav_comm_planner.vehicle.geodesy import default_home, Home
 from uav_comm_planner.vehicle.mavlink.files import export_mission
 from uav_comm_planner.vehicle.mavlink.link import download_mission
 
-HOME = Home(-35.363262, 149.165237, 584.0)
 SPEED_MPS = 10.0
 HORIZON_S = 400.0
 SLOTS = 100
@@ -66,121 +61,24 @@ pytestmark = [pytest.mark.sitl,
               pytest.mark.skipif(bool(why_not_runnable()), reason=why_not_runnable())]
 
 
-class Recorder:
-    """The test's telemetry: GLOBAL_POSITION_INT (time, east, north, up, speed) and
-    GPS_RAW_INT north offsets from the first fix, in autopilot seconds."""
-
-    def __init__(self, link) -> None:
-        self.link = link
-        self.rows: list[tuple[float, float, float, float, float]] = []
-        self.raw: list[tuple[float, float]] = []
-        for message_id, rate_hz in ((MAV.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 10.0),
-                                    (MAV.MAVLINK_MSG_ID_GPS_RAW_INT, 10.0)):
-            link.mav.command_long_send(link.target_system, link.target_component,
-                                       MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id,
-                                       1e6 / rate_hz, 0, 0, 0, 0, 0)
-
-    def poll(self) -> float | None:
-        """The autopilot time of the next position (None after a second without one)."""
-        while True:
-            message = self.link.recv_match(type=['GLOBAL_POSITION_INT', 'GPS_RAW_INT'],
-                                           blocking=True, timeout=1.0)
-            if message is None:
-                return None
-            if message.get_type() == 'GPS_RAW_INT':
-                if message.lat:
-                    _, north, _ = geodetic_to_enu(message.lat / 1e7, HOME.longitude_deg,
-                                                  HOME.altitude_m, HOME)
-                    self.raw.append((message.time_usec / 1e6, float(north)))
-                continue
-            east, north, _ = geodetic_to_enu(message.lat / 1e7, message.lon / 1e7,
-                                             HOME.altitude_m, HOME)
-            speed = math.sqrt(message.vx ** 2 + message.vy ** 2 + message.vz ** 2) / 100.0
-            self.rows.append((message.time_boot_ms / 1000.0, float(east), float(north),
-                              message.relative_alt / 1000.0, speed))
-            return self.rows[-1][0]
-
-    def at(self, times_s: np.ndarray) -> np.ndarray:
-        """(K, 5) rows interpolated at ``times_s``."""
-        rows = np.array(self.rows)
-        assert rows[0, 0] <= times_s.min() and times_s.max() <= rows[-1, 0] + 0.5
-        return np.column_stack([times_s] + [np.interp(times_s, rows[:, 0], rows[:, k])
-                                            for k in range(1, 5)])
-
-
-class Flight:
-    """A SITL, the node linked to it (through ``url_of(port)``), an executor, the test's link."""
+class Flight(LinkedNode):
+    """A SITL and the node linked to it (through a relay when ``proxy``), flying ``mission``
+    (case I unless given)."""
 
     def __init__(self, ros_context, folder, *, proxy: bool = False, mission: dict | None = None,
                  sitl_parameters: dict | None = None, instances: tuple[int, int] = INSTANCES,
                  speedup: int | None = None, **parameters) -> None:
-        self.sitl = start_sitl(folder, HOME, instances=instances,
-                               **({} if speedup is None else {'speedup': speedup}))
-        self.node = self.executor = self.spinner = self.proxy = self.probe = None
-        self.link = open_link(self.sitl)
-        for name, value in {'FENCE_ENABLE': 0, **(sitl_parameters or {})}.items():
-            set_parameter(self.link, name, value)
-        port = 5762 + 10 * self.sitl.instance
-        if proxy:
-            self.proxy = LinkProxy(port)
-        url = self.proxy.url if proxy else f'tcp:127.0.0.1:{port}'
-        values = {**(mission or CASE_I), 'compute_baselines': False, 'mavlink_url': url,
-                  **parameters}
-        self.node = PlannerNode(context=ros_context, parameter_overrides=[
-            Parameter(name, value=value) for name, value in values.items()])
-        self.errors: list[str] = []
-        report = self.node.report_error
-        self.node.report_error = lambda message: (self.errors.append(message),
-                                                  report(message))
-        #: planner_status messages, and the vehicle link's /diagnostics level and message.
-        self.statuses: list[str] = []
-        self.link_states: list[tuple[bytes, str]] = []
-        self.probe = Node('faults_probe', context=ros_context)
-        self.probe.create_subscription(
-            DiagnosticArray, TOPIC_STATUS,
-            lambda array: self.statuses.extend(s.message for s in array.status), STATUS_QOS)
-        self.probe.create_subscription(DiagnosticArray, TOPIC_DIAGNOSTICS, self._on_diagnostics,
-                                       DIAGNOSTICS_QOS)
-        self.executor = SingleThreadedExecutor(context=ros_context)
-        self.executor.add_node(self.node)
-        self.executor.add_node(self.probe)
-        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
-        self.spinner.start()
-        self.deadline = time.monotonic() + WALL_LIMIT_S
+        super().__init__(ros_context, folder,
+                         {**(mission or CASE_I), 'compute_baselines': False, **parameters},
+                         instances=instances, sitl_parameters=sitl_parameters, speedup=speedup,
+                         proxy=proxy, limit_s=WALL_LIMIT_S)
 
-    def _on_diagnostics(self, array: DiagnosticArray) -> None:
-        self.link_states.extend((status.level, status.message) for status in array.status
-                                if status.name.endswith(VEHICLE_LINK))
+    @property
+    def link_states(self) -> list[tuple[bytes, str]]:
+        """The vehicle link's /diagnostics level and message."""
+        return [(level, message) for level, message, _ in self.states_of(VEHICLE_LINK)]
 
-    def wait(self, condition, what: str) -> None:
-        while not condition():
-            assert time.monotonic() < self.deadline, f'no {what} within {WALL_LIMIT_S} s'
-            time.sleep(0.02)
-
-    def fly(self, during, *, ready: Callable[[], bool] | None = None) -> Recorder:
-        """Take off, (once ``ready()``, when given) fly AUTO, call ``during(mission_s,
-        recorder)`` at every position of the test's telemetry once the node's clock runs,
-        until the last slot has passed."""
-        self.wait(lambda: self.node.vehicle.uploads_verified >= 1, 'mission on the vehicle')
-        take_off(self.link, 100.0)
-        if ready is not None:
-            self.wait(ready, 'the node ready to fly')
-        set_mode(self.link, 'AUTO')
-        recorder = Recorder(self.link)
-        while True:
-            assert time.monotonic() < self.deadline, 'the mission did not end in time'
-            now = recorder.poll()
-            progress = self.node.progress
-            if now is None or not progress.started:
-                continue
-            during(now - progress.segments[0].start_s, recorder)
-            segment = progress.current
-            if (segment.start_s is not None
-                    and segment.first_slot + segment.num_slots == progress.mission.num_slots
-                    and now >= segment.slot_times_s(segment.num_slots)[-1] + 0.5):
-                return recorder
-
-    def check_flight(self, recorder: Recorder) -> None:
+    def check_flight(self, recorder: Telemetry) -> None:
         """The clock started with the vehicle holding q0; the energy and the throughput."""
         node = self.node
         start = recorder.at(np.array([node.progress.segments[0].start_s]))[0]
@@ -203,39 +101,20 @@ class Flight:
         print('flown / stated throughput:', flown / stated)
         assert np.all(flown / stated >= 0.99)
 
-    def close(self) -> None:
-        if self.executor is not None:
-            self.executor.shutdown()
-        if self.spinner is not None:
-            self.spinner.join(10)
-        for made in (self.node, self.probe):
-            if made is not None:
-                made.destroy_node()
-        if self.proxy is not None:
-            self.proxy.close()
-        self.sitl.stop()
-
 
 @pytest.fixture
 def flight(ros_context, tmp_path):
-    made = []
-
-    def make(**options) -> Flight:
-        made.append(Flight(ros_context, tmp_path, **options))
-        return made[-1]
-    yield make
-    for each in made:
-        each.close()
+    yield from flights(ros_context, tmp_path, Flight)
 
 
 def cut_for_20_s(f: Flight, at_s: float = CUT_AT_S
-                 ) -> tuple[dict[str, float], Callable[[float, Recorder], None]]:
+                 ) -> tuple[dict[str, float], Callable[[float, Telemetry], None]]:
     """What ``f.fly`` calls to cut the node's link ``at_s`` into the mission for OUTAGE_S of
     autopilot time, and what it notes of the cut (autopilot and wall times)."""
     vehicle = f.node.vehicle
     cut: dict[str, float] = {}
 
-    def during(mission_s: float, recorder: Recorder) -> None:
+    def during(mission_s: float, recorder: Telemetry) -> None:
         now = recorder.rows[-1][0]
         if 'at' not in cut and mission_s >= at_s:
             cut.update(at=now, errors=len(f.errors), requests=f.node.stats.requests_made)
@@ -287,8 +166,8 @@ def test_a_link_closed_for_20_s_mid_flight_is_said_once_and_the_flight_completes
 ON_TIME_RADIUS_M = 2.0 * REACH_RADIUS_M
 
 
-def closest_in_slot(progress, recorder: Recorder, slot_s: float) -> tuple[np.ndarray,
-                                                                          np.ndarray]:
+def closest_in_slot(progress, recorder: Telemetry,
+                    slot_s: float) -> tuple[np.ndarray, np.ndarray]:
     """For every point in force (every plan's slot points kept, as the node states them:
     ``MissionProgress.points_in_force``), how close the vehicle came to it within one slot of
     its time (metres), and the points' times."""
@@ -301,7 +180,7 @@ def closest_in_slot(progress, recorder: Recorder, slot_s: float) -> tuple[np.nda
     return np.array(closest), times
 
 
-def lateness_after(points: np.ndarray, times: np.ndarray, recorder: Recorder,
+def lateness_after(points: np.ndarray, times: np.ndarray, recorder: Telemetry,
                    radius_m: float) -> np.ndarray:
     """For each point (K, 2) planned at ``times`` (K,): how late (seconds) the vehicle first
     came within ``radius_m`` of it at or after a slot before its time (inf: never)."""
@@ -314,18 +193,10 @@ def lateness_after(points: np.ndarray, times: np.ndarray, recorder: Recorder,
     return np.array(late)
 
 
-#: The held-out mission of the streamed cut: five nodes the airframe and the planner's tests
-#: never saw, 54 slots of 4 s from (0, -100) (away from the takeoff, so that the clock starts
-#: in AUTO) to (0, 900) at up to 8 m/s; the vehicle's cruise is 10, time lost can be made up.
-HELD_OUT = {'ground_nodes': [-223.0, 928.0, 0.0, 70.0, 61.0, 130.0, -283.0, 948.0,
-                             -211.0, 622.0],
-            'start_m': [0.0, -100.0], 'goal_m': [0.0, 900.0], 'max_speed_mps': 8.0,
-            'horizon_s': 216.0, 'num_slots': 54, 'altitude_m': 100.0}
 SLOT_S = 4.0
 #: A 6 m/s wind from the east with 2 m/s turbulence that the planner is not told: the autopilot
 #: estimates it with the simulated quad's drag model, and the node plans for its estimate.
-UNTOLD_WIND = {'SIM_WIND_SPD': 6.0, 'SIM_WIND_DIR': 90.0, 'SIM_WIND_TURB': 2.0,
-               'EK3_DRAG_BCOEF_X': 17.209, 'EK3_DRAG_BCOEF_Y': 17.209, 'EK3_DRAG_MCOEF': 0.209}
+UNTOLD_WIND = {'SIM_WIND_SPD': 6.0, 'SIM_WIND_DIR': 90.0, 'SIM_WIND_TURB': 2.0, **DRAG}
 #: The streamed cut comes 64 s into the held-out mission (slot 16 of 54).
 STREAM_CUT_AT_S = 64.0
 #: Instances of the streamed cut's vehicle (MAVLink TCP 5760 + 10 I).
@@ -408,7 +279,7 @@ def test_a_33_m_gps_glitch_for_0_2_s_replans_nothing(flight):
     f = flight()
     glitch: dict[str, float] = {}
 
-    def during(mission_s: float, recorder: Recorder) -> None:
+    def during(mission_s: float, recorder: Telemetry) -> None:
         now = recorder.rows[-1][0]
         link = f.link
         if 'at' not in glitch and mission_s >= GLITCH_AT_S:

@@ -8,6 +8,7 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
+from devtools.fleet_flight import fly_fleet, LinkCut
 from uav_comm_planner.core.drops import random_scenario
 from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
 from uav_comm_planner.core.fleet.model import fleet_snr
@@ -68,6 +69,14 @@ def two_uavs():
 
 def test_the_fleet_plan_keeps_every_constraint_and_states_its_rates(two_uavs):
     check_plan(two_uavs)
+
+
+@pytest.mark.parametrize('uav', [-1, 2])
+def test_a_link_cut_on_a_vehicle_the_fleet_lacks_is_refused_before_flying(
+        two_uavs, tmp_path, uav):
+    with pytest.raises(InvalidScenarioError, match=f'UAV {uav + 1} of a fleet of 2'):
+        fly_fleet(two_uavs, tmp_path, home=None, cut=LinkCut(uav, 60.0, 20.0))
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_two_uavs_serve_at_least_the_better_single_uav_plan(two_uavs):

@@ -7,6 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from uav_comm_planner.core.fleet import FleetScenario
+from uav_comm_planner.core.fleet.scenario import DEFAULT_SEPARATION_M
+from uav_comm_planner.core.scenario import paper_scenario
 from uav_comm_planner.tools import cli
 from uav_comm_planner.vehicle.geodesy import default_home, geodetic_to_enu
 from uav_comm_planner.vehicle.mavlink.files import read_waypoints
@@ -86,6 +89,9 @@ def test_one_mission_per_vehicle_each_ending_at_its_own_goal(tmp_path, capsys):
     (('--min-separation', '100',), 'needs --uavs'),
     (('--start', '0,0;0,500',), 'several need --uavs'),
     (FLEET[:-1] + ('600',), 'less than the separation'),
+    (('--uavs', '2', '--start', '0,0;0,50', '--goal', '2000,0;2000,500'),
+     'less than the separation 100 m (the default d_min): move them apart or give a smaller '
+     '--min-separation'),
     (FLEET + ('--fence', 'f.geojson'), '--fence is for one UAV'),
     (FLEET + ('--letter',), '--letter is for one UAV'),
     (FLEET[:-1] + ('nan',), 'min_separation_m'),
@@ -99,6 +105,30 @@ def test_bad_fleet_input_is_one_line_and_status_2(tmp_path, capsys, argv, messag
     assert err.count('\n') == 1 and err.startswith('uav-comm-planner: error: ')
     assert message in err
     assert not result_file.exists()
+
+
+def test_the_default_separation_keeps_the_uavs_100_m_apart(tmp_path, capsys):
+    """Without --min-separation the fleet keeps d_min = 100 m (Wu 2018's); the same fleet
+    planned with d_min = 0 lets the two UAVs meet over a node, so the default is what keeps
+    them apart. The help states it."""
+    closest = {}
+    for name, extra in (('default', ()), ('zero', ('--min-separation', '0'))):
+        result_file = tmp_path / f'{name}.json'
+        status, _, err = run(capsys, 'plan', *FLEET[:-2], *extra, '--json', str(result_file))
+        assert status == 0, err
+        data = json.loads(result_file.read_text())
+        q = np.array(data['trajectories'])
+        closest[name] = float(np.linalg.norm(q[0] - q[1], axis=1).min())
+        assert data['closest_approach_m'] == pytest.approx(closest[name], abs=1e-9)
+        assert data['min_separation_m'] == (100.0 if name == 'default' else 0.0)
+    print('closest approach (m):', closest)
+    assert closest['default'] >= 100.0 and closest['zero'] < 1.0
+    with pytest.raises(SystemExit):
+        cli.main(['plan', '--help'])
+    help_text = ' '.join(capsys.readouterr().out.split())
+    assert "default 100, Wu 2018's d_min" in help_text
+    assert FleetScenario(paper_scenario('I'), ((0, 0), (0, 500)),
+                         ((2000, 0), (2000, 500))).min_separation_m == DEFAULT_SEPARATION_M
 
 
 def test_a_mission_the_vehicle_cannot_fly_writes_nothing(tmp_path, capsys):

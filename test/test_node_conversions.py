@@ -15,6 +15,7 @@ import yaml
 from uav_comm_planner import (InfeasibleHorizonError, InvalidScenarioError, paper_scenario, plan,
                               Scenario, SolverSettings)
 from uav_comm_planner.core.optimizer import PlanResult
+from uav_comm_planner.ros.fleet_params import FleetNodeSettings
 from uav_comm_planner.ros.handoff import LatestOnlyWorker
 from uav_comm_planner.ros.messages import (ground_nodes_of, headings, marker_array, nanoseconds_of,
                                            path_message, pose_array, power_message)
@@ -32,7 +33,7 @@ WAIT_S = 30.0
 def test_every_settings_field_is_a_parameter():
     exposed = {(spec.owner, spec.field) for spec in parameter_specs()}
     wanted = {(owner, f.name) for owner in (Scenario, SolverSettings, NodeSettings,
-                                            VehicleLimits)
+                                            VehicleLimits, FleetNodeSettings)
               for f in fields(owner)}
     assert exposed == wanted - set(NOT_PARAMETERS)
     assert set(NOT_PARAMETERS) <= wanted

@@ -15,6 +15,16 @@ from uav_comm_planner.ros.params import (coerced_value, config_from_parameters, 
 from uav_comm_planner.vehicle.limits import VehicleParameters
 
 
+#: The ROS type of an array parameter whose default is empty.
+EMPTY_ARRAYS = {'pair': Parameter.Type.DOUBLE_ARRAY, 'pairs': Parameter.Type.DOUBLE_ARRAY,
+                'strings': Parameter.Type.STRING_ARRAY}
+
+
+def _unset(node: Node, name: str) -> bool:
+    """Whether parameter ``name`` of ``node`` holds no value yet."""
+    return node.get_parameter_or(name).type_ == Parameter.Type.NOT_SET
+
+
 def _overrides(node: Node) -> frozenset[str]:
     """The names of the parameters given to ``node`` at start-up: ``--ros-args -p``, a
     parameter file, or the constructor's ``parameter_overrides``.
@@ -52,8 +62,12 @@ class ParameterBinding:
         for name in self._kinds.keys() & overrides.keys():
             overrides[name] = self._coerced(overrides[name])
         node.add_pre_set_parameters_callback(self._coerce)
-        node.declare_parameters('', [(spec.name, spec.default, spec.descriptor())
-                                     for spec in specs])
+        node.declare_parameters('', [(spec.name, EMPTY_ARRAYS[spec.kind] if spec.default == []
+                                      else spec.default, spec.descriptor()) for spec in specs])
+        # Declared by type alone (rclpy would take [] for a byte array), then set empty unless
+        # given at start-up (a parameters file's [] comes as no value).
+        node.set_parameters([Parameter(spec.name, EMPTY_ARRAYS[spec.kind], []) for spec in specs
+                             if spec.default == [] and _unset(node, spec.name)])
         self._names = tuple(spec.name for spec in specs)
         # Set explicitly: given at start-up (any value, the default's own included) or set
         # since. A value equal to a default is no sign of being unset: ArduCopter's waypoint

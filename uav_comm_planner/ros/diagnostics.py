@@ -9,7 +9,8 @@ vehicle:
 - ``planner``: the latest request planned (OK, or WARN when its slots are too coarse for the
   channel, :mod:`uav_comm_planner.mission.resolution`) or refused (WARN while an earlier plan
   stays in force, ERROR when there is none); the values carry the numbers (min throughput,
-  baselines, slots, the coarse-slot figures, the full reason of the last refusal);
+  baselines, slots, the coarse-slot figures, the full reason of the last refusal); a fleet's
+  plan (``uavs`` >= 2) is OK with its line and numbers;
 - ``vehicle link``: off without ``mavlink_url``; else the telemetry's age, the mission item,
   the uploads verified, the last link error (ERROR while the link is down), whether the link
   is up, the vehicle's mode, the telemetry gaps said and the planning frame's origin;
@@ -35,6 +36,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Header
 
 from uav_comm_planner.mission.resolution import coarse_slots, MAX_LEG_ALTITUDE_SHARE
+from uav_comm_planner.ros.fleet import NodeFleet
 from uav_comm_planner.ros.flight import MissionFlight
 from uav_comm_planner.ros.messages import nodes_text, one_line, time_msg
 from uav_comm_planner.ros.params import PlannerConfig
@@ -67,6 +69,7 @@ class DiagnosticsHost(Protocol):
     flight: MissionFlight
     vehicle: VehicleAdapter
     current_plan: PlanOutcome | None
+    fleet: NodeFleet
 
     def get_name(self) -> str: ...
 
@@ -125,6 +128,11 @@ class NodeDiagnostics:
             self._planner = (WARN, coarse.message(), values)
         self.update()
 
+    def fleet_planned(self, message: str, values: dict[str, object]) -> None:
+        """A fleet's plan is in force (:mod:`.fleet`): OK, its line and numbers."""
+        self._planner = (OK, message, values)
+        self.update()
+
     def refused(self, request: str, reason: str, *, nodes: str | None = None) -> None:
         """A request was refused or failed with ``reason`` (for the node set ``nodes``): WARN
         while an earlier plan stays in force, ERROR when there is none."""
@@ -132,7 +140,7 @@ class NodeDiagnostics:
                          'refused_stamp_ns': self._node.now_ns()}
         if nodes is not None:
             self._refusal['refused_nodes'] = nodes
-        if self._node.current_plan is None:
+        if self._node.current_plan is None and self._node.fleet.current is None:
             self._planner = (ERROR, f'no plan: {reason}', {})
         else:
             # The values of the plan in force stay: it is still published and flown.

@@ -10,7 +10,10 @@ once the plan is uploaded, from the vehicle's telemetry, when the vehicle holds 
 climb, never in BRAKE or LOITER). While it runs, new inputs replan the rest of the mission
 from the UAV's position (the receding horizon), and a position off the plan does too, within
 the ``replan_*`` parameters' limits, once the UAV has been off the plan for
-:data:`OFF_PLAN_CONFIRM_S` (a short glitch of the position estimate never replans).
+:data:`OFF_PLAN_CONFIRM_S` (a short glitch of the position estimate never replans), and not
+while the wind loop refuses the measured wind (``wind_refused``, kept by
+:class:`~uav_comm_planner.ros.wind.WindTracker`: the UAV, slower than any plan in the gale,
+flies the plan in force as it can).
 """
 
 from __future__ import annotations
@@ -110,6 +113,8 @@ class MissionFlight(_RefusalReports):
         self._on_plan_s = -math.inf
         #: The autopilot time a caught-up rest was asked at, and of which plan in force.
         self._catch_up: tuple[float, int, int] | None = None
+        #: A wind no plan can take is refused (:mod:`.wind`): no replan from positions then.
+        self.wind_refused = False
 
     def on_position(self, time_s: float, x_m: float, y_m: float, *, source: str,
                     height_m: float | None = None) -> bool:
@@ -160,8 +165,8 @@ class MissionFlight(_RefusalReports):
         elapsed = time_s - segment.start_s
         left_s = (self.progress.mission.num_slots - segment.first_slot
                   - segment.slots_begun(time_s)) * segment.result.scenario.slot_s
-        if left_s < output.replan_interval_s or self._catching_up(time_s):
-            return              # too late for a replan to be flown, or a caught-up one comes
+        if left_s < output.replan_interval_s or self._catching_up(time_s) or self.wind_refused:
+            return      # too late to be flown, a caught-up rest comes, or a gale is refused
         reason = off_plan(segment.result, elapsed, (x_m, y_m),
                           distance_m=output.replan_distance_m, delay_s=output.replan_delay_s)
         if not reason:

@@ -62,6 +62,7 @@ from uav_comm_planner.mission.request import InFlight, MissionRequest
 from uav_comm_planner.ros.battery import REASON as BATTERY
 from uav_comm_planner.ros.binding import ParameterBinding
 from uav_comm_planner.ros.diagnostics import NodeDiagnostics
+from uav_comm_planner.ros.fleet import NodeFleet
 from uav_comm_planner.ros.flight import MissionFlight, SOURCE_TELEMETRY
 from uav_comm_planner.ros.messages import ground_nodes_of, nodes_text
 from uav_comm_planner.ros.params import (flat_pairs, node_battery, NodeSettings, OUTPUT_ONLY,
@@ -121,17 +122,15 @@ def _replans(name: str, settings: NodeSettings) -> bool:
 
 
 class PlannerNode(Node):
-    """Plans the UAV's flight for the ground nodes it hears of and publishes the plan.
+    """Plans the UAV's flight for the ground nodes it hears of and publishes the plan (with
+    ``uavs`` >= 2 a fleet's: :attr:`fleet`, :mod:`uav_comm_planner.ros.fleet`, plans).
 
     ``planner`` is the optimiser (the core's :func:`~uav_comm_planner.plan`, or a function of
-    its signature); other keywords go to :class:`rclpy.node.Node` (``context``,
-    ``parameter_overrides``...). Raises :class:`~uav_comm_planner.errors.PlannerError` when the
-    initial parameters do not make a valid scenario.
-
-    Its parts each take the node: the parameters (:class:`ParameterBinding`), the planning
-    worker (:class:`PlanningWorker`), the mission in flight (:attr:`flight`), the vehicle link
-    (:attr:`vehicle`), the outputs (:class:`PlanPublisher`) and the services. ``stats`` counts
-    what it did; ``current_plan`` is the outcome in force.
+    its signature); other keywords go to :class:`rclpy.node.Node`. Raises
+    :class:`~uav_comm_planner.errors.PlannerError` when the initial parameters are invalid.
+    Its parts each take the node: parameters, planning worker, mission in flight
+    (:attr:`flight`), vehicle link (:attr:`vehicle`), outputs, services, fleet. ``stats``
+    counts what it did; ``current_plan`` is the outcome in force.
     """
 
     def __init__(self, *, planner: Planner = plan, **node_options) -> None:
@@ -152,7 +151,9 @@ class PlannerNode(Node):
         # Opened once: replacing mission_dir's path later cannot redirect a mission write.
         self.mission_folder = open_mission_folder(self.config.node)
         self._trigger_services = PlannerServices(self)
-        self._worker = PlanningWorker(self, planner, self._deliver, folder=self.mission_folder)
+        self.fleet = NodeFleet(self, self.mission_folder)
+        self._worker = self.fleet if self.fleet.active else PlanningWorker(
+            self, planner, self._deliver, folder=self.mission_folder)
         self.vehicle.connect(self.config.node, self._binding.explicit)
         self.flight.request_plan('start')
 
@@ -273,8 +274,7 @@ class PlannerNode(Node):
         line = summary_line(outcome.result, node_battery(outcome.request.output))
         if outcome.receding is not None:
             line += (f'; rest of the mission after {outcome.receding.flown.num_slots} '
-                     f'slots, whole mission min throughput {outcome.min_throughput:.4g} '
-                     f'bit/s')
+                     f'slots, whole mission min throughput {outcome.min_throughput:.4g} bit/s')
         if outcome.mission_path is not None:
             line += f'; mission written to {outcome.mission_path}'
         # Logged first, so that whoever receives the plan can already read its line.
@@ -315,7 +315,7 @@ class PlannerNode(Node):
         return self.now_ns() / 1e9
 
     def destroy_node(self) -> None:
-        """Stop the worker (a plan in progress is abandoned) and the link, then destroy."""
+        """Stop the workers (a plan in progress is abandoned) and the links, then destroy."""
         self._worker.stop()
         self.vehicle.stop()
         self.mission_folder.close()

@@ -26,12 +26,15 @@ from typing import Any, Collection, Mapping, Sequence
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
 from uav_comm_planner.core.energy import Battery, DEFAULT_RESERVE
+from uav_comm_planner.core.fleet import FleetScenario
 from uav_comm_planner.core.scenario import paper_scenario, Point, Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
-from uav_comm_planner.errors import FenceFileError, InvalidScenarioError
+from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.mission.energy import with_named_airframe
 from uav_comm_planner.mission.request import check_goal_in_time, vehicle_limits
-from uav_comm_planner.vehicle.fence import read_zones
+from uav_comm_planner.ros.fences import FenceReader
+from uav_comm_planner.ros.fleet_params import (first_vehicle_ends, FLEET_DESCRIPTIONS, fleet_of,
+                                               FleetNodeSettings)
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.flyable import check_speed
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
@@ -183,12 +186,15 @@ def _check_bare_file_name(name: str) -> None:
 @dataclass(frozen=True)
 class PlannerConfig:
     """Everything the node's parameters say: what to plan, how, for which vehicle, and how
-    to publish it."""
+    to publish it; ``fleet``: the UAVs planned together (None: one UAV, ``uavs`` 1), each
+    vehicle's link in ``fleet_urls``."""
 
     scenario: Scenario
     settings: SolverSettings
     node: NodeSettings
     vehicle: VehicleLimits = VehicleLimits()
+    fleet: FleetScenario | None = None
+    fleet_urls: tuple[str, ...] = ()
 
 
 #: ROS names of fields whose parameter is not named like the field.
@@ -299,6 +305,7 @@ DESCRIPTIONS = {
     'vehicle_jerk_time_s': 'time the jerk takes to build up: 2 ATC_INPUT_TC (s)',
     'vehicle_gust_margin_mps': 'airspeed kept in reserve for gusts when planning for a wind '
                                '(m/s)',
+    **FLEET_DESCRIPTIONS,
 }
 
 #: The home parameters, latitude, longitude, altitude: set explicitly, they anchor the frame;
@@ -345,6 +352,7 @@ RANGES = {
     'energy_budget_wh': (0.0, 1.0e6),
     'battery_wh': (0.0, 1.0e6),
     'battery_reserve': (0.0, 0.99),
+    'min_separation_m': (0.0, 1.0e5),
 }
 #: Fields whose value must be above the low limit of :data:`RANGES`, not at it (0 is refused):
 #: a descriptor's range is inclusive, so theirs is stated in words instead.
@@ -354,7 +362,7 @@ ABOVE_LOW_LIMIT = frozenset({
     'wind_time_constant_s', 'wind_replan_mps', 'home_distance_limit_m'})
 #: Parameters that only the node's start-up (overrides, a parameter file) may set: the
 #: limits on the work a plan may take and where mission files go.
-READ_ONLY = frozenset({'max_nodes', 'max_node_slots', 'mission_dir', 'fence_file'})
+READ_ONLY = frozenset({'max_nodes', 'max_node_slots', 'mission_dir', 'fence_file', 'uavs'})
 
 _SCALAR_KINDS = {bool: 'bool', int: 'int', float: 'float', str: 'str'}
 
@@ -487,7 +495,7 @@ def _specs_of(owner: type) -> list[ParameterSpec]:
     return specs
 
 
-OWNERS = (Scenario, SolverSettings, NodeSettings, VehicleLimits)
+OWNERS = (Scenario, SolverSettings, NodeSettings, VehicleLimits, FleetNodeSettings)
 #: Settings fields that are not parameters, and why.
 NOT_PARAMETERS = {
     (Scenario, 'max_airspeed_mps'): 'a vehicle-aware plan takes the airspeed from the vehicle '
@@ -501,7 +509,7 @@ NOT_PARAMETERS = {
 
 def parameter_specs() -> tuple[ParameterSpec, ...]:
     """Every parameter of the node, in declaration order: scenario, solver, node settings,
-    vehicle."""
+    vehicle, fleet."""
     return tuple(spec for owner in OWNERS for spec in _specs_of(owner))
 
 
@@ -537,6 +545,8 @@ def config_from_parameters(values: Mapping[str, Any],
         node_fields.update(zip(HOME_PARAMETERS_IN_ORDER,
                                FIRMWARES[node_fields['mission_firmware']].sitl_home))
     settings = SolverSettings(**chosen[SolverSettings])
+    fleet = FleetNodeSettings(**chosen[FleetNodeSettings])
+    chosen[Scenario].update(first_vehicle_ends(fleet))
     # The limit first: the scenario's own checks cost more the more nodes there are.
     settings.check_node_count(len(chosen[Scenario]['ground_nodes_m']))
     node = NodeSettings(**chosen[NodeSettings])
@@ -559,35 +569,13 @@ def config_from_parameters(values: Mapping[str, Any],
     if node.vehicle_aware:
         check_speed(scenario, vehicle)
         check_goal_in_time(scenario, vehicle, node.mission_firmware)
-    return PlannerConfig(scenario, settings, node, vehicle)
+    return PlannerConfig(scenario, settings, node, vehicle,
+                         fleet_of(fleet, scenario, settings, node, vehicle), fleet.mavlink_urls)
 
 
 def node_battery(node: NodeSettings) -> Battery | None:
     """The battery the node's parameters state (None: not stated)."""
     return Battery(node.battery_wh, node.battery_reserve) if node.battery_wh else None
-
-
-class FenceReader:
-    """The zones of a node's ``fence_file`` anchored at its home (None without a file), read
-    once per file, home and margin: a node keeps one, so that its file is read when it starts
-    and again only when ``home_*`` or ``fence_margin_m`` changes, not at every parameter
-    change. A bad file is an InvalidScenarioError naming it."""
-
-    def __init__(self) -> None:
-        self._key: tuple[str, Home, float] | None = None
-        self._zones: Zones | None = None
-
-    def __call__(self, node: NodeSettings) -> Zones | None:
-        if not node.fence_file:
-            return None
-        key = (node.fence_file, node.home, float(node.fence_margin_m))
-        if key != self._key:
-            try:
-                zones = read_zones(node.fence_file, node.home, margin_m=node.fence_margin_m)
-            except FenceFileError as exc:
-                raise InvalidScenarioError(str(exc)) from None
-            self._key, self._zones = key, zones
-        return self._zones
 
 
 def flat_pairs(points: Sequence[Sequence[float]]) -> list[float]:

@@ -48,18 +48,23 @@ STATUS_QOS = QoSProfile(depth=20, reliability=ReliabilityPolicy.RELIABLE,
 class PlanPublisher:
     """Publishes a plan on ``planned_path``, ``power_schedule``, ``min_throughput`` and markers.
 
-    Takes the ``node`` that owns the publishers instead of being one.
+    Takes the ``node`` that owns the publishers instead of being one; ``namespace`` (a fleet's
+    ``uav1``...) puts every topic under ``<node namespace>/<namespace>/``.
     """
 
-    def __init__(self, node: Node) -> None:
-        self._path = node.create_publisher(Path, TOPIC_PATH, OUTPUT_QOS)
-        self._power = node.create_publisher(Float64MultiArray, TOPIC_POWER, OUTPUT_QOS)
-        self._power_plan = node.create_publisher(JointTrajectory, TOPIC_POWER_PLAN, OUTPUT_QOS)
-        self._throughput = node.create_publisher(Float64, TOPIC_MIN_THROUGHPUT, OUTPUT_QOS)
-        self._markers = node.create_publisher(MarkerArray, TOPIC_MARKERS, OUTPUT_QOS)
-        self._zones = node.create_publisher(MarkerArray, TOPIC_ZONE_MARKERS, OUTPUT_QOS)
-        self._status = node.create_publisher(DiagnosticArray, TOPIC_STATUS, STATUS_QOS)
-        self._hardware_id = node.get_fully_qualified_name()
+    def __init__(self, node: Node, namespace: str = '') -> None:
+        def publisher(kind: type, topic: str, qos: QoSProfile):
+            return node.create_publisher(kind, f'{namespace}/{topic}' if namespace else topic,
+                                         qos)
+        self._path = publisher(Path, TOPIC_PATH, OUTPUT_QOS)
+        self._power = publisher(Float64MultiArray, TOPIC_POWER, OUTPUT_QOS)
+        self._power_plan = publisher(JointTrajectory, TOPIC_POWER_PLAN, OUTPUT_QOS)
+        self._throughput = publisher(Float64, TOPIC_MIN_THROUGHPUT, OUTPUT_QOS)
+        self._markers = publisher(MarkerArray, TOPIC_MARKERS, OUTPUT_QOS)
+        self._zones = publisher(MarkerArray, TOPIC_ZONE_MARKERS, OUTPUT_QOS)
+        self._status = publisher(DiagnosticArray, TOPIC_STATUS, STATUS_QOS)
+        suffix = f'/{namespace}' if namespace else ''
+        self._hardware_id = node.get_fully_qualified_name() + suffix
 
     def publish(self, outcome: PlanOutcome) -> None:
         """Publish the plan of a successful ``outcome`` on every output, then its status."""

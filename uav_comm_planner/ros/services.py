@@ -26,6 +26,11 @@ SERVICE_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
 
 
+#: What ``~/start`` and ``~/export_mission`` say on a node that plans a fleet.
+FLEET_NOT_YET = ('a fleet (uavs >= 2) has no mission clock yet, and writes every vehicle\'s '
+                 'mission file (mission_file with _uav1, _uav2, ...) with every plan')
+
+
 class ServiceHost(Protocol):
     """What :class:`PlannerServices` asks of its node (the planner node provides it)."""
 
@@ -65,7 +70,9 @@ class PlannerServices:
         node = self._node
         response.success = False
         segment = node.flight.progress.current
-        if node.config.node.mavlink_url:
+        if node.config.fleet is not None:
+            response.message = FLEET_NOT_YET
+        elif node.config.node.mavlink_url:
             response.message = ('the vehicle link starts the mission clock when the vehicle '
                                 'reaches q0 (parameter mavlink_url is set)')
         elif segment is None:
@@ -85,6 +92,8 @@ class PlannerServices:
         node = self._node
         if not node.config.node.mission_file:
             return False, 'parameter mission_file is empty: set a .waypoints or .plan file name'
+        if node.config.fleet is not None:
+            return False, FLEET_NOT_YET
         if node.current_plan is None:
             return False, 'no plan yet'
         try:

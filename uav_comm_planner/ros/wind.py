@@ -11,9 +11,14 @@ in force, it asks the node for a replan of the rest of the mission in flight; be
 mission's clock runs (nothing flies the plan yet, a replan costs nothing) already when it moves
 farther than :data:`PREFLIGHT_RESOLUTION_MPS`, so that the plan the mission starts with is made
 for the wind as measured; at most once every ``replan_interval_s`` of autopilot time. A wind is
-answered once: one the plan cannot fly (at or above the airspeed) is refused on
-``planner_status`` and ``/diagnostics``, the plan in force kept, and neither it nor a wind
-replanned for is asked for again until the estimate moves by the same threshold.
+answered once: one the plan cannot fly (at or above the airspeed, or a goal it puts out of
+reach) is refused on ``planner_status`` and ``/diagnostics``, the plan in force kept, and not
+said again while the estimate stays one that no plan can take (a rising gale is one refusal,
+not one per threshold it crosses); it is answered again once a plan can take it. A wind
+replanned for is not asked for again until the estimate moves by the same threshold. While a
+refusal stands (:attr:`WindTracker.refused`), the node makes no replan from the UAV's position
+either: any such plan would be made for a wind known to be wrong, and the UAV, slower than
+planned in the gale, would fall behind it again at once (an endless replan loop).
 """
 
 from __future__ import annotations
@@ -70,6 +75,16 @@ class WindTracker:
         #: Replans the wind asked for.
         self.replans = 0
 
+    @property
+    def refused(self) -> bool:
+        """Whether the wind last answered was refused and no plan can take the estimate since
+        (kept on the node's flight, which makes no replan from the UAV's position then)."""
+        return self._node.flight.wind_refused
+
+    @refused.setter
+    def refused(self, value: bool) -> None:
+        self._node.flight.wind_refused = value
+
     def _windy(self, config: PlannerConfig) -> PlannerConfig:
         """``config`` with the measured wind in its scenario; raises InvalidScenarioError
         when the scenario cannot take it (a wind at or above the airspeed)."""
@@ -110,23 +125,24 @@ class WindTracker:
         threshold = (output.wind_replan_mps if self._node.progress.started
                      else min(output.wind_replan_mps, PREFLIGHT_RESOLUTION_MPS))
         if not self.estimate.differs_from(plan.request.scenario, threshold):
+            self.refused = False
             return
-        # A wind answered already (planned for, refused, or its plan failed) is not asked
-        # again until the estimate moves on by the threshold: a gale the plan cannot fly
-        # would otherwise be asked for at every replan_interval_s, for ever.
-        if (self._answered is not None
+        # A wind answered already (planned for, or its plan failed) is not asked again until
+        # the estimate moves on by the threshold; a refused one not until a plan can take it:
+        # a gale the plan cannot fly would otherwise be asked for at every
+        # replan_interval_s, for ever.
+        if (not self.refused and self._answered is not None
                 and float(math.hypot(*(velocity - self._answered))) <= threshold):
             return
-        self._answered = velocity.copy()
         self._last_replan_s = time_s
         try:
             self._windy(self._node.config)
         except InvalidScenarioError as exc:
-            self._node.refuse(REASON, f'{REASON} refused: {exc}; the plan in force stays '
-                                      f'(made for {plan.request.scenario.wind_speed_mps:g} '
-                                      f'm/s), asked again when the estimate moves by more '
-                                      f'than {threshold:g} m/s')
+            if not self.refused:
+                self._refuse(exc, plan)
             return
+        self.refused = False
+        self._answered = velocity.copy()
         self.replans += 1
         self._node.get_logger().info(
             f'{REASON}: {self.estimate.speed_mps:.1f} m/s from '
@@ -134,6 +150,15 @@ class WindTracker:
             f'{plan.request.scenario.wind_speed_mps:g} m/s from '
             f'{plan.request.scenario.wind_from_deg:g} degrees; replanning')
         self._node.flight.request_update(REASON)
+
+    def _refuse(self, exc: InvalidScenarioError, plan) -> None:
+        """Say once that the measured wind cannot be planned for, and what happens now."""
+        self.refused = True
+        self._answered = self.estimate.velocity_mps.copy()
+        self._node.refuse(REASON, f'{REASON} refused: {exc}; the plan in force stays (made '
+                                  f'for {plan.request.scenario.wind_speed_mps:g} m/s) and is '
+                                  f'not replanned until the wind drops to one a plan can take '
+                                  f'or the request changes')
 
 
 __all__ = ['PREFLIGHT_RESOLUTION_MPS', 'TOPIC_WIND', 'WIND_QOS', 'WindTracker']

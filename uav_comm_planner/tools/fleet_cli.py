@@ -1,6 +1,7 @@
 """``uav-comm-planner plan --uavs K``: a fleet's plan on the command line.
 
-``--start "X,Y;X,Y" --goal "X,Y;X,Y"`` give each UAV's ends, ``--min-separation M`` d_min; the
+``--start "X,Y;X,Y" --goal "X,Y;X,Y"`` give each UAV's ends, ``--min-separation M`` d_min
+(default :data:`~uav_comm_planner.core.fleet.scenario.DEFAULT_SEPARATION_M`, 100 m); the
 other scenario flags (nodes, speed, horizon, budget...) are every UAV's. The JSON result holds
 ``trajectories`` (K x M x 2, metres) and ``power`` (K x N x M, watts) beside ``min_throughput``
 and ``rates``; ``--mission m.waypoints`` writes one mission per vehicle, ``m_uav1.waypoints``,
@@ -12,25 +13,19 @@ written.
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import itertools
-import math
-from pathlib import Path
 from typing import Callable
-
-import numpy as np
 
 from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
 from uav_comm_planner.core.fleet.model import closest_approach_m
 from uav_comm_planner.core.fleet.planner import FleetPlan
-from uav_comm_planner.core.fleet.scenario import MAX_UAVS
+from uav_comm_planner.core.fleet.scenario import (DEFAULT_SEPARATION_M, ends_too_close,
+                                                  MAX_UAVS)
 from uav_comm_planner.core.fleet.shared_band import plan_shared_band, SharedBandPlan
-from uav_comm_planner.core.model import average_rates
 from uav_comm_planner.core.numbers import counted
-from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError, PlannerError
 from uav_comm_planner.files import write_text_atomic
+from uav_comm_planner.mission.fleet import fleet_mission_paths, plan_for_missions, uav_result
 from uav_comm_planner.tools.serialize import run_record, scenario_to_dict
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
@@ -61,18 +56,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             '"X,Y;X,Y;..."')
     group.add_argument('--min-separation', type=float, metavar='M',
                        help='least distance between any two UAVs in every slot, metres '
-                            '(with --uavs; default 0)')
+                            f'(with --uavs; default {DEFAULT_SEPARATION_M:g}, Wu 2018\'s d_min; '
+                            '0 lets them meet)')
     group.add_argument('--shared-band', action='store_true',
                        help="Wu 2018's model instead: one band B for all UAVs, each serving one "
                             'node per slot, the others interfering (with --uavs; --json and '
                             '--figure)')
     group.add_argument('--no-power-control', action='store_true',
                        help='with --shared-band: every UAV sends P_T / M in every slot')
-
-
-def fleet_mission_paths(path: Path, count: int) -> list[Path]:
-    """m.waypoints -> m_uav1.waypoints, ..., m_uavK.waypoints (the same folder and format)."""
-    return [path.with_name(f'{path.stem}_uav{k}{path.suffix}') for k in range(1, count + 1)]
 
 
 def fleet_request(args: argparse.Namespace, base: Scenario) -> FleetScenario:
@@ -89,83 +80,13 @@ def fleet_request(args: argparse.Namespace, base: Scenario) -> FleetScenario:
             got = 'none' if ends is None else len(ends)
             raise PlannerError(f'--uavs {count} needs {count} points in --{name} "X,Y;X,Y;...", '
                                f'got {got}')
-    separation = 0.0 if args.min_separation is None else args.min_separation
-    return FleetScenario(base, tuple(args.start), tuple(args.goal), separation)
-
-
-def uav_result(result: FleetPlan, k: int) -> PlanResult:
-    """UAV k's part (0-based) as a single UAV's plan: its trajectory and power, the rates it
-    alone gives, for the mission export."""
-    vehicle = result.fleet.vehicle(k)
-    rates = average_rates(result.trajectories[k], result.power[k], vehicle)
-    return PlanResult(scenario=vehicle, trajectory=result.trajectories[k], times=result.times,
-                      power=result.power[k], rates=rates, min_throughput=float(rates.min()),
-                      history=(), start=result.start)
-
-
-#: The missions' timed flights are compared at this share of a slot.
-MISSION_SAMPLES_PER_SLOT = 20
-
-
-def missions_closest_approach(result: FleetPlan, limits: VehicleLimits, firmware: str
-                              ) -> tuple[float, float, tuple[int, int]] | None:
-    """The least distance between two vehicles flying their missions as the autopilot times
-    them (:func:`~uav_comm_planner.vehicle.flyable.schedule_flight`, every vehicle from its q0
-    at the same moment), metres, with when (seconds) and which pair (1-based); None for one
-    vehicle. The plan keeps d_min at its slot times; the autopilot's timing of a waypoint
-    mission is not the plan's, so this is what the missions themselves keep."""
-    from uav_comm_planner.vehicle.flyable import schedule_flight
-    count = result.fleet.num_uavs
-    if count < 2:
-        return None
-    flights = [schedule_flight(uav_result(result, k), limits, firmware=firmware).flight
-               for k in range(count)]
-    scenario = result.fleet.scenario
-    end = max(flight.end_s for flight in flights)
-    times = np.arange(0.0, end + scenario.slot_s, scenario.slot_s / MISSION_SAMPLES_PER_SLOT)
-    tracks = [flight.positions(times) for flight in flights]
-    closest = (math.inf, 0.0, (1, 2))
-    for j, k in itertools.combinations(range(count), 2):
-        gap = np.linalg.norm(tracks[j] - tracks[k], axis=1)
-        at = int(gap.argmin())
-        if gap[at] < closest[0]:
-            closest = (float(gap[at]), float(times[at]), (j + 1, k + 1))
-    return closest
-
-
-#: Plans the missions may take: each next one keeps more than d_min at its slots.
-MISSION_PLANS = 4
-
-
-def plan_for_missions(fleet: FleetScenario, settings: FleetSettings, limits: VehicleLimits,
-                      firmware: str) -> tuple[FleetPlan, str]:
-    """A plan whose missions, as the autopilot times them (:func:`missions_closest_approach`),
-    keep d_min, and the line that says so: planned at d_min first, then, while the missions
-    come closer, at a separation raised by one and a half times their shortfall each time (at
-    most :data:`MISSION_PLANS` plans). Refuses (PlannerError) when none does."""
-    required = planned = fleet.min_separation_m
-    found = None
-    for _ in range(MISSION_PLANS):
-        try:
-            attempt = dataclasses.replace(fleet, min_separation_m=planned)
-        except InvalidScenarioError:        # the ends themselves are closer than that
-            break
-        result = plan_fleet(attempt, settings)
-        found = missions_closest_approach(result, limits, firmware)
-        if found is None:
-            return result, 'one vehicle: no separation to keep'
-        gap, at, (j, k) = found
-        if gap >= required:
-            return result, (f'missions as {firmware} times them: closest approach {gap:.1f} m '
-                            f'(UAV {j} and UAV {k} at {at:.1f} s), d_min {required:g} m, '
-                            f'planned with {planned:.1f} m at the slots')
-        planned += max(1.5 * (required - gap), 1.0)
-    gap, at, (j, k) = found
-    raise PlannerError(
-        f'the missions, flown as {firmware} times them (every vehicle from its q0 at the same '
-        f'moment), bring UAV {j} and UAV {k} within {gap:.1f} m of each other at {at:.1f} s, '
-        f'below d_min = {required:g} m, even planned with more separation: fly the plan '
-        f'streamed (docs/fleet.md), or move the vehicles\' ends apart')
+    if args.min_separation is None:
+        close = ends_too_close(args.start, args.goal, DEFAULT_SEPARATION_M)
+        if close:
+            raise PlannerError(f'{close} (the default d_min): move them apart or give a '
+                               f'smaller --min-separation')
+        return FleetScenario(base, tuple(args.start), tuple(args.goal))
+    return FleetScenario(base, tuple(args.start), tuple(args.goal), args.min_separation)
 
 
 def fleet_to_dict(result: FleetPlan, settings: FleetSettings,
@@ -331,6 +252,5 @@ def check_not_fleet(args: argparse.Namespace) -> None:
             raise InvalidScenarioError(f'{flag} needs --uavs K (a fleet)')
 
 
-__all__ = ['add_arguments', 'check_not_fleet', 'command', 'fleet_mission_paths',
-           'fleet_request', 'fleet_to_dict', 'format_fleet', 'missions_closest_approach',
-           'plan_for_missions', 'plan_shared', 'shared_band_to_dict', 'uav_result']
+__all__ = ['add_arguments', 'check_not_fleet', 'command', 'fleet_request', 'fleet_to_dict',
+           'format_fleet', 'plan_shared', 'shared_band_to_dict']

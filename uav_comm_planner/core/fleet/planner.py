@@ -233,6 +233,18 @@ def _starts(fleet: FleetScenario, settings: FleetSettings
     return starts, singles, left_out
 
 
+def check_budget(fleet: FleetScenario, settings: SolverSettings) -> None:
+    """Refuse (:class:`~uav_comm_planner.errors.ComputeBudgetError`) a fleet whose K x N x M
+    exceeds ``settings.max_node_slots``."""
+    size = fleet.num_uavs * fleet.scenario.num_nodes * fleet.scenario.num_slots
+    if size > settings.max_node_slots:
+        raise ComputeBudgetError(
+            f'problem too large: K x N x M = {fleet.num_uavs} UAVs x '
+            f'{fleet.scenario.num_nodes} nodes x {fleet.scenario.num_slots} slots = {size} '
+            f'exceeds the compute budget max_node_slots = {settings.max_node_slots}; '
+            f'lower num_slots, the node count or the UAVs')
+
+
 def plan_fleet(fleet: FleetScenario, settings: FleetSettings | None = None) -> FleetPlan:
     """Plan every UAV's trajectory and power jointly (module docstring).
 
@@ -250,13 +262,7 @@ def plan_fleet(fleet: FleetScenario, settings: FleetSettings | None = None) -> F
         raise InvalidScenarioError(
             f'settings must be FleetSettings or None, got {type(settings).__name__}')
     settings.single.check(fleet.scenario)
-    size = fleet.num_uavs * fleet.scenario.num_nodes * fleet.scenario.num_slots
-    if size > settings.single.max_node_slots:
-        raise ComputeBudgetError(
-            f'problem too large: K x N x M = {fleet.num_uavs} UAVs x '
-            f'{fleet.scenario.num_nodes} nodes x {fleet.scenario.num_slots} slots = {size} '
-            f'exceeds the compute budget max_node_slots = {settings.single.max_node_slots}; '
-            f'lower num_slots, the node count or the UAVs')
+    check_budget(fleet, settings.single)
     starts, singles, left_out = _starts(fleet, settings)
     if not starts:
         raise InvalidScenarioError(
@@ -278,4 +284,4 @@ def plan_fleet(fleet: FleetScenario, settings: FleetSettings | None = None) -> F
         solve_time_s=time.perf_counter() - began)
 
 
-__all__ = ['FLEET_STARTS', 'FleetPlan', 'FleetSettings', 'plan_fleet']
+__all__ = ['check_budget', 'FLEET_STARTS', 'FleetPlan', 'FleetSettings', 'plan_fleet']

@@ -16,6 +16,11 @@ from uav_comm_planner.errors import InvalidScenarioError
 
 #: The most UAVs a fleet plan takes: the trajectory step grows with K^2 separation rows.
 MAX_UAVS = 8
+#: d_min when none is given, metres: Wu, Zeng and Zhang's (IEEE TWC 2018) separation, at the
+#: letter's scale (nodes kilometres apart, H = 100 m) a cost of a fraction of a percent of the
+#: min throughput, and far above what a multirotor's GPS and tracking errors take (metres).
+#: Without it the joint plan lets two UAVs meet over a node they both serve.
+DEFAULT_SEPARATION_M = 100.0
 
 
 def _points(name: str, value: Sequence) -> tuple[tuple[float, float], ...]:
@@ -41,14 +46,15 @@ class FleetScenario:
     budget P_T that every UAV has (each its own band and its own budget); its start and goal
     are not used. starts_m, goals_m: q0_k and qF_k, K pairs each, metres.
     min_separation_m: d_min, the least horizontal distance between any two UAVs at every slot
-    q_j[m], q_k[m] (m = 1..M; the ends, which are given, must keep it too). All UAVs fly at the
-    same altitude H, so d_min is their distance.
+    q_j[m], q_k[m] (m = 1..M; the ends, which are given, must keep it too), by default
+    :data:`DEFAULT_SEPARATION_M`; 0 lets them meet. All UAVs fly at the same altitude H, so
+    d_min is their distance.
     """
 
     scenario: Scenario
     starts_m: tuple[tuple[float, float], ...]
     goals_m: tuple[tuple[float, float], ...]
-    min_separation_m: float = 0.0
+    min_separation_m: float = DEFAULT_SEPARATION_M
 
     def __post_init__(self) -> None:
         if not isinstance(self.scenario, Scenario):
@@ -74,14 +80,9 @@ class FleetScenario:
                 f'min_separation_m must be >= 0 and finite, got {self.min_separation_m!r}')
         object.__setattr__(self, 'min_separation_m', separation)
         self.vehicles                  # each UAV's ends valid and its goal reachable
-        for name, ends in (('starts', starts), ('goals', goals)):
-            for j, k in itertools.combinations(range(len(ends)), 2):
-                apart = math.dist(ends[j], ends[k])
-                if apart < separation:
-                    raise InvalidScenarioError(
-                        f'{name} of UAV {j + 1} and UAV {k + 1} are {apart:.1f} m apart, less '
-                        f'than the separation {separation:g} m: move them apart or lower '
-                        f'min_separation_m')
+        close = ends_too_close(starts, goals, separation)
+        if close:
+            raise InvalidScenarioError(f'{close}: move them apart or lower min_separation_m')
 
     @property
     def num_uavs(self) -> int:
@@ -106,4 +107,16 @@ class FleetScenario:
         return tuple(itertools.combinations(range(self.num_uavs), 2))
 
 
-__all__ = ['FleetScenario', 'MAX_UAVS']
+def ends_too_close(starts: Sequence, goals: Sequence, separation_m: float) -> str:
+    """Which two UAVs' starts (or goals) are closer than ``separation_m``, and how far apart,
+    said in a few words; empty when every pair keeps it."""
+    for name, ends in (('starts', starts), ('goals', goals)):
+        for j, k in itertools.combinations(range(len(ends)), 2):
+            apart = math.dist(ends[j], ends[k])
+            if apart < separation_m:
+                return (f'{name} of UAV {j + 1} and UAV {k + 1} are {apart:.1f} m apart, less '
+                        f'than the separation {separation_m:g} m')
+    return ''
+
+
+__all__ = ['DEFAULT_SEPARATION_M', 'ends_too_close', 'FleetScenario', 'MAX_UAVS']

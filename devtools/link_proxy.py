@@ -5,7 +5,9 @@ serves one ground-station connection at a time on ``port``. While it is cut, the
 station's connection is closed (it reads EOF), every new one is closed as soon as it is
 accepted, and the vehicle's bytes are read and dropped: the vehicle flies on, unheard. Restored,
 the next connection is served again. ``cut_at`` and ``restored_at`` are the monotonic times of
-the last cut and restoration.
+the last cut and restoration. Both sides send at once (TCP_NODELAY, as the package's own TCP
+link does): a stream's small targets are not held back by Nagle's algorithm, which at a
+simulator's speed-up would make them late by several times its delay in autopilot time.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ class LinkProxy:
 
     def __init__(self, upstream_port: int) -> None:
         self._upstream = socket.create_connection(('127.0.0.1', upstream_port), timeout=10)
+        self._upstream.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._server = socket.create_server(('127.0.0.1', 0))
         self.port = self._server.getsockname()[1]
         self.connections = 0
@@ -66,6 +69,7 @@ class LinkProxy:
                         accepted.close()
                         self.refused += 1
                     else:
+                        accepted.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
                         client = accepted
                         self.connections += 1
                 elif ready is self._upstream:
