@@ -30,7 +30,8 @@ from uav_comm_planner.vehicle.flyable import VehiclePlan
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.mavlink.fence import fence_items, MISSION_TYPE_FENCE
 from uav_comm_planner.vehicle.mavlink.guided import set_mode
-from uav_comm_planner.vehicle.mavlink.items import build_mission_items, NAV_WAYPOINT, Q0_SEQ
+from uav_comm_planner.vehicle.mavlink.items import (build_mission_items, NAV_WAYPOINT, Q0_SEQ,
+                                                    TAKEOFF_SEQ)
 from uav_comm_planner.vehicle.mavlink.link import (connect, download_mission,
                                                    upload_and_verify)
 from uav_comm_planner.vehicle.mavlink.telemetry import global_position_enu, request_telemetry
@@ -368,7 +369,7 @@ def fly_plan(vehicle_plan: VehiclePlan, folder: Path, *, home: Home,
             for name, value in FENCE_PARAMETERS.items():
                 set_parameter(link, name, value)
         upload(link, items)
-        take_off(link, scenario.altitude_m)
+        take_off(link, items[TAKEOFF_SEQ].z)     # the altitude of q0
         horizon_s = scenario.slot_s * (scenario.num_slots + 1)
         record = fly_auto(link, home, last_item=last_waypoint, timeout_s=2 * horizon_s + 300)
         link.close()

@@ -1,6 +1,6 @@
 """What several test modules share: seeded random scenarios, the six-node field, the node
-harness (the planner node, a probe node and one executor, on real rclpy), and the record a
-SITL test's own MAVLink link keeps of the vehicle."""
+harness (the planner node, a probe node and one executor, on real rclpy), the record a
+SITL test's own MAVLink link keeps of the vehicle, and the fuzz targets run in process."""
 
 from __future__ import annotations
 
@@ -278,3 +278,21 @@ def slow_fleet():
                           goal_m=SLOW_FLEET_GOALS[0], max_speed_mps=5.0, horizon_s=200.0,
                           num_slots=40, altitude_m=30.0)
     return FleetScenario(base, SLOW_FLEET_STARTS, SLOW_FLEET_GOALS, 40.0)
+
+
+def run_fuzz_target(module: str, argv: list[str]) -> int:
+    """Run the fuzz target ``module`` of test/fuzz (``make fuzz``'s) in process with ``argv``:
+    its exit status, its report printed."""
+    import importlib.util
+    import pathlib
+    import sys
+
+    folder = pathlib.Path(__file__).resolve().parent / 'fuzz'
+    sys.path.insert(0, str(folder))
+    try:
+        spec = importlib.util.spec_from_file_location(module, folder / f'{module}.py')
+        target = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(target)
+        return target.main(argv)
+    finally:
+        sys.path.remove(str(folder))

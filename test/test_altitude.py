@@ -127,6 +127,19 @@ def test_a_three_dimensional_plan_keeps_its_limits_and_states_its_throughput():
         rel=1e-6)
 
 
+def test_a_step_that_stalls_clarabel_at_its_defaults_is_solved_with_the_next_settings():
+    # At 1 m/s of climb this case's altitude step stalls Clarabel's defaults mid-way through
+    # Algorithm 1; the next settings (core.conic.CLARABEL_ATTEMPTS) solve it.
+    scenario = paper_scenario('I', channel='los:urban', max_speed_mps=10.0, horizon_s=400.0,
+                              num_slots=50, **RADIO)
+    result = plan_with_altitude(scenario, AltitudeLimits((30.0, 120.0), 1.0))
+    assert result.min_throughput >= result.fixed.min_throughput
+    assert np.abs(np.diff(result.altitudes)).max() <= 1.0 * scenario.slot_s + 1e-6
+    assert result.min_throughput == pytest.approx(recomputed(
+        'urban', result.trajectory.tolist(), result.altitudes.tolist(), result.power.tolist(),
+        scenario), rel=1e-6)
+
+
 def test_free_space_stays_at_the_lowest_altitude():
     scenario = paper_scenario('I', num_slots=20, horizon_s=50.0, **RADIO)
     result = plan_with_altitude(scenario, AltitudeLimits((40.0, 200.0), 5.0))
@@ -153,7 +166,11 @@ def test_command_line_altitude_range_and_json(tmp_path, capsys):
 
 @pytest.mark.parametrize('argv, reason', [
     (['--climb-rate', '3'], 'needs --altitude-range'),
-    (['--altitude-range', '30,300', '--mission', 'm.waypoints'], 'does not combine'),
+    (['--altitude-range', '30,300', '--figure', 'f.png'], 'does not combine'),
+    (['--altitude-range', '30,300', '--mission', 'm.waypoints', '--speed', '10',
+      '--horizon', '400', '--climb-rate', '2.5'], 'WPNAV_SPEED_DN'),
+    (['--altitude-range', '30,300', '--mission', 'm.waypoints', '--speed', '10',
+      '--horizon', '400', '--firmware', 'px4', '--climb-rate', '1'], 'ardupilot only'),
     (['--altitude-range', '300,30'], 'lowest <= highest'),
     (['--altitude-range', '30'], 'MIN,MAX')])
 def test_command_line_refuses_bad_altitude_options_in_one_line(argv, reason, capsys, tmp_path,

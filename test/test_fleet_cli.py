@@ -3,18 +3,24 @@ mission per vehicle read back through pymavlink, the figure, and one-line errors
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+from test_fence import degrees_at, plan_file
 
+from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.fleet import FleetScenario
 from uav_comm_planner.core.fleet.scenario import DEFAULT_SEPARATION_M
+from uav_comm_planner.core.propulsion import ZENG2019
 from uav_comm_planner.core.scenario import paper_scenario
 from uav_comm_planner.tools import cli
+from uav_comm_planner.vehicle.fence import read_zones
 from uav_comm_planner.vehicle.geodesy import default_home, geodetic_to_enu
 from uav_comm_planner.vehicle.mavlink.files import read_waypoints
 from uav_comm_planner.vehicle.mavlink.items import NAV_LAND, NAV_WAYPOINT
 
+CHECKOUT = Path(__file__).resolve().parents[1]
 FLEET = ('--uavs', '2', '--start', '0,0;0,500', '--goal', '2000,0;2000,500',
          '--min-separation', '100')
 
@@ -89,10 +95,12 @@ def test_one_mission_per_vehicle_each_ending_at_its_own_goal(tmp_path, capsys):
     (('--min-separation', '100',), 'needs --uavs'),
     (('--start', '0,0;0,500',), 'several need --uavs'),
     (FLEET[:-1] + ('600',), 'less than the separation'),
+    (FLEET + ('--min-throughput', '5'), '--min-throughput is for one UAV'),
+    (FLEET + ('--energy-budget-wh', '5'), '--energy-budget-wh needs --airframe'),
+    (FLEET + ('--fence', 'missing.geojson'), 'missing.geojson'),
     (('--uavs', '2', '--start', '0,0;0,50', '--goal', '2000,0;2000,500'),
      'less than the separation 100 m (the default d_min): move them apart or give a smaller '
      '--min-separation'),
-    (FLEET + ('--fence', 'f.geojson'), '--fence is for one UAV'),
     (FLEET + ('--letter',), '--letter is for one UAV'),
     (FLEET[:-1] + ('nan',), 'min_separation_m'),
     (('--uavs', '2', '--start', '0,0;0,x', '--goal', '1,1;2,2'), 'comma-separated numbers'),
@@ -193,8 +201,67 @@ def test_the_shared_band_json_states_what_its_arrays_give(tmp_path, capsys):
     (('--shared-band',), '--shared-band needs --uavs'),
     (FLEET + ('--no-power-control',), '--no-power-control is for --shared-band'),
     (SHARED + ('--mission', 'm.waypoints'), 'missions are not exported yet'),
+    (SHARED + ('--airframe', 'zeng2019', '--energy-budget-wh', '50', '--horizon', '100'),
+     'shared band is planned without zones or an energy budget'),
 ])
 def test_bad_shared_band_input_is_one_line(tmp_path, capsys, argv, message):
     status, _, err = run(capsys, 'plan', *argv, '--json', str(tmp_path / 'r.json'))
     assert status == 2 and err.count('\n') == 1 and message in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_fleet_keeps_out_of_the_fence_file_and_within_each_budget(tmp_path, capsys):
+    """A keep-out disc (a .plan fence, anchored at the default home) over the middle node, and
+    an energy budget per UAV: the JSON's trajectories held against the disc written here and
+    their horizon energy recomputed from the JSON's arrays."""
+    home = default_home('ardupilot')
+    centre, radius = (1000.0, 250.0), 150.0
+    fence = plan_file(tmp_path, {'version': 2, 'polygons': [], 'circles': [
+        {'inclusion': False, 'version': 1,
+         'circle': {'center': degrees_at(*centre, home=home), 'radius': radius}}]})
+    result_file = tmp_path / 'r.json'
+    status, out, err = run(capsys, 'plan', *FLEET, '--horizon', '100', '--fence', str(fence),
+                           '--airframe', 'zeng2019', '--energy-budget-wh', '8.5',
+                           '--json', str(result_file), '--figure', str(tmp_path / 'f.svg'))
+    assert status == 0, err
+    data = json.loads(result_file.read_text())
+    q = np.array(data['trajectories'])
+    scenario = paper_scenario('I', horizon_s=100.0)
+    for k, (start, goal) in enumerate(zip(data['starts_m'], data['goals_m'])):
+        path = np.vstack([start, q[k], goal])
+        # Every slot point and every leg at least the 5 m margin from the disc (by hand).
+        along = np.linspace(0.0, 1.0, 50)[:, None, None]
+        points = path[:-1][None] + along * np.diff(path, axis=0)[None]
+        assert np.linalg.norm(points - centre, axis=-1).min() >= radius + 5.0 - 0.01
+        vehicle = scenario.replace(start_m=tuple(start), goal_m=tuple(goal))
+        energy_wh = horizon_energy_j(q[k], vehicle, ZENG2019) / JOULES_PER_WH
+        assert energy_wh <= 8.5 and energy_wh == pytest.approx(data['energy_wh'][k], rel=1e-12)
+        assert f'UAV {k + 1} horizon energy {energy_wh:.4g} Wh (budget 8.5 Wh)' in out
+    assert data['zone_clearance_m'][0] >= 5.0 * (1 - 1e-9) and 'least clearance' in out
+    assert data['min_throughput'] >= max(data['single_uav_throughputs'].values())
+    drawn = (tmp_path / 'f.svg').read_text()
+    assert 'keep-out zone' in drawn and '5 m margin' in drawn and 'UAV 2' in drawn
+
+
+def test_each_vehicles_mission_keeps_out_of_the_fence(tmp_path, capsys):
+    """The example fence's block between the nodes: every leg of each vehicle's mission, read
+    back through pymavlink, keeps the 5 m margin (less the geodesy's centimetres)."""
+    home = default_home('ardupilot')
+    fence = CHECKOUT / 'docs' / 'fence_example.geojson'
+    mission = tmp_path / 'm.waypoints'
+    status, out, err = run(capsys, 'plan', '--uavs', '2', '--start', '0,300;0,550',
+                           '--goal', '1000,300;1000,550', '--min-separation', '50',
+                           '--nodes', '300,200;800,450', '--speed', '8', '--horizon', '250',
+                           '--slots', '50', f'--home={home.latitude_deg},{home.longitude_deg},'
+                           f'{home.altitude_m}', '--fence', str(fence), '--mission', str(mission))
+    assert status == 0, err
+    zones = read_zones(fence, home)
+    for k in (1, 2):
+        items = [item for item in read_waypoints(tmp_path / f'm_uav{k}.waypoints')
+                 if item.command == NAV_WAYPOINT]
+        east, north, _ = geodetic_to_enu(np.array([item.x for item in items]),
+                                         np.array([item.y for item in items]), 0.0, home)
+        points = np.column_stack([east, north])
+        for zone in zones.keep_out:
+            least = min(zone.segment_clearance(a, b) for a, b in zip(points[:-1], points[1:]))
+            assert least >= zones.margin_m - 0.05, (k, least)

@@ -11,6 +11,7 @@ from pathlib import Path
 import re
 import warnings
 
+from helpers import run_fuzz_target
 import pytest
 
 from uav_comm_planner import paper_scenario
@@ -173,18 +174,7 @@ def test_a_tampered_study_table_is_one_line_on_resume(tmp_path, capsys):
 
 
 def test_a_short_seeded_run_of_the_zone_and_fence_fuzzer_finds_nothing(capsys):
-    import importlib.util
-    import sys
-
-    folder = Path(__file__).resolve().parent / 'fuzz'
-    sys.path.insert(0, str(folder))
-    try:
-        spec = importlib.util.spec_from_file_location('fuzz_zones', folder / 'fuzz_zones.py')
-        fuzzer = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(fuzzer)
-        status = fuzzer.main(['--cases', '80', '--seed', '7'])
-    finally:
-        sys.path.remove(str(folder))
+    status = run_fuzz_target('fuzz_zones', ['--cases', '80', '--seed', '7'])
     out = capsys.readouterr().out
     assert status == 0, out
     assert '0 failures' in out

@@ -9,6 +9,7 @@ import threading
 import time
 
 from fake_vehicle import FakeVehicle
+from helpers import run_fuzz_target
 import pytest
 
 from uav_comm_planner.errors import InvalidLinkUrlError, InvalidScenarioError, VehicleLinkError
@@ -185,14 +186,7 @@ def test_reconnection_attempts_back_off(monkeypatch, no_leaks):
 
 
 def test_a_short_seeded_run_of_the_fake_vehicle_fuzzer_finds_nothing(capsys):
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parent / 'fuzz' / 'fuzz_vehicle.py'
-    spec = importlib.util.spec_from_file_location('fuzz_vehicle', path)
-    fuzzer = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(fuzzer)
-    status = fuzzer.main(['--cases', '60', '--seed', '7'])
+    status = run_fuzz_target('fuzz_vehicle', ['--cases', '60', '--seed', '7'])
     out = capsys.readouterr().out
     assert status == 0, out
     assert '0 failures' in out and 'api good' in out

@@ -9,9 +9,9 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from pathlib import Path
 import time
 
+from helpers import run_fuzz_target
 import numpy as np
 import pytest
 
@@ -135,19 +135,9 @@ def test_a_fences_vertices_are_counted_before_any_polygon_is_built(tmp_path, mon
 
 
 def test_a_short_seeded_run_of_the_parameter_design_and_table_fuzzer_finds_nothing(capsys):
-    import importlib.util
     import re
-    import sys
 
-    folder = Path(__file__).resolve().parent / 'fuzz'
-    sys.path.insert(0, str(folder))
-    try:
-        spec = importlib.util.spec_from_file_location('fuzz_inputs', folder / 'fuzz_inputs.py')
-        fuzzer = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(fuzzer)
-        status = fuzzer.main(['--cases', '60', '--seed', '5'])
-    finally:
-        sys.path.remove(str(folder))
+    status = run_fuzz_target('fuzz_inputs', ['--cases', '60', '--seed', '5'])
     out = capsys.readouterr().out
     assert status == 0, out
     assert '0 failures' in out

@@ -111,11 +111,14 @@ def test_targets_are_the_reference_at_the_autopilot_time_and_the_plan_end_falls_
     assert target[7] == 100.0
     assert target[8:10] == pytest.approx((velocity[1], velocity[0]))
     assert target[11:13] == pytest.approx((accel[1], accel[0]))
-    # At the plan's end (and a settling time) the vehicle goes on in AUTO, once.
+    # At the plan's end (and a settling time) the vehicle goes on in AUTO, once, and the
+    # node says how far from qF it is (here held 30 m east of it).
+    stream.position_m = reference.state(reference.duration_s)[0][0] + np.array([30.0, 0.0])
     for t in t0 + reference.duration_s + 1.0 + np.arange(0, 6, 0.05):
         stream.tick(link, float(t))
     assert [event.kind for event in events] == ['started', 'stopped']
-    assert 'reached qF' in events[-1].message and 'item 7' in events[-1].message
+    assert 'reached qF, the vehicle 30.0 m from it' in events[-1].message
+    assert 'item 7' in events[-1].message
     assert link.currents == [7] and link.modes[-1] == COPTER_MODES['AUTO']
     assert not stream.active
 

@@ -12,17 +12,14 @@ failure; exits 1 if there was one.
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import math
 from pathlib import Path
 import sys
 import tempfile
-import time
 import traceback
 
-from fuzz_report import parse_arguments, report, SeededFuzzer
+from fuzz_report import fuzz_main, SeededFuzzer
 import numpy as np
 
 from uav_comm_planner import plan, PlannerError, Scenario, SolverSettings
@@ -240,52 +237,26 @@ class Fuzzer(SeededFuzzer):
                                 'I', 'rtl', 'px4', '-1', '0', '١'))
 
     def run_cli(self, argv: list[str], out: Path) -> None:
-        stdout, stderr = io.StringIO(), io.StringIO()
         what = ' '.join(argv)[:300]
-        try:
-            with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-                status = cli.main(argv)
-        except BaseException as exc:  # noqa: B902 - an escaping exception is a traceback
-            self.fail('cli', what, f'{type(exc).__name__} escaped: {exc}')
+        status, err = self.call_cli('cli', what, argv)
+        if status is None:
             return
-        err = stderr.getvalue()
-        if status == 2:
-            self.counts[('cli', 'refused')] += 1
-            if err.count('\n') != 1 or not err.startswith('uav-comm-planner: error: '):
-                self.fail('cli', what, f'refusal not one line: {err!r}')
-        elif status == 0:
-            self.counts[('cli', 'ok')] += 1
-            result = out / 'r.json'
-            if result.is_file():
-                text = result.read_text()
-                if any(word in text for word in ('Infinity', 'NaN')):
-                    self.fail('cli', what, 'non-finite JSON written')
-        else:
-            self.fail('cli', what, f'exit status {status}: {err!r}')
-        if 'Traceback' in err:
-            self.fail('cli', what, 'traceback on stderr')
+        self.judge_exit('cli', what, status, err)
+        result = out / 'r.json'
+        if status == 0 and result.is_file():
+            text = result.read_text()
+            if any(word in text for word in ('Infinity', 'NaN')):
+                self.fail('cli', what, 'non-finite JSON written')
         stray = self.leftovers(out, refused=status != 0)
         if stray:
             self.fail('cli', what, f'files left: {stray}')
 
-    def run(self, cases: int) -> None:
-        kinds = ((self.case_scenario, 0.35), (self.case_settings, 0.1),
-                 (self.case_plan_arguments, 0.05), (self.case_mission, 0.1),
-                 (self.case_cli, 0.4))
-        functions, weights = zip(*kinds)
-        for _ in range(cases):
-            self.rng.choices(functions, weights)[0]()
+    KINDS = (('case_scenario', 0.35), ('case_settings', 0.1), ('case_plan_arguments', 0.05),
+             ('case_mission', 0.1), ('case_cli', 0.4))
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_arguments(argv, __doc__)
-    began = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix='uav-fuzz-') as name:
-        fuzzer = Fuzzer(args.seed, Path(name))
-        fuzzer.run(args.cases)
-        left = sorted(str(p.relative_to(name)) for p in Path(name).rglob('*'))
-    return report(args.cases, args.seed, time.perf_counter() - began, fuzzer.counts,
-                  fuzzer.failures, left)
+    return fuzz_main(Fuzzer, argv, __doc__, 'uav-fuzz-')
 
 
 if __name__ == '__main__':

@@ -29,7 +29,7 @@ import tempfile
 import time
 import warnings
 
-from fuzz_report import parse_arguments, report, SeededFuzzer
+from fuzz_report import fuzz_main, SeededFuzzer
 
 from uav_comm_planner import PlannerError
 from uav_comm_planner.tools import cli
@@ -78,25 +78,11 @@ class Fuzzer(SeededFuzzer):
 
     def command(self, kind: str, what: str, argv: list[str]) -> int | None:
         """The command line in process: exit 0, or exit 2 with one line on stderr."""
-        stdout, stderr = io.StringIO(), io.StringIO()
         began = time.perf_counter()
-        try:
-            with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr), \
-                    warnings.catch_warnings():
-                warnings.simplefilter('error')
-                status = cli.main(argv)
-        except BaseException as exc:  # noqa: B902 - an escaping exception is a traceback
-            self.fail(kind, what, f'{type(exc).__name__} escaped: {str(exc)[:300]}')
+        status, err = self.call_cli(kind, what, argv, context=_warnings_as_errors)
+        if status is None:
             return None
-        err = stderr.getvalue()
-        if status == 2:
-            self.counts[(kind, 'refused')] += 1
-            if err.count('\n') != 1 or not err.startswith('uav-comm-planner: error: '):
-                self.fail(kind, what, f'refusal not one line: {err[:400]!r}')
-        elif status == 0:
-            self.counts[(kind, 'ok')] += 1
-        else:
-            self.fail(kind, what, f'exit status {status}: {err[:400]!r}')
+        self.judge_exit(kind, what, status, err)
         if time.perf_counter() - began > SLOW_S:
             self.fail(kind, what, f'took {time.perf_counter() - began:.1f} s')
         return status
@@ -227,23 +213,20 @@ class Fuzzer(SeededFuzzer):
         out.write_text('\n'.join(lines) + '\n')
         return what
 
-    def run(self, cases: int) -> None:
-        kinds = ((self.case_parameters, 0.5), (self.case_design, 0.3), (self.case_table, 0.2))
-        functions, weights = zip(*kinds)
-        for _ in range(cases):
-            self.rng.choices(functions, weights)[0]()
+    KINDS = (('case_parameters', 0.5), ('case_design', 0.3), ('case_table', 0.2))
+
+
+@contextlib.contextmanager
+def _warnings_as_errors():
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        yield
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_arguments(argv, __doc__)
-    began = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix='uav-fuzz-inputs-') as name:
-        fuzzer = Fuzzer(args.seed, Path(name))
-        fuzzer.run(args.cases)
-        left = sorted(str(p.relative_to(name)) for p in Path(name).rglob('*')
-                      if p.parts[len(Path(name).parts)] != 'study')
-    return report(args.cases, args.seed, time.perf_counter() - began, fuzzer.counts,
-                  fuzzer.failures, left)
+    # The studies' own folder stays: a study resumes from it.
+    return fuzz_main(Fuzzer, argv, __doc__, 'uav-fuzz-inputs-',
+                     kept=lambda path: path.parts[0] == 'study')
 
 
 if __name__ == '__main__':

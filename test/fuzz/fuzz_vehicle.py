@@ -22,7 +22,6 @@ from pathlib import Path
 import re
 import string
 import sys
-import tempfile
 import threading
 import time
 import traceback
@@ -31,7 +30,7 @@ import traceback
 sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]
 
 from fake_vehicle import BEHAVIOURS, FakeVehicle  # noqa: E402
-from fuzz_report import parse_arguments, report, SeededFuzzer  # noqa: E402
+from fuzz_report import fuzz_main, SeededFuzzer  # noqa: E402
 
 from uav_comm_planner.errors import MissionFileError, VehicleLinkError  # noqa: E402
 from uav_comm_planner.tools import cli  # noqa: E402
@@ -186,27 +185,16 @@ class Fuzzer(SeededFuzzer):
                 return
             time.sleep(0.01)
 
-    def run(self, cases: int) -> None:
-        kinds = ((self.case_api, 0.55), (self.case_cli, 0.1), (self.case_url, 0.3),
-                 (self.case_missing_file, 0.05))
-        functions, weights = zip(*kinds)
-        for _ in range(cases):
-            self.rng.choices(functions, weights)[0]()
-            self.check_leaks()
+    KINDS = (('case_api', 0.55), ('case_cli', 0.1), ('case_url', 0.3),
+             ('case_missing_file', 0.05))
+
+    def after_case(self) -> None:
+        self.check_leaks()
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_arguments(argv, __doc__)
-    began = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix='uav-fuzz-vehicle-') as name:
-        fuzzer = Fuzzer(args.seed, Path(name))
-        try:
-            fuzzer.run(args.cases)
-        finally:
-            fuzzer.close()
-        left = sorted(p.name for p in Path(name).iterdir() if p.name != 'm.waypoints')
-    return report(args.cases, args.seed, time.perf_counter() - began, fuzzer.counts,
-                  fuzzer.failures, left, widths=(20, 48))
+    return fuzz_main(Fuzzer, argv, __doc__, 'uav-fuzz-vehicle-',
+                     kept=lambda path: path.name == 'm.waypoints', widths=(20, 48))
 
 
 if __name__ == '__main__':

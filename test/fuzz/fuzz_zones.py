@@ -15,8 +15,6 @@ one.
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import math
 from pathlib import Path
@@ -25,13 +23,12 @@ import tempfile
 import time
 import traceback
 
-from fuzz_report import parse_arguments, report, SeededFuzzer
+from fuzz_report import fuzz_main, SeededFuzzer
 import numpy as np
 
 from uav_comm_planner import PlannerError
 from uav_comm_planner.core.detour import shortest_path
 from uav_comm_planner.core.zones import Zones
-from uav_comm_planner.tools import cli
 from uav_comm_planner.vehicle.fence import (fence_from_zones, MAX_FENCE_DISTANCE_M, read_fence,
                                             read_zones)
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, geodetic_to_plane, Home
@@ -213,47 +210,24 @@ class Fuzzer(SeededFuzzer):
                     '--fence', str(path), '--mission', str(out / 'm.plan')]
             if self.rng.random() < 0.3:
                 argv += ['--fence-margin', self.rng.choice(('0', '5', '-1', 'nan', '1e400'))]
-            stdout, stderr = io.StringIO(), io.StringIO()
             what = path.read_text()[:200]
             began = time.perf_counter()
-            try:
-                with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-                    status = cli.main(argv)
-            except BaseException as exc:  # noqa: B902 - an escaping exception is a traceback
-                self.fail('cli', what, f'{type(exc).__name__} escaped: {exc}')
+            status, err = self.call_cli('cli', what, argv)
+            if status is None:
                 return
-            err = stderr.getvalue()
-            if status == 2:
-                self.counts[('cli', 'refused')] += 1
-                if err.count('\n') != 1 or not err.startswith('uav-comm-planner: error: '):
-                    self.fail('cli', what, f'refusal not one line: {err!r}')
-                if any(out.iterdir()):
-                    self.fail('cli', what, 'a refusal left a file')
-            elif status == 0:
-                self.counts[('cli', 'ok')] += 1
-                if read_fence(out / 'm.plan') != read_fence(path):
-                    self.fail('cli', what, 'the mission carries another fence than the file')
-            else:
-                self.fail('cli', what, f'exit status {status}: {err!r}')
+            self.judge_exit('cli', what, status, err)
+            if status == 2 and any(out.iterdir()):
+                self.fail('cli', what, 'a refusal left a file')
+            if status == 0 and read_fence(out / 'm.plan') != read_fence(path):
+                self.fail('cli', what, 'the mission carries another fence than the file')
             if time.perf_counter() - began > SLOW_S:
                 self.fail('cli', what, f'took {time.perf_counter() - began:.1f} s')
 
-    def run(self, cases: int) -> None:
-        kinds = ((self.case_fence, 0.55), (self.case_zones_mapping, 0.3), (self.case_cli, 0.15))
-        functions, weights = zip(*kinds)
-        for _ in range(cases):
-            self.rng.choices(functions, weights)[0]()
+    KINDS = (('case_fence', 0.55), ('case_zones_mapping', 0.3), ('case_cli', 0.15))
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_arguments(argv, __doc__)
-    began = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix='uav-fuzz-zones-') as name:
-        fuzzer = Fuzzer(args.seed, Path(name))
-        fuzzer.run(args.cases)
-        left = sorted(str(p.relative_to(name)) for p in Path(name).rglob('*'))
-    return report(args.cases, args.seed, time.perf_counter() - began, fuzzer.counts,
-                  fuzzer.failures, left)
+    return fuzz_main(Fuzzer, argv, __doc__, 'uav-fuzz-zones-')
 
 
 if __name__ == '__main__':

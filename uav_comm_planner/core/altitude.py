@@ -34,7 +34,7 @@ import time
 import cvxpy as cp
 import numpy as np
 
-from uav_comm_planner.core.conic import solve_usable
+from uav_comm_planner.core.conic import CLARABEL_ATTEMPTS, solve_usable
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.model import (snr_scale, spectral_efficiencies,
                                          spectral_efficiency_to_rate,
@@ -198,7 +198,7 @@ def altitude_step(q_k: np.ndarray, h_k: np.ndarray, p: np.ndarray, scenario: Sce
     if m > 1:
         constraints.append(cp.abs(cp.diff(h)) <= limits.max_climb_mps * scenario.slot_s / KM)
     problem = cp.Problem(cp.Maximize(v.t), constraints)
-    solve_usable(problem, 'altitude step')
+    solve_usable(problem, 'altitude step', attempts=CLARABEL_ATTEMPTS)
     heights = np.clip(np.asarray(h.value) * KM, low, high)
     return frame.metres(np.asarray(v.z.value)), heights
 

@@ -22,6 +22,11 @@ from uav_comm_planner.errors import SolverError
 
 #: Statuses whose answer is worth checking; any other is a failure of that attempt.
 _USABLE = (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
+#: Clarabel's settings tried in turn by the steps cvxpy states (:func:`solve_usable`): its
+#: defaults, more iterations, then a smaller static regularisation, which solves steps whose
+#: cones stall at the defaults (seen in the fleet's energy rows and the altitude step).
+CLARABEL_ATTEMPTS = ({}, {'max_iter': 400},
+                     {'max_iter': 400, 'static_regularization_constant': 1e-7})
 
 
 @dataclass(frozen=True)
@@ -50,13 +55,19 @@ def _attempt(problem: cp.Problem, solver: str, options: dict) -> str:
     return '' if problem.status in _USABLE else f'returned status {problem.status!r}'
 
 
-def solve_usable(problem: cp.Problem, step: str, solver: str = 'CLARABEL', **options) -> None:
-    """Solve ``problem`` once, with its status checked: optimal or nearly so (the caller, an
-    SCA step judged by the iteration around it, accepts either). Raises :class:`SolverError`
-    naming ``step`` otherwise."""
-    failure = _attempt(problem, solver, options)
-    if failure:
-        raise SolverError(f'{step}: {solver} {failure}')
+def solve_usable(problem: cp.Problem, step: str, solver: str = 'CLARABEL',
+                 attempts: Sequence[dict] = ({},)) -> None:
+    """Solve ``problem`` under each option set of ``attempts`` in turn until its status is
+    optimal or nearly so (the caller, an SCA step judged by the iteration around it, accepts
+    either). Raises :class:`SolverError` naming ``step`` and every attempt's failure
+    otherwise."""
+    failures = []
+    for options in attempts:
+        failure = _attempt(problem, solver, options)
+        if not failure:
+            return
+        failures.append(failure)
+    raise SolverError(f'{step}: {solver} ' + '; then '.join(failures))
 
 
 def solve_checked(problem: cp.Problem, step: str, solver: str,

@@ -1,8 +1,10 @@
 """The command line's altitude options: ``plan --altitude-range MIN,MAX [--climb-rate MPS]``
 plans the altitude of every slot with the trajectory and the power
 (:mod:`uav_comm_planner.core.altitude`), prints the plan against the best fixed altitude and
-writes ``altitudes_m`` in the JSON result. Mission files, vehicle-aware plans, fences and energy
-budgets keep one altitude: asked together with a range, they are refused before planning."""
+writes ``altitudes_m`` in the JSON result. With ``--mission`` (or any vehicle option) it is planned
+for ArduCopter with its climbs (:mod:`uav_comm_planner.mission.altitude`) and the mission's
+waypoints carry their altitudes. Fences, figures, airframes and energy budgets keep one
+altitude: asked together with a range, they are refused before planning."""
 
 from __future__ import annotations
 
@@ -11,15 +13,23 @@ from typing import Any
 
 from uav_comm_planner.core.altitude import AltitudeLimits, AltitudePlan, plan_with_altitude
 from uav_comm_planner.core.fading import Fading
+from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.mission.altitude import AltitudeVehiclePlan, plan_altitude_for_vehicle
 from uav_comm_planner.tools import fading_cli
 from uav_comm_planner.tools.serialize import run_record, scenario_to_dict
+from uav_comm_planner.vehicle.climbs import ClimbLimits
+from uav_comm_planner.vehicle.geodesy import Home
+from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.mavlink.files import write_mission_file
+from uav_comm_planner.vehicle.mavlink.items import build_mission_items
 
-#: The climb rate without --climb-rate: ArduCopter's WPNAV_SPEED_UP default, 2.5 m/s.
+#: The climb rate without --climb-rate: ArduCopter's WPNAV_SPEED_UP default, 2.5 m/s; for a
+#: vehicle, its slower descent (WPNAV_SPEED_DN, 1.5 m/s).
 DEFAULT_CLIMB_MPS = 2.5
 #: Options a plan with altitudes does not combine with (flag, the attribute it sets).
-NOT_WITH_ALTITUDE = (('--mission', 'mission'), ('--fence', 'fence'), ('--figure', 'figure'),
+NOT_WITH_ALTITUDE = (('--fence', 'fence'), ('--figure', 'figure'),
                      ('--airframe', 'airframe'), ('--energy-budget-wh', 'energy_budget_wh'),
                      ('--battery-wh', 'battery_wh'), ('--min-throughput', 'min_throughput'))
 
@@ -49,18 +59,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def altitude_limits(args: argparse.Namespace, vehicle_aware: bool) -> AltitudeLimits | None:
     """The limits the options ask for (None without --altitude-range); refuses (typed error)
-    --climb-rate alone and the options a plan with altitudes does not take."""
+    --climb-rate alone and the options a plan with altitudes does not take. The climb rate
+    is, unless given, :data:`DEFAULT_CLIMB_MPS`, or for a ``vehicle_aware`` plan the vehicle's
+    slower vertical speed."""
     if args.altitude_range is None:
         if args.climb_rate is not None:
             raise InvalidScenarioError('--climb-rate needs --altitude-range MIN,MAX')
         return None
     given = [flag for flag, name in NOT_WITH_ALTITUDE if getattr(args, name, None) is not None]
-    if vehicle_aware:
-        given.append('--vehicle')
     if given:
         raise InvalidScenarioError(f'--altitude-range does not combine with {given[0]}: a '
-                                   'plan with altitudes is not yet exported or flown')
-    climb = DEFAULT_CLIMB_MPS if args.climb_rate is None else args.climb_rate
+                                   'plan with altitudes keeps the speed limits only')
+    default = ClimbLimits().slowest_mps if vehicle_aware else DEFAULT_CLIMB_MPS
+    climb = default if args.climb_rate is None else args.climb_rate
     return AltitudeLimits(args.altitude_range, climb)
 
 
@@ -106,16 +117,61 @@ def altitude_record(result: AltitudePlan, settings: SolverSettings) -> dict[str,
 
 
 def run(args: argparse.Namespace, scenario: Scenario, limits: AltitudeLimits,
-        settings: SolverSettings, write_json, fading: Fading | None = None) -> int:
+        settings: SolverSettings, write_json, fading: Fading | None = None, *,
+        vehicle: VehicleLimits | None = None, home: Home | None = None) -> int:
     """Plan with altitudes, print it (and its evaluation under ``fading``, if any), and write
-    the JSON result with ``write_json(record)`` if --json asks for it."""
-    result = plan_with_altitude(scenario, limits, settings)
-    print(format_altitude_plan(result))
-    evaluation = fading_cli.evaluate(fading, result.trajectory, result.power, scenario,
-                                     result.altitudes)
+    the JSON result with ``write_json(record)`` if --json asks for it. For a ``vehicle``
+    (VehicleLimits), plan for it and state the plan as it flies it; with --mission, write
+    the mission (its waypoints at their altitudes, for ``home``)."""
+    if vehicle is None:
+        result = plan_with_altitude(scenario, limits, settings)
+        print(format_altitude_plan(result))
+        record, flown = altitude_record(result, settings), result
+    else:
+        flown = plan_altitude_for_vehicle(scenario, limits, vehicle, settings=settings,
+                                          firmware=args.firmware)
+        result = flown.ideal
+        print(format_altitude_plan(result))
+        print(format_flown_altitudes(flown))
+        record = {**altitude_record(result, settings), **flown_record(flown)}
+    evaluation = fading_cli.evaluate(fading, flown.trajectory, flown.power, scenario,
+                                     flown.altitudes)
+    items = None
+    if vehicle is not None and args.mission is not None:
+        items = build_mission_items(flown.mission, home, end=args.mission_end,
+                                    firmware=args.firmware)
     if args.json is not None:
-        write_json({**altitude_record(result, settings), **fading_cli.fading_record(evaluation)})
+        write_json({**record, **fading_cli.fading_record(evaluation)})
+    if items is not None:
+        print(f'wrote {write_mission_file(items, args.mission, home, firmware=args.firmware)}')
     return 0
+
+
+def format_flown_altitudes(flown: AltitudeVehiclePlan) -> str:
+    """The plan as the vehicle flies it, and its mission's timing."""
+    schedule = flown.mission.schedule
+    scenario = flown.scenario
+    kept = (f'the level plan at {flown.altitudes[0]:.1f} m flies better than the plan with '
+            f'altitudes ({flown.alternative_throughput:.4f}) and is kept' if flown.level else
+            f'the level plan at the best fixed altitude flies {flown.alternative_throughput:.4f}')
+    return '\n'.join([
+        f'{"as the vehicle flies it (the plan to state)":<42}{flown.min_throughput:>28.4f}',
+        kept,
+        f'vehicle: climb {flown.climb.up_mps:g} m/s, descent {flown.climb.down_mps:g} m/s; '
+        f'{counted(len(schedule.legs), "leg")}, {counted(len(schedule.stops) - 2, "stop")}, '
+        f'take-off to {flown.planned_points()[1][0]:.1f} m, qF reached at '
+        f'{schedule.arrival_s:.1f} s of {scenario.slot_s * (scenario.num_slots + 1):g}'])
+
+
+def flown_record(flown: AltitudeVehiclePlan) -> dict[str, Any]:
+    """The JSON result's part for the plan as flown: ``flown`` with its trajectory,
+    altitudes, power, rates and min throughput, whether the level plan at the best fixed
+    altitude was kept, and what the other of the two flies."""
+    return {'flown': {'trajectory': flown.trajectory.tolist(),
+                      'altitudes_m': flown.altitudes.tolist(), 'power': flown.power.tolist(),
+                      'rates': flown.rates.tolist(), 'min_throughput': flown.min_throughput,
+                      'arrival_s': flown.mission.schedule.arrival_s, 'level': flown.level,
+                      'alternative_throughput': flown.alternative_throughput}}
 
 
 __all__ = ['add_arguments', 'altitude_limits', 'altitude_record', 'DEFAULT_CLIMB_MPS',

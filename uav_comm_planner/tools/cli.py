@@ -301,9 +301,12 @@ def _command_plan(args: argparse.Namespace) -> int:
     fading = fading_cli.fading_from(args)
     altitudes = altitude_cli.altitude_limits(args, _vehicle_asked(args))
     if altitudes is not None:
-        return altitude_cli.run(args, _scenario(args), altitudes, _settings(args), lambda record:
-                                print(f'wrote {write_text_atomic(args.json, json_text(record))}'),
-                                fading)
+        vehicle = _vehicle_limits(args) if _vehicle_asked(args) else None
+        return altitude_cli.run(args, _scenario(args, vehicle), altitudes, _settings(args),
+                                lambda record: print(
+                                    f'wrote {write_text_atomic(args.json, json_text(record))}'),
+                                fading, vehicle=vehicle,
+                                home=args.home or default_home(args.firmware))
     if args.mission is not None:
         from uav_comm_planner.vehicle.mavlink.files import check_mission_path
         check_mission_path(args.mission)

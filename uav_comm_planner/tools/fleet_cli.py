@@ -5,7 +5,9 @@
 other scenario flags (nodes, speed, horizon, budget...) are every UAV's. The JSON result holds
 ``trajectories`` (K x M x 2, metres) and ``power`` (K x N x M, watts) beside ``min_throughput``
 and ``rates``; ``--mission m.waypoints`` writes one mission per vehicle, ``m_uav1.waypoints``,
-``m_uav2.waypoints``, ...; ``--figure`` draws every UAV. Every check (the flags, the fleet, the
+``m_uav2.waypoints``, ...; ``--figure`` draws every UAV. ``--fence`` and the energy options
+(``--airframe``, ``--energy-budget-wh``, ``--battery-wh``) are every UAV's: each keeps out of
+the zones and within its own budget. Every check (the flags, the fleet, the
 output paths, every vehicle's mission rows, the JSON text) passes before the first file is
 written.
 """
@@ -15,25 +17,29 @@ from __future__ import annotations
 import argparse
 from typing import Callable
 
+from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
 from uav_comm_planner.core.fleet.model import closest_approach_m
 from uav_comm_planner.core.fleet.planner import FleetPlan
 from uav_comm_planner.core.fleet.scenario import (DEFAULT_SEPARATION_M, ends_too_close,
                                                   MAX_UAVS)
-from uav_comm_planner.core.fleet.shared_band import plan_shared_band, SharedBandPlan
+from uav_comm_planner.core.fleet.shared_band import (check_shared_band, plan_shared_band,
+                                                     SharedBandPlan)
+from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.errors import InvalidScenarioError, PlannerError
 from uav_comm_planner.files import write_text_atomic
 from uav_comm_planner.mission.fleet import fleet_mission_paths, plan_for_missions, uav_result
+from uav_comm_planner.tools.energy_cli import energy_request
 from uav_comm_planner.tools.serialize import run_record, scenario_to_dict
+from uav_comm_planner.vehicle.fence import read_zones
 from uav_comm_planner.vehicle.geodesy import Home
 from uav_comm_planner.vehicle.limits import VehicleLimits
 
 #: Flags of the single-UAV plan that a fleet's plan does not take, by their dest.
-SINGLE_ONLY = {'fence': '--fence', 'vehicle': '--vehicle', 'airframe': '--airframe',
-               'energy_budget_wh': '--energy-budget-wh', 'battery_wh': '--battery-wh',
-               'min_throughput': '--min-throughput', 'letter': '--letter'}
+SINGLE_ONLY = {'vehicle': '--vehicle', 'min_throughput': '--min-throughput',
+               'letter': '--letter'}
 
 
 def _uav_count(text: str) -> int:
@@ -66,8 +72,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help='with --shared-band: every UAV sends P_T / M in every slot')
 
 
-def fleet_request(args: argparse.Namespace, base: Scenario) -> FleetScenario:
-    """The fleet the flags describe, over ``base`` (the other flags' scenario); refuses
+def fleet_request(args: argparse.Namespace, base: Scenario, home: Home) -> FleetScenario:
+    """The fleet the flags describe, over ``base`` (the other flags' scenario) with the
+    fence's zones (anchored at ``home``) and the energy options, every UAV's; refuses
     (PlannerError) a count of ends other than K and the flags a fleet does not take."""
     given = [flag for dest, flag in SINGLE_ONLY.items() if getattr(args, dest, None)]
     if given:
@@ -80,6 +87,9 @@ def fleet_request(args: argparse.Namespace, base: Scenario) -> FleetScenario:
             got = 'none' if ends is None else len(ends)
             raise PlannerError(f'--uavs {count} needs {count} points in --{name} "X,Y;X,Y;...", '
                                f'got {got}')
+    if getattr(args, 'fence', None) is not None:
+        base = base.replace(zones=read_zones(args.fence, home, margin_m=args.fence_margin))
+    base, _ = energy_request(args, base)
     if args.min_separation is None:
         close = ends_too_close(args.start, args.goal, DEFAULT_SEPARATION_M)
         if close:
@@ -87,6 +97,22 @@ def fleet_request(args: argparse.Namespace, base: Scenario) -> FleetScenario:
                                f'smaller --min-separation')
         return FleetScenario(base, tuple(args.start), tuple(args.goal))
     return FleetScenario(base, tuple(args.start), tuple(args.goal), args.min_separation)
+
+
+def vehicle_figures(result: FleetPlan) -> dict:
+    """Each UAV's horizon energy and budget (Wh, with an airframe) and its path's least
+    clearance from the zones (metres, with zones), None where the scenario has none."""
+    energy, budgets, clearance = [], [], []
+    for k, vehicle in enumerate(result.fleet.vehicles):
+        q = result.trajectories[k]
+        if vehicle.airframe is not None:
+            energy.append(horizon_energy_j(q, vehicle, vehicle.airframe) / JOULES_PER_WH)
+            budgets.append(vehicle.energy_budget_wh)
+        if vehicle.zones is not None and not vehicle.zones.empty:
+            clearance.append(vehicle.zones.path_clearance(flown_path(q, vehicle)))
+    return {'energy_wh': energy or None,
+            'energy_budget_wh': budgets if any(b is not None for b in budgets) else None,
+            'zone_clearance_m': clearance or None}
 
 
 def fleet_to_dict(result: FleetPlan, settings: FleetSettings,
@@ -119,6 +145,7 @@ def fleet_to_dict(result: FleetPlan, settings: FleetSettings,
         'status': result.status,
         'solve_time_s': result.solve_time_s,
         'scenario': scenario_to_dict(fleet.scenario),
+        **vehicle_figures(result),
         'power_method': settings.power_method,
         **run_record(settings.single),
     }
@@ -142,6 +169,15 @@ def format_fleet(result: FleetPlan) -> str:
                  f'steps, {result.status}, start: {result.start}{closest}, plan time '
                  f'{result.solve_time_s:.2f} s')
     lines += [f'start {name!r} left out: {why}' for name, why in result.left_out.items()]
+    figures = vehicle_figures(result)
+    budgets = figures['energy_budget_wh'] or [None] * fleet.num_uavs
+    for k, (energy, budget) in enumerate(zip(figures['energy_wh'] or (), budgets)):
+        lines.append(f'UAV {k + 1} horizon energy {energy:.4g} Wh'
+                     + ('' if budget is None else f' (budget {budget:.4g} Wh)'))
+    if figures['zone_clearance_m'] is not None:
+        lines.append('least clearance from the zones: ' + ', '.join(
+            f'UAV {k + 1} {c:.2f} m' for k, c in enumerate(figures['zone_clearance_m']))
+            + f' (margin {fleet.scenario.zones.margin_m:g} m)')
     return '\n'.join(lines)
 
 
@@ -177,6 +213,7 @@ def plan_shared(fleet: FleetScenario, settings: FleetSettings, *,
                 power_control: bool) -> tuple[SharedBandPlan, list[str]]:
     """Wu's shared band from the orthogonal fleet's trajectories, without power control, then
     (``power_control``) with it from there; the plan and its table's lines."""
+    check_shared_band(fleet)
     start = plan_fleet(fleet, settings)
     without = plan_shared_band(fleet, start.trajectories, power_control=False)
     result = (plan_shared_band(fleet, without.trajectories, power=without.power)
@@ -200,7 +237,7 @@ def command(args: argparse.Namespace, base: Scenario, single: SolverSettings, *,
     if args.no_power_control and not args.shared_band:
         raise PlannerError('--no-power-control is for --shared-band (on orthogonal channels '
                            'the power step is the plan)')
-    fleet = fleet_request(args, base)
+    fleet = fleet_request(args, base, home)
     missions = (fleet_mission_paths(args.mission, fleet.num_uavs)
                 if args.mission is not None else [])
     for path in missions:
@@ -253,4 +290,4 @@ def check_not_fleet(args: argparse.Namespace) -> None:
 
 
 __all__ = ['add_arguments', 'check_not_fleet', 'command', 'fleet_request', 'fleet_to_dict',
-           'format_fleet', 'plan_shared', 'shared_band_to_dict']
+           'format_fleet', 'plan_shared', 'shared_band_to_dict', 'vehicle_figures']

@@ -13,7 +13,7 @@ import numpy as np
 from uav_comm_planner.core.fleet.planner import FleetPlan
 from uav_comm_planner.core.fleet.shared_band import SharedBandPlan
 from uav_comm_planner.core.model import flown_path
-from uav_comm_planner.tools.plots import (_legend_below, _pyplot, check_figure_path,
+from uav_comm_planner.tools.plots import (_draw_zones, _legend_below, _pyplot, check_figure_path,
                                           format_rate, save_figure)
 
 #: One colour per UAV (matplotlib's first ones), enough for MAX_UAVS.
@@ -28,8 +28,9 @@ def slot_power(result: FleetPlan | SharedBandPlan) -> np.ndarray:
 
 
 def draw_fleet(result: FleetPlan | SharedBandPlan, *, title: str = ''):
-    """Paths, pair distances and power per UAV in three panels (a fleet on orthogonal channels
-    or on the shared band); returns the figure."""
+    """Paths (with the zones and their margin, where there are some), pair distances and power
+    per UAV in three panels (a fleet on orthogonal channels or on the shared band); returns the
+    figure."""
     plt = _pyplot()
     fleet, scenario = result.fleet, result.fleet.scenario
     times = scenario.times_s
@@ -45,6 +46,9 @@ def draw_fleet(result: FleetPlan | SharedBandPlan, *, title: str = ''):
         ax_path.plot(*vehicle.goal_m, '*', color=colour, markersize=12)
         ax_power.step(times, power[k], where='mid', color=colour, label=f'UAV {k + 1}')
     w = scenario.nodes
+    if scenario.zones is not None and not scenario.zones.empty:
+        _draw_zones(ax_path, scenario.zones,
+                    np.vstack([*result.trajectories, w, fleet.starts_m, fleet.goals_m]))
     ax_path.plot(w[:, 0], w[:, 1], '^', color='tab:red', markersize=9, label='ground nodes')
     ax_path.set(xlabel='x (m)', ylabel='y (m)', title='trajectories (square: q0, star: qF)')
     ax_path.set_aspect('equal', adjustable='datalim')

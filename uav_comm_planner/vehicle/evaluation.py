@@ -112,3 +112,28 @@ def evaluate_flight(result: PlanResult, line_m: np.ndarray, track_times_s: np.nd
     rates = average_rates(flown, np.asarray(result.power, dtype=float), scenario)
     return FlightReport(scenario.slot_s, errors, cross_track, rates,
                         float(result.min_throughput))
+
+
+#: A planned point with an altitude is reached only with the vehicle also this close to it
+#: vertically (metres).
+REACH_ALTITUDE_M = 1.0
+
+
+def reach_errors_3d(points_m: np.ndarray, heights_m: np.ndarray, planned_s: np.ndarray,
+                    track_times_s: np.ndarray, track_m: np.ndarray, track_up_m: np.ndarray,
+                    start_s: float, *, radius_m: float = REACH_RADIUS_M,
+                    altitude_m: float = REACH_ALTITUDE_M) -> np.ndarray:
+    """|reached - planned| (K,) seconds for points (K, 2) at altitudes (K,) planned at
+    ``planned_s`` (K,) from ``start_s``: the recorded time nearest the planned one at which the
+    vehicle was within ``radius_m`` horizontally and ``altitude_m`` vertically (inf if never).
+    The track: times (J,) autopilot s, east-north (J, 2) and up (J,) metres."""
+    times = np.asarray(track_times_s, dtype=float) - start_s
+    track = np.asarray(track_m, dtype=float)
+    up = np.asarray(track_up_m, dtype=float)
+    errors = np.full(len(points_m), np.inf)
+    for index, (point, height, when) in enumerate(zip(points_m, heights_m, planned_s)):
+        near = ((np.linalg.norm(track - point, axis=1) <= radius_m)
+                & (np.abs(up - height) <= altitude_m))
+        if near.any():
+            errors[index] = float(np.abs(times[near] - when).min())
+    return errors

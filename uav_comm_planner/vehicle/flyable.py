@@ -44,7 +44,9 @@ from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.optimizer import plan_along, PlanResult
 from uav_comm_planner.core.scenario import MIN_STEP_M, Scenario, SolverSettings
-from uav_comm_planner.errors import InfeasibleHorizonError
+from uav_comm_planner.errors import InfeasibleHorizonError, InvalidScenarioError
+from uav_comm_planner.vehicle.climbs import (ClimbLimits, leg_limits, vertex_heights,
+                                             with_altitude_bends)
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.leg_models import leg_model, LegModel, LegProfile
 from uav_comm_planner.vehicle.limits import VehicleLimits
@@ -71,10 +73,12 @@ GOAL_TOLERANCE_SLOTS = 0.25
 
 @dataclass(frozen=True)
 class Stop:
-    """A waypoint where the vehicle comes to rest and holds for ``hold_s`` (commanded)."""
+    """A waypoint where the vehicle comes to rest and holds for ``hold_s`` (commanded), at
+    ``altitude_m`` (None: the plan's one altitude)."""
 
     position_m: np.ndarray
     hold_s: float
+    altitude_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -157,9 +161,13 @@ def _quantise(hold_s: float, resolution_s: float) -> float:
 def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str = 'ardupilot',
                     merge_radius_m: float = MERGE_RADIUS_M,
                     path_tolerance_m: float = PATH_TOLERANCE_M,
-                    stop_at_hovers: bool = True) -> Schedule:
+                    stop_at_hovers: bool = True, altitudes: np.ndarray | None = None,
+                    climb: ClimbLimits | None = None) -> Schedule:
     """The timed mission that flies ``result`` with the vehicle's ``limits`` (see the module
-    docstring); with ``stop_at_hovers`` False it stops only at q0, qF and sharp turns.
+    docstring); with ``stop_at_hovers`` False it stops only at q0, qF and sharp turns. With
+    ``altitudes`` (M,) metres, one per slot (q0 at the first, qF at the last), every waypoint
+    carries its altitude and each leg is timed with the ``climb`` limits (ArduCopter's
+    defaults when None) as :func:`~uav_comm_planner.vehicle.climbs.leg_limits` gives them.
     Raises :class:`~uav_comm_planner.errors.InfeasibleHorizonError` when the vehicle cannot
     reach qF by the end of the horizon."""
     scenario = result.scenario
@@ -176,25 +184,36 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     model = leg_model(firmware)
     stop_indices = [_stop_index(points, first, last) for first, last in runs]
     positions = [points[index].copy() for index in stop_indices]
+    heights = _point_heights(altitudes, len(points))
     paths, simplified, cruises, shapes = [], [], [], []  # per leg; shape: vertices, speed, profile
+    path_heights, leg_limits_ = [], []
     for (_, last), (following, _), here, there in zip(runs, runs[1:], stop_indices,
                                                       stop_indices[1:]):
         # With zones the leg follows the plan from stop to stop (every step of it one of the
         # plan's legs), not from the stop straight to the run's last point.
-        path = (points[here:there + 1] if keeps is not None
-                else np.vstack([points[here], points[last + 1:following], points[there]]))
+        rows = (np.arange(here, there + 1) if keeps is not None
+                else np.r_[here, last + 1:following, there])
+        path = points[rows]
         paths.append(path)
         simplified.append(simplify(path, path_tolerance_m, keeps))
-        cruises.append(_leg_cruise(path, scenario, cruise))
+        climb_cap, own = (cruise, limits) if heights is None else leg_limits(
+            path, heights[rows], limits, climb or ClimbLimits())
+        path_heights.append(None if heights is None else heights[rows])
+        if heights is not None:
+            simplified[-1] = with_altitude_bends(path, heights[rows], simplified[-1],
+                                                 path_tolerance_m)
+        leg_limits_.append(own)
+        cruises.append(min(_leg_cruise(path, scenario, cruise), climb_cap))
         shapes.append(_leg_shape(model, path, times[following] - times[last], cruises[-1],
-                                 limits, simplified[-1], keeps))
+                                 own, simplified[-1], keeps))
     # Centre each leg's motion on the plan's time for it, but start it no later than lets
     # every later leg, at its cruise and with the shortest holds, reach qF by the end of the
     # horizon; a leg behind the plan, or one that would leave the later legs too little time,
     # is flown faster (up to its cruise) to end where the plan, or the time left, ends it.
     fastest = [shape if shape[1] >= leg_cruise
-               else _leg_shape(model, path, 0.0, leg_cruise, limits, kept, keeps)
-               for shape, path, leg_cruise, kept in zip(shapes, paths, cruises, simplified)]
+               else _leg_shape(model, path, 0.0, leg_cruise, own, kept, keeps)
+               for shape, path, leg_cruise, kept, own in zip(shapes, paths, cruises, simplified,
+                                                             leg_limits_)]
     latest_holds = [model.min_hold_s(None if index == 0 else fastest[index - 1][2], cruise,
                                      limits) for index in range(len(shapes))]
     latest = times[-1]
@@ -223,22 +242,26 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
                      deadlines[index] - clock - hold - model.start_delay_s
                      - model.after_timed_s)
         if target < timed - 1e-6 and speed < cruises[index]:
-            faster = _leg_shape(model, paths[index], target, cruises[index], limits,
-                                simplified[index], keeps)
+            faster = _leg_shape(model, paths[index], target, cruises[index],
+                                leg_limits_[index], simplified[index], keeps)
             if model.timed_s(faster[2]) < timed:    # PX4: fewer turns may fly slower
                 vertices, speed, profile = faster
-        stops.append(Stop(positions[index], hold))
+        here = None if heights is None else float(heights[stop_indices[index]])
+        stops.append(Stop(positions[index], hold, here))
         parts.append(Dwell(positions[index], max(clock, legs[-1].end_s if legs else clock),
-                           clock + hold))
-        leg = Leg(vertices, speed, clock + hold + model.start_delay_s, profile)
+                           clock + hold, here))
+        leg = Leg(vertices, speed, clock + hold + model.start_delay_s, profile,
+                  None if heights is None else vertex_heights(vertices, paths[index],
+                                                              path_heights[index]))
         legs.append(leg)
         parts.append(leg)
         clock = leg.start_s + model.reached_s(profile)
     # A plan that never leaves its first stop holds there for the whole horizon.
     final_hold = 0.0 if shapes else _quantise(times[-1], resolution)
-    stops.append(Stop(positions[-1], final_hold))
+    there = None if heights is None else float(heights[stop_indices[-1]])
+    stops.append(Stop(positions[-1], final_hold, there))
     at_rest = max(clock, legs[-1].end_s if legs else clock)
-    parts.append(Dwell(positions[-1], at_rest, max(at_rest, clock + final_hold)))
+    parts.append(Dwell(positions[-1], at_rest, max(at_rest, clock + final_hold), there))
     schedule = Schedule(tuple(stops), tuple(legs), Flight(tuple(parts)), firmware,
                         clock + final_hold)
     end = times[-1]
@@ -252,6 +275,18 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
             f'horizon_s by '
             f'{math.ceil(schedule.arrival_s - end)} s or more')
     return schedule
+
+
+def _point_heights(altitudes: np.ndarray | None, count: int) -> np.ndarray | None:
+    """The altitudes of the flown path's points q0, q[1..M], qF from the plan's (M,): q0 at
+    the first slot's, qF at the last's; None without altitudes."""
+    if altitudes is None:
+        return None
+    heights = np.asarray(altitudes, dtype=float)
+    if heights.shape != (count - 2,) or not np.isfinite(heights).all():
+        raise InvalidScenarioError(f'altitudes must be {count - 2} finite values, one per '
+                                   f'slot, got shape {heights.shape}')
+    return np.concatenate([heights[:1], heights, heights[-1:]])
 
 
 def _leg_shape(model: LegModel, path: np.ndarray, planned_s: float, leg_cruise: float,

@@ -242,13 +242,27 @@ def polyline_point(vertices: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
     return np.column_stack([np.interp(distance_m, arc, vertices[:, axis]) for axis in (0, 1)])
 
 
+def along_track_heights(vertices: np.ndarray, heights: np.ndarray,
+                        distance_m: np.ndarray) -> np.ndarray:
+    """The altitude at horizontal arc lengths ``distance_m`` along a leg whose waypoints
+    ``vertices`` (V, 2) are at ``heights`` (V,): linear in the horizontal progress along each
+    segment, as a straight 3D segment is."""
+    steps = np.linalg.norm(np.diff(vertices, axis=0), axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(steps)])
+    if arc[-1] <= 0.0:
+        return np.full(len(np.atleast_1d(distance_m)), float(heights[-1]))
+    return np.interp(distance_m, arc, heights)
+
+
 @dataclass(frozen=True)
 class Dwell:
-    """The vehicle at rest at ``position_m`` (2,) from ``start_s`` to ``end_s``."""
+    """The vehicle at rest at ``position_m`` (2,) from ``start_s`` to ``end_s``, at
+    ``altitude_m`` (None: the plan's one altitude)."""
 
     position_m: np.ndarray
     start_s: float
     end_s: float
+    altitude_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -256,12 +270,15 @@ class Leg:
     """A rest-to-rest leg along ``vertices`` (V, 2) at cruise ``speed_mps``, starting at rest.
 
     ``start_s`` is when the vehicle starts moving; it moves for ``profile.duration_s``.
+    ``altitudes_m`` (V,): the vertices' altitudes (None: the plan's one altitude); the profile
+    is then the horizontal motion (:mod:`.climbs`).
     """
 
     vertices: np.ndarray
     speed_mps: float
     start_s: float
     profile: Profile
+    altitudes_m: np.ndarray | None = None
 
     @property
     def end_s(self) -> float:
@@ -298,6 +315,26 @@ class Flight:
                 mask = times >= part.start_s
                 out[mask] = polyline_point(part.vertices,
                                            part.profile.distance(times[mask] - part.start_s))
+        return out
+
+    def altitudes(self, times_s: Sequence[float]) -> np.ndarray | None:
+        """Predicted altitudes (K,) metres at ``times_s`` (K,), as :meth:`positions` places the
+        vehicle; None for a flight at the plan's one altitude."""
+        if any((part.altitude_m if isinstance(part, Dwell) else part.altitudes_m) is None
+               for part in self.parts):
+            return None
+        times = np.asarray(times_s, dtype=float)
+        first = self.parts[0]
+        out = np.full(len(times), first.altitude_m if isinstance(first, Dwell)
+                      else float(first.altitudes_m[0]))
+        for part in self.parts:
+            mask = times >= part.start_s
+            if isinstance(part, Dwell):
+                out[mask] = part.altitude_m
+            else:
+                out[mask] = along_track_heights(
+                    part.vertices, part.altitudes_m,
+                    part.profile.distance(times[mask] - part.start_s))
         return out
 
     def track(self) -> np.ndarray:

@@ -2,8 +2,9 @@
 
 From each start (K, M, 2) metres the loop alternates the joint power step (:mod:`.power`) and
 SCA trajectory steps over every UAV at once (:mod:`.step`), as the letter's Algorithm 1 does for
-one UAV; every step keeps the speed limits, the budgets and d_min, and none lowers the true
-minimum throughput (a step that would, through round-off, is discarded and ends its loop).
+one UAV; every step keeps the speed limits, the power budgets, every UAV's zones and energy
+budget, and d_min, and none lowers the true minimum throughput (a step that would, through
+round-off, is discarded and ends its loop).
 The starts (:mod:`.starts`):
 
 * ``'partition'``: each UAV's single-UAV plan (:func:`~uav_comm_planner.core.optimizer.plan`)
@@ -29,12 +30,12 @@ from typing import Callable
 
 import numpy as np
 
+from uav_comm_planner.core.detour import straight_start
 from uav_comm_planner.core.fleet.model import fleet_rates, fleet_snr
 from uav_comm_planner.core.fleet.power import common_value, coordinate_power, POWER_METHODS
 from uav_comm_planner.core.fleet.scenario import FleetScenario
 from uav_comm_planner.core.fleet.starts import partition, separate, straight_lines
 from uav_comm_planner.core.fleet.step import FleetStep
-from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.model import spectral_efficiency_to_rate
 from uav_comm_planner.core.optimizer import plan
 from uav_comm_planner.core.scenario import SolverSettings
@@ -201,7 +202,7 @@ def _starts(fleet: FleetScenario, settings: FleetSettings
             nodes = [fleet.scenario.ground_nodes_m[n] for n in group]
             own.append(plan(vehicle.replace(ground_nodes_m=nodes), settings.single).trajectory)
         else:
-            own.append(straight_line(vehicle))
+            own.append(straight_start(vehicle))
     own = np.stack(own)
     lines = straight_lines(fleet)
     starts, singles, left_out = {}, {}, {}

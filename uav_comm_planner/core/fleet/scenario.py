@@ -43,18 +43,23 @@ class FleetScenario:
     """K UAVs over the nodes of ``scenario`` (Wu 2018, orthogonal channels).
 
     scenario: the nodes, altitude, speed limit, horizon, slots, band B, noise, beta0 and the
-    budget P_T that every UAV has (each its own band and its own budget); its start and goal
-    are not used. starts_m, goals_m: q0_k and qF_k, K pairs each, metres.
+    budget P_T that every UAV has (each its own band and its own budget), and the speed
+    limits, wind, zones and airframe with its energy budget of every UAV (each UAV's horizon
+    energy within ``energy_budget_wh``, its own battery's); its start and goal are not used.
+    starts_m, goals_m: q0_k and qF_k, K pairs each, metres.
     min_separation_m: d_min, the least horizontal distance between any two UAVs at every slot
     q_j[m], q_k[m] (m = 1..M; the ends, which are given, must keep it too), by default
     :data:`DEFAULT_SEPARATION_M`; 0 lets them meet. All UAVs fly at the same altitude H, so
     d_min is their distance.
+    energy_budgets_wh: each UAV's own budget, K numbers (None: ``scenario.energy_budget_wh``
+    for every UAV), for UAVs whose batteries differ; needs the scenario's airframe.
     """
 
     scenario: Scenario
     starts_m: tuple[tuple[float, float], ...]
     goals_m: tuple[tuple[float, float], ...]
     min_separation_m: float = DEFAULT_SEPARATION_M
+    energy_budgets_wh: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.scenario, Scenario):
@@ -69,20 +74,34 @@ class FleetScenario:
                 f'one goal per UAV: {len(starts)} starts but {len(goals)} goals')
         object.__setattr__(self, 'starts_m', starts)
         object.__setattr__(self, 'goals_m', goals)
-        if (self.scenario.zones is not None and not self.scenario.zones.empty) \
-                or self.scenario.energy_budget_wh is not None:
-            raise InvalidScenarioError(
-                'a fleet is planned without zones or an energy budget: its trajectory step has '
-                'the node rates, the speed limits (in wind too) and the separation only')
         separation = real_number('min_separation_m', self.min_separation_m)
         if not (math.isfinite(separation) and separation >= 0.0):
             raise InvalidScenarioError(
                 f'min_separation_m must be >= 0 and finite, got {self.min_separation_m!r}')
         object.__setattr__(self, 'min_separation_m', separation)
+        object.__setattr__(self, 'energy_budgets_wh', self._budgets(len(starts)))
         self.vehicles                  # each UAV's ends valid and its goal reachable
         close = ends_too_close(starts, goals, separation)
         if close:
             raise InvalidScenarioError(f'{close}: move them apart or lower min_separation_m')
+
+    def _budgets(self, count: int) -> tuple[float, ...] | None:
+        """``energy_budgets_wh`` checked: None, or ``count`` numbers with an airframe (each
+        checked again, against the horizon's least energy, by its UAV's :class:`Scenario`)."""
+        budgets = self.energy_budgets_wh
+        if budgets is None:
+            return None
+        if isinstance(budgets, (str, bytes)) or not isinstance(budgets, (Sequence, np.ndarray)):
+            raise InvalidScenarioError(
+                f'energy_budgets_wh must be {count} numbers (one per UAV), got {budgets!r}')
+        budgets = tuple(real_number('energy_budgets_wh', value) for value in budgets)
+        if len(budgets) != count:
+            raise InvalidScenarioError(
+                f'energy_budgets_wh: one per UAV, {count} UAVs but {len(budgets)} budgets')
+        if self.scenario.airframe is None:
+            raise InvalidScenarioError('energy_budgets_wh needs an airframe (its propulsion '
+                                       'model): give the scenario one')
+        return budgets
 
     @property
     def num_uavs(self) -> int:
@@ -95,9 +114,11 @@ class FleetScenario:
 
     @functools.cached_property
     def vehicles(self) -> tuple[Scenario, ...]:
-        """Every UAV's scenario, in order (each validated: its ends, its goal reachable)."""
-        return tuple(self.scenario.replace(start_m=start, goal_m=goal)
-                     for start, goal in zip(self.starts_m, self.goals_m))
+        """Every UAV's scenario, in order (each validated: its ends, its goal reachable, its
+        energy budget)."""
+        budgets = self.energy_budgets_wh or (self.scenario.energy_budget_wh,) * self.num_uavs
+        return tuple(self.scenario.replace(start_m=start, goal_m=goal, energy_budget_wh=budget)
+                     for start, goal, budget in zip(self.starts_m, self.goals_m, budgets))
 
     @property
     def pairs(self) -> tuple[tuple[int, int], ...]:

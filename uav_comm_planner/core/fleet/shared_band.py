@@ -212,6 +212,17 @@ def _uniform_power(fleet: FleetScenario) -> np.ndarray:
     return np.full((fleet.num_uavs, s.num_slots), s.power_budget_w / s.num_slots)
 
 
+def check_shared_band(fleet: FleetScenario) -> None:
+    """Refuse (InvalidScenarioError) a fleet with zones or an energy budget: the shared band's
+    trajectory block keeps the speed limits and the separation only."""
+    s = fleet.scenario
+    if (s.zones is not None and not s.zones.empty) or any(
+            vehicle.energy_budget_wh is not None for vehicle in fleet.vehicles):
+        raise InvalidScenarioError(
+            'the shared band is planned without zones or an energy budget: its trajectory '
+            'block has the speed limits and the separation only (plan on orthogonal channels)')
+
+
 def plan_shared_band(fleet: FleetScenario, trajectories: np.ndarray, *,
                      power_control: bool = True, power: np.ndarray | None = None,
                      max_rounds: int = 40, relative_tolerance: float = 1e-4) -> SharedBandPlan:
@@ -221,6 +232,7 @@ def plan_shared_band(fleet: FleetScenario, trajectories: np.ndarray, *,
     block's answer is kept only when it keeps d_min and does not lower min_n eta_n; a round
     that gains at most ``relative_tolerance`` of the value ends the loop."""
     s = fleet.scenario
+    check_shared_band(fleet)
     q = np.asarray(trajectories, dtype=float)
     if q.shape != (fleet.num_uavs, s.num_slots, 2) or not keeps_separation(q, fleet):
         raise InvalidScenarioError(
@@ -259,5 +271,5 @@ def plan_shared_band(fleet: FleetScenario, trajectories: np.ndarray, *,
                           tuple(history), power_control)
 
 
-__all__ = ['gains', 'link_rates', 'node_throughputs', 'plan_shared_band', 'power_block',
-           'schedule_block', 'SharedBandPlan', 'trajectory_block']
+__all__ = ['check_shared_band', 'gains', 'link_rates', 'node_throughputs', 'plan_shared_band',
+           'power_block', 'schedule_block', 'SharedBandPlan', 'trajectory_block']

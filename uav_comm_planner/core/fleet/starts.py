@@ -7,7 +7,11 @@ speed limits and the separation.
   N / K nodes.
 * :func:`separate`: the push-apart before the SCA, the least change (in the sum of squared
   distances) of the trajectories that keeps the speed limits and the separation, some
-  trajectories held fixed. Its separation rows are linearised at the trajectories given, with
+  trajectories held fixed; with zones or an energy budget, each moved UAV also keeps its
+  zones' restriction and its energy budget's (the single UAV's blocks at the trajectory given,
+  :func:`~uav_comm_planner.core.fleet.step.vehicle_blocks`), and an answer is kept only if
+  every UAV keeps its zones' margin and its budget exactly (:func:`keeps_blocks`). Its
+  separation rows are linearised at the trajectories given, with
   the straight lines' direction where two UAVs coincide; each row implies d_min whatever its
   direction (:mod:`.separation`), so an answer is separated exactly. None when no answer is
   found with those directions.
@@ -21,14 +25,15 @@ import warnings
 import cvxpy as cp
 import numpy as np
 
+from uav_comm_planner.core.detour import straight_start
 from uav_comm_planner.core.feasibility import project_onto_speed_limit, within_speed_limit
 from uav_comm_planner.core.fleet.scenario import FleetScenario
 from uav_comm_planner.core.fleet.separation import (keeps_separation, SEPARATION_CUSHION_M,
                                                     unit_directions)
-from uav_comm_planner.core.fleet.step import fleet_frames
-from uav_comm_planner.core.initial import straight_line
-from uav_comm_planner.core.sca.block import Variables
-from uav_comm_planner.core.sca.legs import LegLimits
+from uav_comm_planner.core.fleet.step import fleet_frames, vehicle_blocks, vehicle_paths
+from uav_comm_planner.core.optimizer import ZoneKeeper
+from uav_comm_planner.core.sca.block import Expansion
+from uav_comm_planner.core.sca.program import start_filter
 from uav_comm_planner.core.sca.surrogate import KM
 
 
@@ -59,8 +64,23 @@ def partition(fleet: FleetScenario) -> list[list[int]]:
 
 
 def straight_lines(fleet: FleetScenario) -> np.ndarray:
-    """Every UAV's straight line q0_k -> qF_k at uniform speed: (K, M, 2) metres."""
-    return np.stack([straight_line(vehicle) for vehicle in fleet.vehicles])
+    """Every UAV's straight line q0_k -> qF_k at uniform speed, or with zones its shortest
+    path around them (:func:`~uav_comm_planner.core.detour.straight_start`): (K, M, 2)
+    metres."""
+    return np.stack([straight_start(vehicle) for vehicle in fleet.vehicles])
+
+
+def keeps_blocks(q: np.ndarray, fleet: FleetScenario) -> bool:
+    """Whether every UAV's trajectory of q (K, M, 2) metres, projected onto its speed limits,
+    keeps its zones' margin (every leg, as the single UAV's starts must) and its energy budget
+    (:func:`~uav_comm_planner.core.sca.program.start_filter`)."""
+    for q_k, vehicle in zip(q, fleet.vehicles):
+        if vehicle.zones is not None and not vehicle.zones.empty \
+                and not ZoneKeeper(vehicle).keeps(q_k):
+            return False
+        if not start_filter(vehicle)(q_k):
+            return False
+    return True
 
 
 def sideways_directions(z: np.ndarray, pairs: tuple[tuple[int, int], ...], d_km: float,
@@ -90,12 +110,12 @@ def _pushed(z0: np.ndarray, directions: np.ndarray, fleet: FleetScenario, frames
     z = [cp.Constant(z0[k]) if k in fixed else cp.Variable(z0[k].shape)
          for k in range(fleet.num_uavs)]
     constraints = []
-    for k, (frame, z_k) in enumerate(zip(frames, z)):
+    for k, (frame, v) in enumerate(zip(frames, vehicle_paths(frames, z, cp.Variable()))):
         if k in fixed:
             continue
-        path = cp.vstack([frame.start[None, :], z_k, frame.goal[None, :]])
-        constraints += LegLimits(frame).constraints(
-            Variables(z_k, cp.Variable(), path[1:] - path[:-1]), None)
+        expansion = Expansion(frame.metres(z0[k]), None)
+        for block in vehicle_blocks(frame):
+            constraints += block.constraints(v, block.at(expansion))
     for (j, k), direction in zip(fleet.pairs, units):
         constraints.append(cp.sum(cp.multiply(direction, z[j] - z[k]), axis=1)
                            >= (fleet.min_separation_m + 2 * SEPARATION_CUSHION_M) / KM)
@@ -121,12 +141,13 @@ def separate(q: np.ndarray, fleet: FleetScenario, *, fixed: Sequence[int] = (),
     q = np.asarray(q, dtype=float)
     flyable = all(within_speed_limit(q_k, vehicle, slack=0.0)
                   for q_k, vehicle in zip(q, fleet.vehicles))
-    if flyable and keeps_separation(q, fleet):
+    if flyable and keeps_separation(q, fleet) and keeps_blocks(q, fleet):
         return q
     frames = fleet_frames(fleet)
     if not fleet.pairs:
-        return np.stack([project_onto_speed_limit(q_k, frame.scenario)
-                         for q_k, frame in zip(q, frames)])
+        answer = np.stack([project_onto_speed_limit(q_k, frame.scenario)
+                           for q_k, frame in zip(q, frames)])
+        return answer if keeps_blocks(answer, fleet) else None
     z0 = np.stack([frame.km(q_k) for frame, q_k in zip(frames, q)])
     lines = np.stack([frame.km(line) for frame, line in zip(frames, straight_lines(fleet))])
     pairs = fleet.pairs
@@ -139,10 +160,10 @@ def separate(q: np.ndarray, fleet: FleetScenario, *, fixed: Sequence[int] = (),
             continue
         answer = np.stack([q[k] if k in fixed else project_onto_speed_limit(
             frame.metres(z[k]), frame.scenario) for k, frame in enumerate(frames)])
-        if keeps_separation(answer, fleet):
+        if keeps_separation(answer, fleet) and keeps_blocks(answer, fleet):
             return answer
     return None
 
 
-__all__ = ['partition', 'segment_distances', 'separate', 'sideways_directions',
-           'straight_lines']
+__all__ = ['keeps_blocks', 'partition', 'segment_distances', 'separate',
+           'sideways_directions', 'straight_lines']

@@ -12,6 +12,7 @@ import sys
 from typing import Sequence
 
 from uav_comm_planner.core.drops import AREAS
+from uav_comm_planner.core.fading import DEFAULT_K_DB, DEFAULT_SAMPLES, Fading, FADING_MODELS
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.tools.plots import make_folder
 from uav_comm_planner.tools.study.design import ENDPOINTS, SETTINGS, StudyDesign, StudyError
@@ -47,6 +48,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              'random (both uniform in the area); default diagonal')
     design.add_argument('--methods', default=None, metavar='NAME,NAME',
                         help=f'methods to run, of {",".join(METHODS)} (default all)')
+    design.add_argument('--fading', choices=FADING_MODELS, default=None,
+                        help='also judge every plan by Monte Carlo over this fading '
+                             '(docs/channel.md): its ergodic min throughput and spread per case')
+    design.add_argument('--fading-samples', type=int, default=None, metavar='N',
+                        help=f'draws of the fading per case (default {DEFAULT_SAMPLES})')
+    design.add_argument('--rician-k-db', type=float, default=None, metavar='K',
+                        help=f'Rician factor of a line-of-sight link, dB (default '
+                             f'{DEFAULT_K_DB:g})')
     run = parser.add_argument_group('running')
     run.add_argument('--out', type=Path, default=None, metavar='TABLE.parquet|TABLE.csv',
                      help='the table: a .parquet folder of parts or a .csv file; an existing '
@@ -89,12 +98,14 @@ def design_from_args(args: argparse.Namespace, saved: StudyDesign | None) -> Stu
     """The design the options describe. With none of the design options, an existing
     table's own design (``--cases`` may still change it)."""
     options = {name: getattr(args, f'draw_{name}') for name in SETTINGS}
-    others = {name: getattr(args, name) for name in ('seed', 'area', 'endpoints', 'methods')}
+    others = {name: getattr(args, name) for name in ('seed', 'area', 'endpoints', 'methods',
+                                                     'fading', 'fading_samples', 'rician_k_db')}
     if saved is not None and all(v is None for v in (*options.values(), *others.values())):
         if args.cases is None:
             return saved
         return StudyDesign(cases=args.cases, seed=saved.seed, draws=saved.draws,
-                           area=saved.area, endpoints=saved.endpoints, methods=saved.methods)
+                           area=saved.area, endpoints=saved.endpoints, methods=saved.methods,
+                           fading=saved.fading)
     if args.quick:
         for key, value in QUICK.items():
             if key.startswith('draw_') and options[key[5:]] is None:
@@ -107,7 +118,23 @@ def design_from_args(args: argparse.Namespace, saved: StudyDesign | None) -> Stu
         if others['methods'] else tuple(METHODS)
     return StudyDesign(cases=cases, seed=0 if others['seed'] is None else others['seed'],
                        draws=draws, area=others['area'] or 'square',
-                       endpoints=others['endpoints'] or 'diagonal', methods=methods)
+                       endpoints=others['endpoints'] or 'diagonal', methods=methods,
+                       fading=_fading(others))
+
+
+def _fading(options: dict) -> Fading | None:
+    """The fading --fading asks for; --fading-samples or --rician-k-db alone are refused."""
+    if options['fading'] is None:
+        given = [flag for flag, name in (('--fading-samples', 'fading_samples'),
+                                         ('--rician-k-db', 'rician_k_db'))
+                 if options[name] is not None]
+        if given:
+            raise StudyError(f'{given[0]} needs --fading rician|rayleigh')
+        return None
+    return Fading(options['fading'],
+                  DEFAULT_K_DB if options['rician_k_db'] is None else options['rician_k_db'],
+                  DEFAULT_SAMPLES if options['fading_samples'] is None
+                  else options['fading_samples'])
 
 
 def draw_figures(args: argparse.Namespace, out: Path) -> list[Path]:

@@ -22,6 +22,7 @@ from typing import Mapping
 import numpy as np
 
 from uav_comm_planner.core.drops import AREAS, random_nodes, random_scenario
+from uav_comm_planner.core.fading import Fading
 from uav_comm_planner.core.scenario import MAX_NODE_SLOTS, Scenario
 from uav_comm_planner.errors import InvalidScenarioError, PlannerError
 from uav_comm_planner.tools.study.methods import METHODS
@@ -157,13 +158,18 @@ ENDPOINTS: dict[str, tuple[tuple[float, float], tuple[float, float]] | None] = {
 }
 
 
+#: Keeps the fading's draws apart from the scenario's own (the nodes' and the endpoints').
+FADING_STREAM = 7
+
+
 @dataclass(frozen=True)
 class StudyDesign:
     """A Monte Carlo study: ``cases`` drops of random scenarios at each grid point.
 
     draws: setting name (:data:`SETTINGS`) -> :class:`Draw` (``horizon_s`` may be absent: T = M
     seconds); area: 'square' or 'disc'; endpoints: a rule of :data:`ENDPOINTS`; methods: keys
-    of :data:`METHODS`, in table order.
+    of :data:`METHODS`, in table order; fading: each plan is also judged under it (its
+    ``seed`` is not used: each row draws its own, :meth:`fading_for`).
     """
 
     cases: int
@@ -172,6 +178,7 @@ class StudyDesign:
     area: str = 'square'
     endpoints: str = 'diagonal'
     methods: tuple[str, ...] = tuple(METHODS)
+    fading: Fading | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.cases, bool) or not isinstance(self.cases, int) or self.cases < 1:
@@ -215,6 +222,9 @@ class StudyDesign:
             raise InvalidScenarioError(
                 f'methods must name distinct entries of {tuple(METHODS)}, got {self.methods!r}')
         object.__setattr__(self, 'methods', methods)
+        if self.fading is not None and not isinstance(self.fading, Fading):
+            raise InvalidScenarioError(f'fading must be a Fading or None, got '
+                                       f'{type(self.fading).__name__}')
 
     @functools.cached_property
     def grid_points(self) -> list[dict[str, float | int]]:
@@ -222,6 +232,12 @@ class StudyDesign:
         names = [name for name, draw in self.draws.items() if not draw.is_range]
         values = [[self.draws[name].cast(v) for v in self.draws[name].grid] for name in names]
         return [dict(zip(names, combo)) for combo in itertools.product(*values)]
+
+    def fading_for(self, index: int) -> Fading:
+        """The fading row ``index`` is judged under: the design's, with a seed of the study's
+        seed and the row alone (the same row, the same draws, on any worker)."""
+        seed = int(np.random.SeedSequence([self.seed, index, FADING_STREAM]).generate_state(1)[0])
+        return Fading(self.fading.model, self.fading.k_factor_db, self.fading.samples, seed)
 
     @property
     def total_rows(self) -> int:
@@ -236,7 +252,10 @@ class StudyDesign:
     def to_dict(self) -> dict:
         return {'format': TABLE_FORMAT, 'cases': self.cases, 'seed': self.seed,
                 'draws': {name: draw.text for name, draw in self.draws.items()},
-                'area': self.area, 'endpoints': self.endpoints, 'methods': list(self.methods)}
+                'area': self.area, 'endpoints': self.endpoints, 'methods': list(self.methods),
+                'fading': None if self.fading is None else {
+                    'model': self.fading.model, 'k_factor_db': self.fading.k_factor_db,
+                    'samples': self.fading.samples}}
 
     @classmethod
     def from_dict(cls, data: Mapping) -> 'StudyDesign':
@@ -244,13 +263,20 @@ class StudyDesign:
             raise StudyError(f'not a study description of this version ({TABLE_FORMAT!r})')
         draws = dict(data['draws'])
         draws.setdefault('horizon_s', None)
+        fading = data.get('fading')
+        if fading is not None:
+            try:
+                fading = Fading(**fading)
+            except TypeError:
+                raise StudyError(f'the study\'s fading is not one: {fading!r}') from None
         return cls(cases=data['cases'], seed=data['seed'], draws=draws, area=data['area'],
-                   endpoints=data['endpoints'], methods=tuple(data['methods']))
+                   endpoints=data['endpoints'], methods=tuple(data['methods']),
+                   fading=fading)
 
     def differences(self, other: 'StudyDesign') -> list[str]:
         """The parts (other than ``cases``) in which two designs differ."""
         mine, theirs = self.to_dict(), other.to_dict()
-        keys = [k for k in mine if k != 'cases' and mine[k] != theirs[k]]
+        keys = [k for k in mine if k != 'cases' and mine[k] != theirs.get(k)]
         if 'draws' in keys:
             keys.remove('draws')
             keys += [name for name in SETTINGS

@@ -30,6 +30,8 @@ class Outcome:
     iterations: int | None = None      # outer iterations (power steps) of Algorithm 1
     sca_steps: int | None = None       # trajectory (SCA) steps, all starts together
     status: str = 'exact'
+    #: The plan (q (M, 2) metres, p (N, M) watts) a planning method made; None for a bound.
+    plan: tuple[np.ndarray, np.ndarray] | None = None
 
 
 @dataclass(frozen=True)
@@ -44,13 +46,14 @@ def algorithm_outcome(settings: SolverSettings, scenario: Scenario) -> Outcome:
     """Algorithm 1 (:func:`~uav_comm_planner.core.optimizer.plan`) with ``settings``."""
     result = plan(scenario, settings)
     return Outcome(result.min_throughput, result.outer_iterations, result.trajectory_steps,
-                   result.status)
+                   result.status, (result.trajectory, result.power))
 
 
 def fixed_path_outcome(path: Callable[[Scenario], np.ndarray], scenario: Scenario) -> Outcome:
     """A fixed trajectory q = path(scenario) (M, 2) with its optimal (water-filling) power."""
     q = path(scenario)
-    return Outcome(float(average_rates(q, optimal_power(q, scenario), scenario).min()))
+    p = optimal_power(q, scenario)
+    return Outcome(float(average_rates(q, p, scenario).min()), plan=(q, p))
 
 
 def upper_bound_outcome(scenario: Scenario) -> Outcome:

@@ -20,6 +20,8 @@ import statistics
 import time
 from typing import Sequence, TYPE_CHECKING
 
+from uav_comm_planner.core.fading import evaluate_fading
+from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.files import write_text_atomic, write_with
 from uav_comm_planner.tools.plots import STATIC_CAVEAT
 from uav_comm_planner.tools.study.design import (row_mismatch, row_scenario, row_settings,
@@ -54,7 +56,18 @@ def columns(design: StudyDesign) -> list[tuple[str, type]]:
     for method in design.methods:
         cols += [(f'{method}_bps', float), (f'{method}_iterations', int),
                  (f'{method}_sca_steps', int), (f'{method}_s', float), (f'{method}_status', str)]
+    cols += [(name, float) for name in fading_columns(design)]
     return cols + [('cpu_s', float), ('status', str), ('error', str)]
+
+
+def fading_columns(design: StudyDesign) -> list[str]:
+    """With a fading, for each planning method (not the bounds): ``m_ergodic_bps``, the mean
+    over the draws of min_n R_n (the ergodic min throughput), and ``m_ergodic_std``, its
+    standard deviation over the draws (:func:`~uav_comm_planner.core.fading.evaluate_fading`)."""
+    if design.fading is None:
+        return []
+    return [f'{method}_ergodic_{part}' for method in design.methods if method not in BOUNDS
+            for part in ('bps', 'std')]
 
 
 def one_line(exc: BaseException) -> str:
@@ -68,6 +81,7 @@ def _empty_methods(design: StudyDesign, row: dict, status: str) -> None:
         row.update({f'{method}_bps': None, f'{method}_iterations': None,
                     f'{method}_sca_steps': None, f'{method}_s': None,
                     f'{method}_status': status})
+    row.update({name: None for name in fading_columns(design)})
 
 
 def failed_row(design: StudyDesign, index: int, error: str) -> dict:
@@ -95,6 +109,7 @@ def evaluate(design: StudyDesign, index: int) -> dict:
         row.update(cpu_s=time.process_time() - cpu_began, status='invalid',
                    error=one_line(exc))
         return row
+    faded: dict = {}
     for method in design.methods:
         began = time.perf_counter()
         try:
@@ -107,9 +122,23 @@ def evaluate(design: StudyDesign, index: int) -> dict:
             else float(outcome.min_throughput_bps),
             f'{method}_iterations': outcome.iterations, f'{method}_sca_steps': outcome.sca_steps,
             f'{method}_s': time.perf_counter() - began, f'{method}_status': outcome.status})
+        if design.fading is not None and method not in BOUNDS:
+            faded.update(_faded(design, index, method, scenario, outcome))
+    row.update(faded)                   # after every method's columns, as columns() has them
     row.update(cpu_s=time.process_time() - cpu_began, status='failed' if errors else 'ok',
                error='; '.join(errors))
     return row
+
+
+def _faded(design: StudyDesign, index: int, method: str, scenario: Scenario,
+           outcome: Outcome) -> dict:
+    """A planning method's fading columns: its plan judged under row ``index``'s fading
+    (None when the method made no plan)."""
+    if outcome.plan is None:
+        return {f'{method}_ergodic_bps': None, f'{method}_ergodic_std': None}
+    q, p = outcome.plan
+    evaluation = evaluate_fading(q, p, scenario, design.fading_for(index))
+    return {f'{method}_ergodic_bps': evaluation.mean, f'{method}_ergodic_std': evaluation.std}
 
 
 def plan_batch(design: StudyDesign, indices: Sequence[int]) -> list[dict]:
@@ -356,6 +385,7 @@ def summary(design: StudyDesign, rows: Sequence[dict]) -> str:
         times = [row[f'{method}_s'] for row in ok]
         lines.append(f'{METHODS[method].label:<44}{statistics.fmean(values):>28.6g}'
                      f'{statistics.fmean(times):>15.4f}' + _caveat(method, '  '))
+    lines += _fading_summary(design, ok)
     for method in design.methods:
         if method in BASELINES or method in BOUNDS:
             continue
@@ -373,6 +403,29 @@ def summary(design: StudyDesign, rows: Sequence[dict]) -> str:
                 lines.append(f'{method} over {baseline}: mean gain '
                              f'{100 * statistics.fmean(gains):.1f} %' + _caveat(baseline, ' '))
     return '\n'.join(lines)
+
+
+def _fading_summary(design: StudyDesign, ok: Sequence[dict]) -> list[str]:
+    """Under the design's fading: each planning method's mean ergodic min throughput, the
+    mean of its spread over the draws, and its share of the planned throughput."""
+    if design.fading is None:
+        return []
+    fading = design.fading
+    lines = [f'under {fading.model} fading'
+             + (f' (K = {fading.k_factor_db:g} dB)' if fading.model == 'rician' else '')
+             + f', {fading.samples} draws a case:',
+             f'{"method":<44}{"mean ergodic min (bit/s)":>28}{"mean std":>12}{"of planned":>12}']
+    for method in design.methods:
+        if method in BOUNDS:
+            continue
+        means = [row[f'{method}_ergodic_bps'] for row in ok]
+        spreads = [row[f'{method}_ergodic_std'] for row in ok]
+        shares = [row[f'{method}_ergodic_bps'] / row[f'{method}_bps'] for row in ok
+                  if row[f'{method}_bps']]
+        lines.append(f'{METHODS[method].label:<44}{statistics.fmean(means):>28.6g}'
+                     f'{statistics.fmean(spreads):>12.4g}'
+                     f'{100 * statistics.fmean(shares) if shares else math.nan:>11.2f}%')
+    return lines
 
 
 def _caveat(method: str, gap: str) -> str:

@@ -5,7 +5,8 @@ legs of fly-through waypoints between them, one cruise speed per leg, holds shor
 the vehicle's starts and stops cost. The mission is
 
 0. home (frame 0, absolute altitude), as QGroundControl and Mission Planner expect in row 0;
-1. NAV_TAKEOFF to H above home (the vehicle climbs where it stands);
+1. NAV_TAKEOFF to H above home (the vehicle climbs where it stands); for a plan with
+   altitudes, to q0's altitude, and every waypoint below at its own planned altitude;
 2. NAV_WAYPOINT at q0 (frame 3, relative altitude H), param1 = the hold at q0. The plan's
    clock starts when the vehicle holds there (with no hold: when it reaches q0); the climb
    and the transit from home to q0 are outside the horizon and not timed;
@@ -56,6 +57,9 @@ DEGREE_DECIMALS = 8
 #: Holds (s) and speeds (m/s) are rounded to 1e-6, so that a file holds 6.38, not the
 #: 6.380000000002752 that timing arithmetic leaves (MAVLink carries them as float32 anyway).
 VALUE_DECIMALS = 6
+#: A plan's own altitudes are rounded to the centimetre: ArduPilot stores a waypoint's
+#: altitude in whole centimetres (and reads 88.9528 m back as 88.95 m).
+ALTITUDE_DECIMALS = 2
 #: A hold split into more waypoints than this (about 49 days for ArduPilot) is refused.
 MAX_HOLD_PARTS = 64
 #: MISSION_ITEM_INT carries latitude and longitude in 1e-7 degree.
@@ -84,6 +88,8 @@ MISSION_ENDS = ('land', 'rtl')
 #: The mission index of q0, after home (0) and the takeoff (1): the plan's clock starts when
 #: the vehicle holds there, and a plan made in flight is flown from it.
 Q0_SEQ = 2
+#: The mission index of the takeoff.
+TAKEOFF_SEQ = 1
 
 
 @dataclass(frozen=True)
@@ -152,6 +158,9 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
     yaw = dialect.waypoint_yaw
     altitude = scenario.altitude_m
 
+    def height(value: float | None) -> float:
+        return altitude if value is None else round(float(value), ALTITUDE_DECIMALS)
+
     # The rows in order, each waypoint first as (position, hold) and all of them converted to
     # latitude and longitude in one call (the same numbers as one call each, several times
     # faster: a 500-slot plan has tens of waypoints).
@@ -159,10 +168,10 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
         MissionItem(NAV_WAYPOINT, FRAME_GLOBAL, x=home.latitude_deg, y=home.longitude_deg,
                     z=home.altitude_m, current=True),
         MissionItem(NAV_TAKEOFF, FRAME_RELATIVE_ALT, (0.0, 0.0, 0.0, yaw), home.latitude_deg,
-                    home.longitude_deg, altitude)]
+                    home.longitude_deg, height(schedule.stops[0].altitude_m))]
     in_force = None
     for index, stop in enumerate(schedule.stops):
-        rows += [(stop.position_m, round(hold, VALUE_DECIMALS))
+        rows += [(stop.position_m, round(hold, VALUE_DECIMALS), height(stop.altitude_m))
                  for hold in _hold_parts(stop.hold_s, dialect.max_hold_s)]
         if index == len(schedule.legs):
             break
@@ -172,7 +181,10 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
             rows.append(MissionItem(DO_CHANGE_SPEED, FRAME_MISSION,
                                     (SPEED_TYPE_GROUND, round(in_force, VALUE_DECIMALS),
                                      THROTTLE_UNCHANGED, 0.0)))
-        rows += [(vertex, 0.0) for vertex in leg.vertices[1:-1]]
+        heights = ([None] * len(leg.vertices) if leg.altitudes_m is None
+                   else leg.altitudes_m.tolist())
+        rows += [(vertex, 0.0, height(up))
+                 for vertex, up in zip(leg.vertices[1:-1], heights[1:-1])]
     points = np.array([row[0] for row in rows if not isinstance(row, MissionItem)],
                       dtype=float).reshape(-1, 2)
     try:
@@ -186,7 +198,7 @@ def build_mission_items(plan: PlanResult | VehiclePlan, home: Home, *, end: str 
             latitude, longitude = next(places)
             row = MissionItem(NAV_WAYPOINT, FRAME_RELATIVE_ALT, (row[1], 0.0, 0.0, yaw),
                               round(latitude, DEGREE_DECIMALS), round(longitude, DEGREE_DECIMALS),
-                              altitude)
+                              row[2])
         items.append(row)
     last = items[-1]
     if end == 'land':
@@ -314,5 +326,5 @@ def _describe(item: MissionItem) -> str:
 
 __all__ = [
     'FENCE_COMMANDS', 'MissionItem', 'build_mission_items', 'check_home', 'from_message',
-    'item_int_message', 'item_message', 'mismatches', 'mission_firmware', 'Q0_SEQ',
+    'item_int_message', 'item_message', 'mismatches', 'mission_firmware', 'Q0_SEQ', 'TAKEOFF_SEQ',
 ]
