@@ -23,7 +23,9 @@ metres above home; home at 10 m unless set), from ``positions_after_s`` after ea
 on; with ``wind`` (speed m/s, direction it comes from, degrees) a WIND message after every
 heartbeat. ``mode`` (None: no mode) is the
 ArduCopter mode number its heartbeat shows; SET_MODE changes it. MISSION_SET_CURRENT is
-answered with MISSION_CURRENT. ``log`` lists what it received, in order: the message type
+answered with MISSION_CURRENT. A PARAM_REQUEST_READ of a name in ``parameters`` is answered
+with its PARAM_VALUE, after ``parameter_drops`` requests left unanswered; the names put in
+``announce`` are sent unasked. ``log`` lists what it received, in order: the message type
 (with the item or mode number for MISSION_COUNT, MISSION_SET_CURRENT and SET_MODE).
 :meth:`hang_up` closes the connection it serves (the link sees EOF), and ``hang_up_on`` (a
 message type) does once, when that message arrives; while ``quiet`` is set it sends nothing
@@ -84,6 +86,10 @@ class FakeVehicle:
         self.speedup = 1.0
         self.wind: tuple[float, float] | None = None
         self.mode: int | None = None
+        self.parameters: dict[str, float] = {}
+        self.parameter_drops = 0
+        #: Names whose PARAM_VALUE is sent at the next heartbeat, unasked (a set announced).
+        self.announce: list[str] = []
         self.quiet = False
         self.quiet_on: str | None = None
         self.quiet_at: float | None = None
@@ -179,6 +185,8 @@ class FakeVehicle:
                     speed, direction = self.wind
                     self._send(mav.wind_encode(direction, speed, 0.0))
                 next_beat = now + HEARTBEAT_S
+                while self.announce:
+                    self._send_parameter(self.announce.pop(0))
                 if self.behaviour == 'garbage':
                     self._garbage()
             try:
@@ -207,6 +215,14 @@ class FakeVehicle:
             self.log.append((kind, getattr(message, number)))
         else:
             self.log.append((kind,))
+
+    def _send_parameter(self, name: str) -> None:
+        """PARAM_VALUE of ``name`` (of :attr:`parameters`), as an autopilot answers a read or
+        tells every link of a set (``announce``)."""
+        names = list(self.parameters)
+        self._send(self._mav.param_value_encode(name.encode(), self.parameters[name],
+                                                MAV.MAV_PARAM_TYPE_REAL32, len(names),
+                                                names.index(name)))
 
     def _send(self, message) -> None:
         self._connection.sendall(message.pack(self._mav))
@@ -260,6 +276,11 @@ class FakeVehicle:
                                                 [1, 0, 0, 0], 0, 0, 0))
         elif kind == 'SET_MODE':
             self.mode = int(message.custom_mode)
+        elif kind == 'PARAM_REQUEST_READ' and message.param_id in self.parameters:
+            if self.parameter_drops > 0:
+                self.parameter_drops -= 1
+                return
+            self._send_parameter(message.param_id)
         elif kind == 'MISSION_SET_CURRENT':
             self._send(mav.mission_current_encode(message.seq))
         elif kind == 'MISSION_COUNT':

@@ -3,8 +3,8 @@
 A :class:`MissionRequest` is what the node and the command line hand to
 :func:`~uav_comm_planner.mission.pipeline.plan_mission`; :func:`vehicle_limits` is the one
 precedence rule for the vehicle's limits, the same for both: values given explicitly (ROS
-parameters set, command-line flags) over a ground station's parameter file over ArduCopter's
-defaults.
+parameters set, command-line flags) over a ground station's parameter file over the values
+read from the vehicle (the node's link) over the firmware's defaults.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 import math
 import os
-from typing import Mapping
+from typing import Collection, Mapping
 
 import numpy as np
 
@@ -20,29 +20,60 @@ from uav_comm_planner.core.receding import FlownSlots
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.core.zones import Zones
 from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.vehicle.firmware import firmware_named
 from uav_comm_planner.vehicle.flyable import GOAL_TOLERANCE_SLOTS
 from uav_comm_planner.vehicle.geodesy import default_home, Home
 from uav_comm_planner.vehicle.leg_models import leg_model
-from uav_comm_planner.vehicle.limits import read_parameter_file, VehicleLimits
+from uav_comm_planner.vehicle.limits import (parameter_file_values, read_parameter_file,
+                                             VehicleLimits, VehicleParameters)
 from uav_comm_planner.vehicle.timing import leg_time
+
+
+#: Where a limit comes from, highest precedence first (:func:`limit_sources`).
+SOURCES = ('explicit', 'parameter file', 'vehicle', 'firmware default')
 
 
 def vehicle_limits(explicit: Mapping[str, float] | None = None,
                    parameter_file: str | os.PathLike | None = None, *,
-                   firmware: str = 'ardupilot') -> VehicleLimits:
+                   firmware: str = 'ardupilot',
+                   read: VehicleParameters | None = None) -> VehicleLimits:
     """The vehicle's limits: ``explicit`` values (by :class:`VehicleLimits` field name) over
-    the limits ``parameter_file`` sets for ``firmware`` over the firmware's defaults
+    the limits ``parameter_file`` sets for ``firmware`` over those ``read`` from the vehicle
+    (when it runs ``firmware``) over the firmware's defaults
     (:attr:`~uav_comm_planner.vehicle.firmware.Firmware.default_limits`).
+
+    A file the user gave wins over the vehicle: it is said deliberately, for this plan, while
+    the vehicle's values are what it holds when nobody said otherwise.
 
     Raises :class:`~uav_comm_planner.errors.InvalidScenarioError` for an unreadable or
     malformed file, an unknown field or an invalid value.
     """
     limits = VehicleLimits.for_firmware(firmware)
+    if read is not None and read.firmware == firmware:
+        limits = VehicleLimits(**{**limits.__dict__, **read.limits()})
     if parameter_file:
         limits = read_parameter_file(parameter_file, firmware=firmware, base=limits)
     limits = replace(limits, **dict(explicit or {}))
     check_legs_timed(limits)
     return limits
+
+
+def limit_sources(explicit: Collection[str] = (),
+                  parameter_file: str | os.PathLike | None = None, *,
+                  firmware: str = 'ardupilot',
+                  read: VehicleParameters | None = None) -> dict[str, str]:
+    """Where :func:`vehicle_limits` takes each limit ``firmware``'s parameters state from: a
+    :data:`SOURCES` entry by :class:`VehicleLimits` field (``explicit``: the fields given
+    explicitly). Raises InvalidScenarioError as :func:`vehicle_limits` does."""
+    layers = (set(explicit),
+              set(parameter_file_values(parameter_file, firmware=firmware))
+              if parameter_file else set(),
+              set(read.limits()) if read is not None and read.firmware == firmware else set())
+    sources = {}
+    for field, _ in firmware_named(firmware).parameters.values():
+        sources[field] = next((source for source, fields in zip(SOURCES, layers)
+                               if field in fields), SOURCES[-1])
+    return sources
 
 
 #: Leg lengths, metres, that :func:`check_legs_timed` times: a waypoint step to a crossing.
@@ -183,4 +214,4 @@ class MissionRequest:
         return self.scenario.replace(zones=self.zones)
 
 
-__all__ = ['InFlight', 'MissionRequest', 'vehicle_limits']
+__all__ = ['InFlight', 'MissionRequest', 'SOURCES', 'limit_sources', 'vehicle_limits']

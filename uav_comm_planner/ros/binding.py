@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from typing import Callable, Sequence
 
 from rcl_interfaces.msg import SetParametersResult
@@ -11,6 +12,7 @@ from rclpy.parameter import Parameter
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.ros.params import (coerced_value, config_from_parameters, FenceReader,
                                          parameter_specs, PlannerConfig)
+from uav_comm_planner.vehicle.limits import VehicleParameters
 
 
 #: The ROS type of an array parameter whose default is empty.
@@ -71,10 +73,29 @@ class ParameterBinding:
         # since. A value equal to a default is no sign of being unset: ArduCopter's waypoint
         # speed given for PX4 must win over PX4's default.
         self._explicit = {spec.name for spec in specs if spec.name in _overrides(node)}
-        self.config: PlannerConfig = config_from_parameters(self._values(), self._explicit,
-                                                            fences=self._fences)
+        #: The limit parameters read from the vehicle that the configuration uses (None: none),
+        #: and a later read refused (tried again at each accepted change).
+        self.vehicle_read: VehicleParameters | None = None
+        self._vehicle_refused: VehicleParameters | None = None
+        self.config: PlannerConfig = self._config(self._values(), self._explicit, None)
         node.add_on_set_parameters_callback(self._check)
         node.add_post_set_parameters_callback(self._changed)
+
+    def _config(self, values: dict[str, object], explicit: set[str],
+                read: VehicleParameters | None) -> PlannerConfig:
+        """The configuration of ``values`` with the vehicle's parameters ``read``."""
+        return config_from_parameters(values, explicit, fences=self._fences, vehicle_read=read)
+
+    def use_vehicle(self, read: VehicleParameters | None) -> None:
+        """Plan with the limit parameters ``read`` from the vehicle (None: none) where no
+        explicit parameter nor ``vehicle_params_file`` sets them
+        (:func:`~uav_comm_planner.mission.request.vehicle_limits`). Raises
+        :class:`~uav_comm_planner.errors.PlannerError` when they do not make a valid
+        configuration with the parameters; the configuration is then kept as it was, and
+        ``read`` is tried again at each accepted parameter change."""
+        self._vehicle_refused = read
+        self.config = self._config(self._values(), self._explicit, read)
+        self.vehicle_read, self._vehicle_refused = read, None
 
     @property
     def explicit(self) -> frozenset[str]:
@@ -102,9 +123,8 @@ class ParameterBinding:
     def _check(self, changes: list[Parameter]) -> SetParametersResult:
         """Refuse a change that does not make a valid configuration, saying why."""
         try:
-            config_from_parameters(self._values(changes),
-                                   self._explicit | {p.name for p in changes},
-                                   fences=self._fences)
+            self._config(self._values(changes), self._explicit | {p.name for p in changes},
+                         self.vehicle_read)
         except PlannerError as exc:
             if self._on_refused is not None:
                 self._on_refused([p.name for p in changes], str(exc))
@@ -115,6 +135,8 @@ class ParameterBinding:
         names = [p.name for p in changes if p.name in self._names]
         if names:
             self._explicit.update(names)
-            self.config = config_from_parameters(self._values(), self._explicit,
-                                                 fences=self._fences)
+            self.config = self._config(self._values(), self._explicit, self.vehicle_read)
+            if self._vehicle_refused is not None:
+                with contextlib.suppress(PlannerError):     # still refused: as it was
+                    self.use_vehicle(self._vehicle_refused)
             self._on_change(names)

@@ -18,7 +18,11 @@ vehicle:
 - ``battery``: the vehicle's latest battery report (energy used, charge left, voltage,
   current), and with ``battery_wh`` the energy left for the rest against what the plan in
   force needs (:mod:`uav_comm_planner.ros.battery`): OK, WARN while a replan for the battery
-  is asked, ERROR once the battery ended the mission, with the reason.
+  is asked, ERROR once the battery ended the mission, with the reason;
+- ``vehicle parameters``: the limit parameters read from the vehicle (WPNAV_SPEED...,
+  NAV_ACC_RAD) and where each limit the plan uses comes from
+  (:mod:`uav_comm_planner.ros.vehicle_params`): OK, or WARN when some were not answered, are
+  of another firmware than ``mission_firmware``, or were refused.
 
 A message is one line and is never shortened: the reason of a refusal ends with its fix.
 """
@@ -51,6 +55,7 @@ PLANNER = 'planner'
 VEHICLE_LINK = 'vehicle link'
 MISSION_CLOCK = 'mission clock'
 BATTERY = 'battery'
+VEHICLE_PARAMETERS = 'vehicle parameters'
 #: Telemetry older than this (node clock seconds) makes the link status WARN.
 TELEMETRY_TIMEOUT_S = 3.0
 
@@ -152,6 +157,7 @@ class NodeDiagnostics:
             self._link_status(),
             self._clock_status(),
             self._battery_status(),
+            self._parameters_status(),
         ]
         self._publisher.publish(DiagnosticArray(header=Header(stamp=time_msg(node.now_ns())),
                                                 status=statuses))
@@ -195,6 +201,14 @@ class NodeDiagnostics:
         return diagnostic_status(self._name(BATTERY), node.get_fully_qualified_name(), level,
                                  message, values)
 
+    def _parameters_status(self) -> DiagnosticStatus:
+        node = self._node
+        level, message, values = node.vehicle.parameters.status()
+        if not node.vehicle.linked and node.vehicle.parameters.read is None:
+            level, message = OK, 'off: parameter mavlink_url is empty'
+        return diagnostic_status(self._name(VEHICLE_PARAMETERS), node.get_fully_qualified_name(),
+                                 level, message, values)
+
     def _clock_status(self) -> DiagnosticStatus:
         node = self._node
         progress = node.flight.progress
@@ -227,4 +241,5 @@ class NodeDiagnostics:
 
 
 __all__ = ['BATTERY', 'DIAGNOSTICS_QOS', 'MISSION_CLOCK', 'NodeDiagnostics', 'PERIOD_S', 'PLANNER',
-           'TELEMETRY_TIMEOUT_S', 'TOPIC_DIAGNOSTICS', 'VEHICLE_LINK', 'diagnostic_status']
+           'TELEMETRY_TIMEOUT_S', 'TOPIC_DIAGNOSTICS', 'VEHICLE_LINK', 'VEHICLE_PARAMETERS',
+           'diagnostic_status']

@@ -142,7 +142,7 @@ class PlannerNode(Node):
         self.current_plan: PlanOutcome | None = None
         self.flight = MissionFlight(self)
         self.vehicle = VehicleAdapter(self, self._on_vehicle_position, self._on_vehicle_report,
-                                      frame_id=lambda: self.config.node.frame_id)
+                                      binding=self._binding)
         self._publisher = PlanPublisher(self)
         self.diagnostics = NodeDiagnostics(self)
         self.create_subscription(PoseArray, TOPIC_GROUND_NODES, self._on_ground_nodes,

@@ -38,7 +38,7 @@ from uav_comm_planner.ros.fleet_params import (first_vehicle_ends, FLEET_DESCRIP
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.flyable import check_speed
 from uav_comm_planner.vehicle.geodesy import DEFAULT_HOME, Home, HOME_ALTITUDE_RANGE_M
-from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.limits import VehicleLimits, VehicleParameters
 from uav_comm_planner.vehicle.mavlink.battery import BATTERY_ACTIONS
 from uav_comm_planner.vehicle.mavlink.files import MISSION_FORMATS
 from uav_comm_planner.vehicle.mavlink.guided import STREAM_FALLBACKS
@@ -266,8 +266,8 @@ DESCRIPTIONS = {
     'vehicle_aware': 'plan for the vehicle_* limits and publish the plan as the vehicle flies '
                      'it (S-curve legs, holds shortened by starts and stops)',
     'vehicle_params_file': 'ground-station parameter file (NAME,VALUE lines) whose WPNAV_* / '
-                           'MPC_* values replace the defaults of the vehicle_* parameters not '
-                           'set explicitly; empty: none',
+                           'MPC_* / NAV_ACC_RAD values win over the vehicle\'s own and the '
+                           'defaults for the vehicle_* parameters not set explicitly; empty: none',
     'flight_mode': 'with mavlink_url, how each plan is flown: mission (uploaded, flown in AUTO) '
                    'or stream (uploaded too, then flown as position, velocity and acceleration '
                    'targets in GUIDED (PX4: OFFBOARD), timed on the autopilot clock)',
@@ -294,10 +294,10 @@ DESCRIPTIONS = {
     'battery_reserve': 'share of the battery kept at landing',
     'battery_action': 'with battery_wh and a link, what the vehicle is told when the battery '
                       'left cannot reach qF with the reserve: rtl, land (where it is) or hold',
-    'vehicle_max_speed_mps': 'waypoint speed of the vehicle (WPNAV_SPEED / 100, MPC_XY_CRUISE; '
-                             'm/s); a vehicle_* limit not set explicitly comes from '
-                             'vehicle_params_file, else the firmware\'s default (PX4: 5 m/s, '
-                             '3 m/s/s, 4 m/s/s/s)',
+    'vehicle_max_speed_mps': 'waypoint speed (WPNAV_SPEED / 100, MPC_XY_CRUISE; m/s); a vehicle_* '
+                             'limit not set explicitly comes from vehicle_params_file, else '
+                             "the vehicle's own (read over mavlink_url), else the firmware's "
+                             'default (PX4: 5 m/s, 3 m/s/s, 4 m/s/s/s)',
     'vehicle_max_accel_mpss': 'waypoint acceleration (WPNAV_ACCEL / 100, MPC_ACC_HOR; m/s/s)',
     'vehicle_max_jerk_mpsss': 'waypoint jerk (WPNAV_JERK, MPC_JERK_AUTO; m/s/s/s)',
     'vehicle_airframe_speed_mps': 'top speed the airframe reaches, if below the waypoint '
@@ -503,7 +503,7 @@ NOT_PARAMETERS = {
     (Scenario, 'zones'): 'the zones come from fence_file, anchored at home',
     (Scenario, 'airframe'): 'named by the airframe parameter (a name or a file)',
     (Scenario, 'energy_budget_wh'): 'set from energy_budget_wh and battery_wh (the smaller)',
-    (VehicleLimits, 'acceptance_radius_m'): "PX4's NAV_ACC_RAD comes from vehicle_params_file",
+    (VehicleLimits, 'acceptance_radius_m'): "PX4's NAV_ACC_RAD: vehicle_params_file, the vehicle",
 }
 
 
@@ -515,20 +515,19 @@ def parameter_specs() -> tuple[ParameterSpec, ...]:
 
 def config_from_parameters(values: Mapping[str, Any],
                            explicit: Collection[str] | None = None, *,
-                           fences: FenceReader | None = None) -> PlannerConfig:
+                           fences: FenceReader | None = None,
+                           vehicle_read: VehicleParameters | None = None) -> PlannerConfig:
     """Validated settings from parameter values by ROS name; missing names take defaults.
 
     The scenario's zones are those of ``fence_file`` (read by ``fences``, a node's
     :class:`FenceReader`; None: read now). With no ``home_*`` parameter in ``explicit``, home
-    is the simulator home of ``mission_firmware``
-    (:attr:`~uav_comm_planner.vehicle.firmware.Firmware.sitl_home`).
+    is ``mission_firmware``'s simulator home (its ``Firmware.sitl_home``).
 
     The vehicle's limits follow the one precedence rule
     (:func:`~uav_comm_planner.mission.request.vehicle_limits`): the ``vehicle_*`` parameters
-    set explicitly (named in ``explicit``; None: every name in ``values``) over the limits
-    ``vehicle_params_file`` sets over the defaults. Raises
-    :class:`~uav_comm_planner.errors.InvalidScenarioError` (or its subclass
-    :class:`~uav_comm_planner.errors.InfeasibleHorizonError`) with the reason.
+    set explicitly (named in ``explicit``; None: every name in ``values``) over
+    ``vehicle_params_file`` over ``vehicle_read`` (from the vehicle) over the defaults. Raises
+    InvalidScenarioError (or its subclass InfeasibleHorizonError) with the reason.
     """
     explicit = set(values if explicit is None else explicit)
     chosen: dict[type, dict[str, Any]] = {owner: {} for owner in OWNERS}
@@ -555,7 +554,8 @@ def config_from_parameters(values: Mapping[str, Any],
     VehicleLimits(**chosen[VehicleLimits])
     given = {spec.field: chosen[VehicleLimits][spec.field] for spec in parameter_specs()
              if spec.owner is VehicleLimits and spec.name in explicit}
-    vehicle = vehicle_limits(given, node.vehicle_params_file, firmware=node.mission_firmware)
+    vehicle = vehicle_limits(given, node.vehicle_params_file, firmware=node.mission_firmware,
+                             read=vehicle_read)
     if node.vehicle_aware:
         # A plan for the vehicle in wind keeps the vehicle's airspeed.
         chosen[Scenario]['max_airspeed_mps'] = vehicle.airspeed_for_wind_mps(

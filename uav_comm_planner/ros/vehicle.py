@@ -1,7 +1,7 @@
 """The vehicle side of the node: the MAVLink link's events on the executor, the vehicle's
 pose on ``vehicle_pose`` (advertised only while a link runs), every plan uploaded, the
-autopilot's wind estimates, the battery (:mod:`.battery`), and the streamed trajectory
-(:mod:`.stream`) started and stopped.
+autopilot's wind estimates, the battery (:mod:`.battery`), the vehicle's own limit parameters
+(:mod:`.vehicle_params`), and the streamed trajectory (:mod:`.stream`) started and stopped.
 
 A :class:`VehicleAdapter` takes the node (as tf2_ros's TransformListener does): with
 ``mavlink_url`` set it runs a :class:`~uav_comm_planner.vehicle.mavlink.telemetry.VehicleBridge`,
@@ -33,13 +33,15 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from uav_comm_planner.core.optimizer import PlanResult
 from uav_comm_planner.errors import PlannerError
 from uav_comm_planner.ros.battery import BatteryWatch
+from uav_comm_planner.ros.binding import ParameterBinding
 from uav_comm_planner.ros.handoff import ExecutorHandoff
 from uav_comm_planner.ros.params import NodeSettings
 from uav_comm_planner.ros.planning import PlanOutcome
+from uav_comm_planner.ros.vehicle_params import VehicleParameterWatch
 from uav_comm_planner.ros.vehicle_state import VehicleState
 from uav_comm_planner.ros.wind import WindTracker
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
-from uav_comm_planner.vehicle.limits import VehicleLimits
+from uav_comm_planner.vehicle.limits import VehicleLimits, VehicleParameters
 from uav_comm_planner.vehicle.mavlink.battery import BatteryReport
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, StreamJob, TargetStream
 from uav_comm_planner.vehicle.mavlink.items import MissionItem, NAV_WAYPOINT, Q0_SEQ
@@ -91,16 +93,18 @@ class VehicleAdapter(VehicleState):
     ``upload_pending`` is True while the latest plan's upload is not yet verified or failed;
     ``last_error`` is the link's latest error ('' when none; a link error ends when the link is
     up again, a failed upload when an upload is verified).
-    ``frame_id`` gives the frame of the poses published on ``vehicle_pose``, a topic that
-    exists only while a link runs; mode, speed, home, link state: :class:`VehicleState`.
+    ``binding``'s ``frame_id`` is the frame of the poses published on ``vehicle_pose``, a topic
+    that exists only while a link runs; mode, speed, home, link state: :class:`VehicleState`.
     """
 
     def __init__(self, node: Node, on_position: PositionCallback, report: Reporter, *,
-                 frame_id: Callable[[], str]) -> None:
+                 binding: ParameterBinding) -> None:
         self._node = node
         #: The autopilot's wind estimate, smoothed and published (:mod:`.wind`).
         self.wind = WindTracker(node)
         self.battery = BatteryWatch(node)     # reported and acted on (:mod:`.battery`)
+        #: The vehicle's own limit parameters, planned with (:mod:`.vehicle_params`).
+        self.parameters = VehicleParameterWatch(node, binding)
         #: The streamed trajectory on the link's thread (None without a link).
         self.stream: TargetStream | None = None
         #: Stream events seen: 'started', 'stopped' messages, in order (for tests).
@@ -109,7 +113,7 @@ class VehicleAdapter(VehicleState):
         self._prepared: tuple[PlanResult, StreamReference, tuple] | None = None
         self._on_position = on_position
         self._report = report
-        self._frame_id = frame_id
+        self._frame_id = lambda: binding.config.node.frame_id
         self._bridge: VehicleBridge | None = None
         self._events: ExecutorHandoff[tuple[int, Event]] = ExecutorHandoff(
             node, self._drain, maxlen=EVENTS_KEPT)
@@ -267,6 +271,8 @@ class VehicleAdapter(VehicleState):
                 self._on_link_event(event)
             elif isinstance(event, Wind):
                 self.wind.add(event.time_s, event.east_mps, event.north_mps)
+            elif isinstance(event, VehicleParameters):
+                self.parameters.add(event)
             elif isinstance(event, StreamEvent):
                 self._stream_reported += 1
                 self.stream_events.append(event.message)

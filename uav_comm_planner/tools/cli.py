@@ -453,6 +453,12 @@ def _simulator_homes() -> str:
                      for name, firmware in FIRMWARES.items())
 
 
+def _parameter_keys() -> str:
+    """Each firmware's limit parameters, as ``--vehicle-params`` reads them."""
+    return '; '.join(f'{", ".join(firmware.parameters)} ({name})'
+                     for name, firmware in FIRMWARES.items())
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineArgumentParser(
         prog=PROG,
@@ -491,8 +497,9 @@ def build_parser() -> argparse.ArgumentParser:
                          help='plan for the vehicle even without a mission file')
     vehicle.add_argument('--vehicle-params', type=Path, metavar='FILE',
                          help='parameter file saved by a ground station (NAME,VALUE or NAME '
-                              'VALUE lines): WPNAV_SPEED, WPNAV_ACCEL, WPNAV_JERK, ATC_INPUT_TC '
-                              '(ardupilot) or MPC_XY_CRUISE, MPC_ACC_HOR, MPC_JERK_AUTO (px4)')
+                              'VALUE lines); the keys read: '
+                              + _parameter_keys()
+                              + '; --wp-speed, --wp-accel and --wp-jerk win over it')
     for field, (flag, text) in _VEHICLE_FLAGS.items():
         vehicle.add_argument(flag, dest=_VEHICLE_DEST + field, type=float, help=text)
     add_energy_arguments(plan_parser)

@@ -142,11 +142,16 @@ def firmware_named(name: str) -> Firmware:
     return FIRMWARES[name]
 
 
+def firmware_name_of_autopilot(autopilot: int | None) -> str:
+    """The name of a heartbeat's MAV_AUTOPILOT's firmware: 'px4' for PX4, 'ardupilot'
+    otherwise (and when the autopilot is not known)."""
+    return 'px4' if autopilot == MAV.MAV_AUTOPILOT_PX4 else 'ardupilot'
+
+
 def firmware_of_autopilot(autopilot: int | None) -> Firmware:
-    """The firmware of a heartbeat's MAV_AUTOPILOT: PX4's for PX4, ArduPilot's otherwise
-    (and when the autopilot is not known)."""
-    return FIRMWARES['px4'] if autopilot == MAV.MAV_AUTOPILOT_PX4 else FIRMWARES['ardupilot']
+    """The firmware of a heartbeat's MAV_AUTOPILOT (:func:`firmware_name_of_autopilot`)."""
+    return FIRMWARES[firmware_name_of_autopilot(autopilot)]
 
 
-__all__ = ['FIRMWARES', 'Firmware', 'StreamModes', 'firmware_named', 'firmware_of_autopilot',
-           'px4_mode']
+__all__ = ['FIRMWARES', 'Firmware', 'StreamModes', 'firmware_name_of_autopilot', 'firmware_named',
+           'firmware_of_autopilot', 'px4_mode']

@@ -5,7 +5,9 @@ WPNAV_SPEED (cm/s), WPNAV_ACCEL (cm/s/s) and WPNAV_JERK (m/s/s/s); PX4 by MPC_XY
 MPC_ACC_HOR (m/s/s) and MPC_JERK_AUTO (m/s/s/s). :class:`VehicleLimits` holds them in SI units
 with ArduCopter's defaults; :func:`read_parameter_file` reads them from a file as ground
 stations save parameters (``NAME VALUE``, ``NAME,VALUE`` or tab-separated lines; Mission
-Planner's ``.param`` and QGroundControl's ``.params`` both work).
+Planner's ``.param`` and QGroundControl's ``.params`` both work), and
+:class:`VehicleParameters` holds them as read from the vehicle itself over its link
+(:mod:`.mavlink.parameters`); :func:`limit_of_parameter` turns either into SI units.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 import os
+from typing import Mapping
 
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.files import read_text_file
@@ -140,9 +143,53 @@ class VehicleLimits:
         return f'{self.max_speed_mps:g} m/s (the waypoint speed, WPNAV_SPEED / MPC_XY_CRUISE)'
 
 
-def read_parameter_file(path: str | os.PathLike, *, firmware: str = 'ardupilot',
-                        base: VehicleLimits = VehicleLimits()) -> VehicleLimits:
-    """The limits in a saved parameter file, the others from ``base``.
+def limit_of_parameter(name: str, value: float, firmware: str = 'ardupilot', *,
+                       where: str = '', shown: str | None = None) -> float:
+    """The SI value of the limit ``firmware``'s parameter ``name`` states with ``value`` (as
+    the autopilot holds it: WPNAV_SPEED in cm/s): the firmware's floor, then its factor
+    (:attr:`~uav_comm_planner.vehicle.firmware.Firmware.parameters`). Raises
+    :class:`~uav_comm_planner.errors.InvalidScenarioError` (its message starts with ``where``
+    and shows the value as ``shown``, if given) for a name the firmware's limits do not use,
+    or a value that is not finite (or is not once scaled)."""
+    known = firmware_named(firmware)
+    if name not in known.parameters:
+        raise InvalidScenarioError(f'{where}{name} is none of {", ".join(known.parameters)} '
+                                   f'({firmware})')
+    said = f'{where}{name} is {repr(value) if shown is None else shown}'
+    if not math.isfinite(value):
+        raise InvalidScenarioError(f'{said}, not a finite number')
+    scaled = max(value, known.parameter_floors.get(name, -math.inf)) * known.parameters[name][1]
+    if not math.isfinite(scaled):   # 1e308 times ATC_INPUT_TC's factor of 2
+        raise InvalidScenarioError(f'{said}, beyond what a plan can be made with')
+    return scaled
+
+
+@dataclass(frozen=True)
+class VehicleParameters:
+    """The limit parameters an autopilot holds, as read from it over its link.
+
+    firmware: the autopilot's key of :data:`~uav_comm_planner.vehicle.firmware.FIRMWARES`;
+    values: name -> value as the autopilot states it (WPNAV_SPEED in cm/s, NAV_ACC_RAD in
+    metres), for the names of its
+    :attr:`~uav_comm_planner.vehicle.firmware.Firmware.parameters` it answered; missing: the
+    names it was asked for and did not answer.
+    """
+
+    firmware: str
+    values: Mapping[str, float]
+    missing: tuple[str, ...] = ()
+
+    def limits(self) -> dict[str, float]:
+        """The values as :class:`VehicleLimits` fields in SI units (:func:`limit_of_parameter`);
+        raises InvalidScenarioError for a value no plan can be made with."""
+        fields = firmware_named(self.firmware).parameters
+        return {fields[name][0]: limit_of_parameter(name, value, self.firmware)
+                for name, value in self.values.items()}
+
+
+def parameter_file_values(path: str | os.PathLike, *,
+                          firmware: str = 'ardupilot') -> dict[str, float]:
+    """The limits a saved parameter file sets, as :class:`VehicleLimits` fields in SI units.
 
     Lines are ``NAME VALUE``, ``NAME,VALUE`` or QGroundControl's tab-separated
     ``SYSID COMPID NAME VALUE TYPE``; ``#`` starts a comment. Raises
@@ -152,7 +199,6 @@ def read_parameter_file(path: str | os.PathLike, *, firmware: str = 'ardupilot',
     uses, or sets none of them.
     """
     wanted = firmware_named(firmware).parameters
-    floors = firmware_named(firmware).parameter_floors
     text = read_text_file(path, max_bytes=MAX_PARAMETER_FILE_BYTES, what='parameter file',
                           error=InvalidScenarioError)
     values = {}
@@ -168,14 +214,17 @@ def read_parameter_file(path: str | os.PathLike, *, firmware: str = 'ardupilot',
         except ValueError:
             raise InvalidScenarioError(f'{path}:{number}: {name} is {raw[:40]!r}, not a '
                                        f'number') from None
-        if not math.isfinite(given):
-            raise InvalidScenarioError(f'{path}:{number}: {name} is {raw[:40]!r}, not a finite '
-                                       f'number')
-        value = max(given, floors.get(name, -math.inf)) * wanted[name][1]
-        if not math.isfinite(value):   # 1e308 times ATC_INPUT_TC's factor of 2
-            raise InvalidScenarioError(f'{path}:{number}: {name} is {raw[:40]!r}, beyond what '
-                                       f'a plan can be made with')
-        values[wanted[name][0]] = value
+        values[wanted[name][0]] = limit_of_parameter(name, given, firmware,
+                                                     where=f'{path}:{number}: ',
+                                                     shown=repr(raw[:40]))
     if not values:
         raise InvalidScenarioError(f'{path} sets none of {", ".join(wanted)} ({firmware})')
-    return VehicleLimits(**{**base.__dict__, **values})
+    return values
+
+
+def read_parameter_file(path: str | os.PathLike, *, firmware: str = 'ardupilot',
+                        base: VehicleLimits = VehicleLimits()) -> VehicleLimits:
+    """The limits in a saved parameter file (:func:`parameter_file_values`), the others from
+    ``base``; raises InvalidScenarioError as that does, or for limits no plan is made with."""
+    return VehicleLimits(**{**base.__dict__, **parameter_file_values(path,
+                                                                     firmware=firmware)})

@@ -29,8 +29,10 @@ from typing import Callable, Sequence
 from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError, VehicleLinkLostError
+from uav_comm_planner.vehicle.limits import VehicleParameters
 from uav_comm_planner.vehicle.mavlink.items import (from_message, item_int_message,
                                                     mismatches, MISSION_TYPE, MissionItem)
+from uav_comm_planner.vehicle.mavlink.parameters import ParameterRead
 from uav_comm_planner.vehicle.mavlink.urls import parse_link_url
 
 MAV = mavutil.mavlink
@@ -170,14 +172,17 @@ class _TimedTcp(mavutil.mavtcp):
 
 
 def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255,
-            should_stop: Callable[[], bool] | None = None):
+            should_stop: Callable[[], bool] | None = None,
+            parameters: Callable[[VehicleParameters], None] | None = None):
     """Open ``url`` and wait for the vehicle's heartbeat; return the pymavlink connection.
 
     The URL is checked first (:func:`~.urls.parse_link_url`: only live links, never a file to
     replay); ``timeout_s`` bounds the whole of it, the TCP connect and the heartbeat together.
     ``should_stop`` is asked every HEARTBEAT_POLL_S while the heartbeat is awaited, so that
     a link being stopped never waits out the timeout. The connection's ``target_system`` and
-    ``target_component`` are the vehicle's. Raises
+    ``target_component`` are the vehicle's. With ``parameters``, the vehicle's limit parameters
+    are read on the connection as it is read (:class:`~.parameters.ParameterRead`) and each read
+    handed to it. Raises
     :class:`~uav_comm_planner.errors.InvalidLinkUrlError` for a URL it does not open and
     :class:`VehicleLinkError` when the URL cannot be opened or no heartbeat comes in time.
     """
@@ -214,6 +219,8 @@ def connect(url: str, *, timeout_s: float = 30.0, source_system: int = 255,
         raise VehicleLinkError(f'no heartbeat from {url!r} within {timeout_s:g} s: is the '
                                f'vehicle on that link?')
     link.vehicle_autopilot = heartbeat.autopilot
+    if parameters is not None:
+        ParameterRead(heartbeat.autopilot).attach(link, parameters)
     return link
 
 

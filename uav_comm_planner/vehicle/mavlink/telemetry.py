@@ -20,6 +20,10 @@ hold mode from the thread. A mission whose home or first waypoint is farther tha
 Without ``home`` the bridge follows the vehicle: the first HOME_POSITION it hears is the
 planning frame's origin, and no position is handed on before it.
 
+On each connection the vehicle's limit parameters are read (:mod:`.parameters`, from the
+connection's message hook: the telemetry is never held up for them) and handed on as a
+:class:`~uav_comm_planner.vehicle.limits.VehicleParameters`.
+
 Faults of the link: a connection the vehicle closes (EOF) or resets, and a link on which
 nothing arrives for :data:`SILENCE_S` (wall clock, counted only while the thread reads, so a
 stalled process is not taken for a silent vehicle), end the connection; the thread connects
@@ -56,6 +60,7 @@ from pymavlink import mavutil
 
 from uav_comm_planner.errors import VehicleLinkError, VehicleLinkLostError
 from uav_comm_planner.vehicle.geodesy import geodetic_to_enu, Home
+from uav_comm_planner.vehicle.limits import VehicleParameters
 from uav_comm_planner.vehicle.mavlink.battery import (battery_of, BatteryReport, EndRequest,
                                                       request_battery)
 from uav_comm_planner.vehicle.mavlink.guided import StreamEvent, TargetStream
@@ -157,7 +162,7 @@ class Wind:
 
 
 Event = (Position | MissionProgressReport | ModeReport | HomeReport | LinkEvent | Wind
-         | StreamEvent | BatteryReport)
+         | StreamEvent | BatteryReport | VehicleParameters)
 
 #: Heartbeat modes in which the vehicle flies its mission or the node's targets.
 MISSION_MODES = frozenset({'AUTO', 'GUIDED', 'MISSION', 'OFFBOARD'})
@@ -267,7 +272,7 @@ class VehicleBridge:
         while not self._stop.is_set():
             try:
                 link = connect(self.url, timeout_s=self._connect_timeout_s,
-                               should_stop=self._stop.is_set)
+                               should_stop=self._stop.is_set, parameters=self._on_event)
             except VehicleLinkError as exc:
                 if not down:            # said once, not at every retry
                     down = str(exc)
