@@ -34,6 +34,7 @@ import time
 import cvxpy as cp
 import numpy as np
 
+from uav_comm_planner.core.altitude_limits import AltitudeLimits, limits_of
 from uav_comm_planner.core.conic import CLARABEL_ATTEMPTS, solve_usable
 from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.model import (snr_scale, spectral_efficiencies,
@@ -62,39 +63,6 @@ _NEAR_RHO = np.geomspace(1e-4, 2.0, 20)
 _CHUNK = 32
 #: The golden-section search's steps over the range (its interval shrinks to 0.618^steps).
 SEARCH_STEPS = 16
-
-
-@dataclass(frozen=True)
-class AltitudeLimits:
-    """The altitudes a plan may use: ``range_m`` (lowest, highest) metres above the nodes,
-    and ``max_climb_mps``, the fastest climb or descent."""
-
-    range_m: tuple[float, float]
-    max_climb_mps: float = 2.5
-
-    def __post_init__(self) -> None:
-        if isinstance(self.range_m, (str, bytes)) or len(self.range_m) != 2:
-            raise InvalidScenarioError(
-                f'the altitude range must be a pair (lowest, highest) metres, got '
-                f'{self.range_m!r}')
-        low, high = (real_number('altitude range', v, 'metres') for v in self.range_m)
-        if not (math.isfinite(low) and math.isfinite(high) and 0.0 < low <= high):
-            raise InvalidScenarioError(
-                f'the altitude range must be finite with 0 < lowest <= highest, got '
-                f'({low:g}, {high:g}) m')
-        climb = real_number('max_climb_mps', self.max_climb_mps, 'm/s')
-        if not (math.isfinite(climb) and climb > 0.0):
-            raise InvalidScenarioError(f'max_climb_mps must be positive and finite, got '
-                                       f'{self.max_climb_mps!r}')
-        object.__setattr__(self, 'range_m', (low, high))
-        object.__setattr__(self, 'max_climb_mps', climb)
-
-    def holds(self, h: np.ndarray, slot_s: float, slack_m: float = 1e-6) -> bool:
-        """Whether altitudes h (M,) metres keep the range and the climb limit (to slack)."""
-        low, high = self.range_m
-        climbs = np.abs(np.diff(h))
-        return bool(h.min() >= low - slack_m and h.max() <= high + slack_m
-                    and (climbs.max(initial=0.0) <= self.max_climb_mps * slot_s + slack_m))
 
 
 def snr_per_watt_3d(q: np.ndarray, h: np.ndarray, scenario: Scenario) -> np.ndarray:
@@ -259,15 +227,24 @@ def best_fixed_altitude(scenario: Scenario, limits: AltitudeLimits,
     return best, plans[best]
 
 
-def plan_with_altitude(scenario: Scenario, limits: AltitudeLimits,
+def plan_with_altitude(scenario: Scenario, limits: AltitudeLimits | None = None,
                        settings: SolverSettings | None = None, *,
                        start_altitude_m: float | None = None) -> AltitudePlan:
     """Trajectory, altitudes and power (module docstring); ``scenario.altitude_m`` is not used.
-    Algorithm 1 starts from the plan at ``start_altitude_m`` (None: the best fixed altitude,
-    :func:`best_fixed_altitude`). Zones and an energy budget are not kept by the altitude
-    step: refused."""
+    ``limits`` None takes the scenario's own (``altitude_range_m``, ``max_climb_mps``); given,
+    they are the ones planned, and the result's scenario carries them, so that its JSON plans
+    the same again. Algorithm 1 starts from the plan at ``start_altitude_m`` (None: the best
+    fixed altitude, :func:`best_fixed_altitude`). Zones and an energy budget are not kept by
+    the altitude step: refused."""
+    if limits is None:
+        limits = limits_of(scenario)
+        if limits is None:
+            raise InvalidScenarioError('a plan with altitudes needs limits or a scenario with '
+                                       'altitude_range_m')
     if not isinstance(limits, AltitudeLimits):
         raise InvalidScenarioError(f'limits must be AltitudeLimits, got {type(limits).__name__}')
+    scenario = scenario.replace(altitude_range_m=limits.range_m,
+                                max_climb_mps=limits.max_climb_mps)
     if scenario.zones is not None or scenario.energy_budget_wh is not None:
         raise InvalidScenarioError('a plan with altitudes keeps the speed limits only: give no '
                                    'zones and no energy budget')

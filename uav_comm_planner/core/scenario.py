@@ -16,6 +16,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
+from uav_comm_planner.core.altitude_limits import check_scenario_altitudes
 from uav_comm_planner.core.channel import Channel, parse_channel
 from uav_comm_planner.core.numbers import real_number
 from uav_comm_planner.core.propulsion import Airframe
@@ -233,6 +234,10 @@ class Scenario:
     ``channel`` names the air-to-ground channel (:mod:`uav_comm_planner.core.channel`):
     'free-space' (the letter's), 'free-space:alpha=A', 'los:suburban', 'los:urban',
     'los:dense-urban', 'los:highrise-urban'; held as its canonical name.
+
+    ``altitude_range_m`` (MIN, MAX) makes altitude a variable within it for the plans with
+    altitudes (:mod:`uav_comm_planner.core.altitude`; :func:`plan` flies ``altitude_m``);
+    ``max_climb_mps`` their climb limit (None: the planner's default; needs the range).
     """
 
     ground_nodes_m: tuple[Point, ...]
@@ -253,6 +258,8 @@ class Scenario:
     airframe: Airframe | None = None
     energy_budget_wh: float | None = None
     channel: str = 'free-space'
+    altitude_range_m: tuple[float, float] | None = None
+    max_climb_mps: float | None = None
 
     def __post_init__(self) -> None:
         nodes = self.ground_nodes_m
@@ -278,6 +285,7 @@ class Scenario:
         object.__setattr__(self, 'noise_psd_dbm_per_hz', noise)
         object.__setattr__(self, 'num_slots', _count('num_slots', self.num_slots))
         object.__setattr__(self, 'channel', parse_channel(self.channel).name)
+        check_scenario_altitudes(self)
         _check_energy(self)
         _check_wind(self)
         _check_scales(self)

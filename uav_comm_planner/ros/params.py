@@ -503,6 +503,8 @@ NOT_PARAMETERS = {
     (Scenario, 'zones'): 'the zones come from fence_file, anchored at home',
     (Scenario, 'airframe'): 'named by the airframe parameter (a name or a file)',
     (Scenario, 'energy_budget_wh'): 'set from energy_budget_wh and battery_wh (the smaller)',
+    (Scenario, 'altitude_range_m'): 'the node flies one altitude, altitude_m',
+    (Scenario, 'max_climb_mps'): 'the node flies one altitude, altitude_m',
     (VehicleLimits, 'acceptance_radius_m'): "PX4's NAV_ACC_RAD: vehicle_params_file, the vehicle",
 }
 

@@ -12,6 +12,7 @@ import argparse
 from typing import Any
 
 from uav_comm_planner.core.altitude import AltitudeLimits, AltitudePlan, plan_with_altitude
+from uav_comm_planner.core.altitude_limits import DEFAULT_CLIMB_MPS, limits_of
 from uav_comm_planner.core.fading import Fading
 from uav_comm_planner.core.numbers import counted
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
@@ -25,9 +26,6 @@ from uav_comm_planner.vehicle.limits import VehicleLimits
 from uav_comm_planner.vehicle.mavlink.files import write_mission_file
 from uav_comm_planner.vehicle.mavlink.items import build_mission_items
 
-#: The climb rate without --climb-rate: ArduCopter's WPNAV_SPEED_UP default, 2.5 m/s; for a
-#: vehicle, its slower descent (WPNAV_SPEED_DN, 1.5 m/s).
-DEFAULT_CLIMB_MPS = 2.5
 #: Options a plan with altitudes does not combine with (flag, the attribute it sets).
 NOT_WITH_ALTITUDE = (('--fence', 'fence'), ('--figure', 'figure'),
                      ('--airframe', 'airframe'), ('--energy-budget-wh', 'energy_budget_wh'),
@@ -57,22 +55,44 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             f'{DEFAULT_CLIMB_MPS:g}); needs --altitude-range')
 
 
-def altitude_limits(args: argparse.Namespace, vehicle_aware: bool) -> AltitudeLimits | None:
-    """The limits the options ask for (None without --altitude-range); refuses (typed error)
-    --climb-rate alone and the options a plan with altitudes does not take. The climb rate
-    is, unless given, :data:`DEFAULT_CLIMB_MPS`, or for a ``vehicle_aware`` plan the vehicle's
-    slower vertical speed."""
-    if args.altitude_range is None:
-        if args.climb_rate is not None:
-            raise InvalidScenarioError('--climb-rate needs --altitude-range MIN,MAX')
+def scenario_changes(args: argparse.Namespace, base: Scenario) -> dict[str, Any]:
+    """The Scenario fields the altitude flags set over ``base`` (the case, or the scenario
+    file): each flag given wins over the file's field, as every scenario flag does. Refuses
+    --climb-rate with no range from either (typed error)."""
+    changes: dict[str, Any] = {}
+    if getattr(args, 'altitude_range', None) is not None:
+        changes['altitude_range_m'] = args.altitude_range
+    if getattr(args, 'climb_rate', None) is not None:
+        if 'altitude_range_m' not in changes and base.altitude_range_m is None:
+            raise InvalidScenarioError('--climb-rate needs --altitude-range MIN,MAX (or the '
+                                       'scenario field altitude_range_m)')
+        changes['max_climb_mps'] = args.climb_rate
+    return changes
+
+
+def refuse_altitudes(scenario: Scenario) -> None:
+    """Refuse (typed error) a scenario with altitudes where they are not planned: the
+    budget sweeps and the fleet keep one altitude."""
+    if scenario.altitude_range_m is not None:
+        raise InvalidScenarioError('altitude_range_m is planned by the plan command for one UAV '
+                                   'only: remove it (or --altitude-range) here')
+
+
+def altitude_limits(args: argparse.Namespace, vehicle_aware: bool,
+                    scenario: Scenario) -> AltitudeLimits | None:
+    """The limits ``scenario`` asks for (None without ``altitude_range_m``, from the scenario
+    file or --altitude-range); refuses (typed error) the options a plan with altitudes does
+    not take. The climb rate is, unless given (``max_climb_mps``, --climb-rate),
+    :data:`DEFAULT_CLIMB_MPS`, or for a ``vehicle_aware`` plan the vehicle's slower vertical
+    speed."""
+    if scenario.altitude_range_m is None:
         return None
     given = [flag for flag, name in NOT_WITH_ALTITUDE if getattr(args, name, None) is not None]
     if given:
-        raise InvalidScenarioError(f'--altitude-range does not combine with {given[0]}: a '
-                                   'plan with altitudes keeps the speed limits only')
-    default = ClimbLimits().slowest_mps if vehicle_aware else DEFAULT_CLIMB_MPS
-    climb = default if args.climb_rate is None else args.climb_rate
-    return AltitudeLimits(args.altitude_range, climb)
+        raise InvalidScenarioError(f'a plan with altitudes (--altitude-range, altitude_range_m) '
+                                   f'does not combine with {given[0]}: it keeps the speed '
+                                   'limits only')
+    return limits_of(scenario, ClimbLimits().slowest_mps if vehicle_aware else DEFAULT_CLIMB_MPS)
 
 
 def format_altitude_plan(result: AltitudePlan) -> str:
@@ -175,4 +195,4 @@ def flown_record(flown: AltitudeVehiclePlan) -> dict[str, Any]:
 
 
 __all__ = ['add_arguments', 'altitude_limits', 'altitude_record', 'DEFAULT_CLIMB_MPS',
-           'format_altitude_plan', 'run']
+           'format_altitude_plan', 'refuse_altitudes', 'run', 'scenario_changes']

@@ -151,9 +151,10 @@ def _scenario_data(args: argparse.Namespace) -> dict:
     return data
 
 
-def _scenario(args: argparse.Namespace, vehicle=None) -> Scenario:
+def _scenario(args: argparse.Namespace, vehicle=None, altitudes: bool = False) -> Scenario:
     """The scenario the flags describe; planned for ``vehicle`` (VehicleLimits) in wind, its
-    airspeed is the vehicle's (the airframe's less the gust margin)."""
+    airspeed is the vehicle's (the airframe's less the gust margin). Its altitude range (from
+    the file or the flags) is refused unless ``altitudes`` (the commands that plan it)."""
     if args.scenario is not None:
         data = _scenario_data(args)
         fields = data['scenario'] if isinstance(data.get('scenario'), dict) else data
@@ -182,7 +183,11 @@ def _scenario(args: argparse.Namespace, vehicle=None) -> Scenario:
         airspeed = None if vehicle is None else vehicle.airspeed_for_wind_mps(args.wind[0])
         if airspeed is not None:
             changes['max_airspeed_mps'] = airspeed
-    return base.replace(**changes) if changes else base
+    changes.update(altitude_cli.scenario_changes(args, base))
+    scenario = base.replace(**changes) if changes else base
+    if not altitudes:
+        altitude_cli.refuse_altitudes(scenario)
+    return scenario
 
 
 def _settings(args: argparse.Namespace) -> SolverSettings:
@@ -299,10 +304,11 @@ def _command_plan(args: argparse.Namespace) -> int:
     fleet_cli.check_not_fleet(args)
     _check_outputs(args.json, args.mission, figure=args.figure)
     fading = fading_cli.fading_from(args)
-    altitudes = altitude_cli.altitude_limits(args, _vehicle_asked(args))
+    vehicle = _vehicle_limits(args) if _vehicle_asked(args) else None
+    scenario = _scenario(args, vehicle, altitudes=True)
+    altitudes = altitude_cli.altitude_limits(args, vehicle is not None, scenario)
     if altitudes is not None:
-        vehicle = _vehicle_limits(args) if _vehicle_asked(args) else None
-        return altitude_cli.run(args, _scenario(args, vehicle), altitudes, _settings(args),
+        return altitude_cli.run(args, scenario, altitudes, _settings(args),
                                 lambda record: print(
                                     f'wrote {write_text_atomic(args.json, json_text(record))}'),
                                 fading, vehicle=vehicle,
