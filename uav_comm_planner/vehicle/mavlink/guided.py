@@ -299,7 +299,7 @@ class TargetStream(_ModeWatch):
         follow = modes.modes[modes.follow]
         elapsed = time_s - job.t0_s
         if reason is None and job.reference_s(elapsed) > job.reference.duration_s + SETTLE_S:
-            reason = 'the plan reached qF' + self._from_end(job)
+            reason = 'the plan reached qF' + _from_end(job, self.position_m)
         if reason is None and self._last_sent_s is not None \
                 and time_s - self._last_sent_s > STREAM_GAP_S:
             job, reason = self._catch_up(job, time_s, follow)
@@ -391,14 +391,6 @@ class TargetStream(_ModeWatch):
         self._emit(StreamEvent('caught up', message, job=caught, lost_s=self._last_sent_s))
         return caught, None
 
-    def _from_end(self, job: StreamJob) -> str:
-        """Where the vehicle is against the reference's end (qF), in words ('' before its
-        first position): a vehicle held back (a gale, a fault) is far from it."""
-        if self.position_m is None:
-            return ''
-        end = job.reference.state(job.reference.duration_s)[0][0]
-        return f', the vehicle {float(np.linalg.norm(self.position_m - end)):.1f} m from it'
-
     def _end(self, message: str, *, kind: str = 'stopped') -> None:
         with self._lock:
             self._job = None
@@ -409,6 +401,15 @@ class TargetStream(_ModeWatch):
     def _emit(self, event: StreamEvent) -> None:
         self.events.append(event)
         self._on_event(event)
+
+
+def _from_end(job: StreamJob, position_m: np.ndarray | None) -> str:
+    """Where the vehicle at ``position_m`` is against the reference's end (qF), in words (''
+    before its first position): a vehicle held back (a gale, a fault) is far from it."""
+    if position_m is None:
+        return ''
+    end = job.reference.state(job.reference.duration_s)[0][0]
+    return f', the vehicle {float(np.linalg.norm(position_m - end)):.1f} m from it'
 
 
 def send_target(link, job: StreamJob, elapsed_s: float, home: Home,
