@@ -106,8 +106,13 @@ def test_a_gale_is_refused_once_and_the_vehicle_ends_at_qf_or_holding(gale_fligh
                 f.link.mav.param_set_send(f.link.target_system, f.link.target_component,
                                           name.encode(), value, MAV.MAV_PARAM_TYPE_REAL32)
         assert len(progress.segments) <= steps + 1, f'a replan loop: {len(progress.segments)}'
-        mission_end = progress.segments[0].start_s + progress.mission.horizon_s
-        if not last and telemetry.now_s >= mission_end - progress.mission.slot_s:
+        # The last slot begins one slot before the plan in force's last slot time (the flight
+        # ends half a second after that time: the same clock as LinkedNode.fly's).
+        segment = progress.current
+        last_slot_s = (segment.slot_times_s(segment.num_slots)[-1] - progress.mission.slot_s
+                       if segment.start_s is not None and segment.first_slot
+                       + segment.num_slots == progress.mission.num_slots else math.inf)
+        if not last and telemetry.now_s >= last_slot_s:
             last.update(at=telemetry.now_s, uploads=node.vehicle.uploads_verified,
                         mission=progress.mission_id, requests=node.stats.requests_made)
     telemetry = f.fly(during)
