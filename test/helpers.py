@@ -296,3 +296,32 @@ def run_fuzz_target(module: str, argv: list[str]) -> int:
         return target.main(argv)
     finally:
         sys.path.remove(str(folder))
+
+
+def ros_arguments(given: dict[str, str], source: str, folder) -> list[str]:
+    """The node's ROS arguments for parameter texts ``given`` by name: ``-p name:=text`` when
+    ``source`` is 'command line', else a parameters file written in ``folder``."""
+    if source == 'command line':
+        return [part for name, text in given.items() for part in ('-p', f'{name}:={text}')]
+    params = folder / 'parameters.yaml'
+    params.write_text('uav_comm_planner:\n  ros__parameters:\n' + ''.join(
+        f'    {name}: {text}\n' for name, text in given.items()))
+    return ['--params-file', str(params)]
+
+
+def node_from_arguments(arguments: list[str]):
+    """A planner node made with ``arguments`` as its command line's ROS arguments (how the
+    executable gets -p and --params-file), in a context of its own: (context, node)."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    from uav_comm_planner.ros.node import PlannerNode
+
+    context = rclpy.Context()
+    rclpy.init(args=['planner', '--ros-args', *arguments], context=context,
+               signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        return context, PlannerNode(context=context)
+    except BaseException:
+        context.try_shutdown()
+        raise

@@ -12,8 +12,8 @@ import socket
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from fake_vehicle import FakeVehicle
-from helpers import (NODES_A, NODES_B, SLOW_FLEET, slow_fleet, SLOW_FLEET_STARTS,
-                     small_scenario)
+from helpers import (node_from_arguments, NODES_A, NODES_B, ros_arguments, SLOW_FLEET,
+                     slow_fleet, SLOW_FLEET_STARTS, small_scenario)
 from nav_msgs.msg import Path
 import numpy as np
 import pytest
@@ -274,33 +274,18 @@ def test_a_fleet_from_ros_arguments_takes_whole_numbers_and_empty_lists(tmp_path
     """``uav_starts_m:=[0, 0, 0, 250]`` (integers) and ``mavlink_urls:=[]`` (no value to rcl)
     are taken as the declared double and string arrays, on the command line and in a
     parameters file."""
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
-
     given = {'uavs': '2', 'uav_starts_m': '[0, 0, 0, 250]', 'uav_goals_m': '[1500, 0, 1500, 250]',
              'min_separation_m': '120', 'mavlink_urls': '[]',
              'ground_nodes': '[300, 200, 900, -150, 1500, 250]'}
-    if source == 'command line':
-        arguments = [part for name, text in given.items() for part in ('-p', f'{name}:={text}')]
-    else:
-        params = tmp_path / 'fleet.yaml'
-        params.write_text('uav_comm_planner:\n  ros__parameters:\n' + ''.join(
-            f'    {name}: {text}\n' for name, text in given.items()))
-        arguments = ['--params-file', str(params)]
-    context = rclpy.Context()
-    rclpy.init(args=['planner', '--ros-args', *arguments], context=context,
-               signal_handler_options=SignalHandlerOptions.NO)
-    node = None
+    context, node = node_from_arguments(ros_arguments(given, source, tmp_path))
     try:
-        node = PlannerNode(context=context)
         fleet = node.config.fleet
         assert fleet.starts_m == STARTS and fleet.goals_m == GOALS
         assert fleet.min_separation_m == SEPARATION_M and node.config.fleet_urls == ()
         assert node.get_parameter('mavlink_urls').type_ == Parameter.Type.STRING_ARRAY
         assert node.get_parameter('uav_starts_m').type_ == Parameter.Type.DOUBLE_ARRAY
     finally:
-        if node is not None:
-            node.destroy_node()
+        node.destroy_node()
         context.try_shutdown()
 
 

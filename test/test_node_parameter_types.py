@@ -10,30 +10,13 @@ from pathlib import Path
 import subprocess
 import sys
 
+from helpers import node_from_arguments, ros_arguments
 import pytest
 from rcl_interfaces.msg import ParameterType
 from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.parameter import Parameter
 
 from uav_comm_planner.ros.params import coerced_value, parameter_specs
-
-
-def _node_from_arguments(arguments: list[str]):
-    """A planner node made with ``arguments`` as its command line's ROS arguments (how the
-    executable gets -p and --params-file), in a context of its own."""
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
-
-    from uav_comm_planner.ros.node import PlannerNode
-
-    context = rclpy.Context()
-    rclpy.init(args=['planner', '--ros-args', *arguments], context=context,
-               signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        return context, PlannerNode(context=context)
-    except BaseException:
-        context.try_shutdown()
-        raise
 
 
 def _check_types(node) -> None:
@@ -51,14 +34,7 @@ def test_an_integer_for_a_double_and_a_whole_double_for_an_integer_are_taken(tmp
                                                                               source: str):
     given = {'power_budget_w': '2', 'num_slots': '100.0', 'goal_m': '[2000, 0]',
              'horizon_s': '400', 'vehicle_max_accel_mpss': '3', 'replan_interval_s': '15'}
-    if source == 'command line':
-        arguments = [part for name, text in given.items() for part in ('-p', f'{name}:={text}')]
-    else:
-        params = tmp_path / 'field.yaml'
-        params.write_text('uav_comm_planner:\n  ros__parameters:\n' + ''.join(
-            f'    {name}: {text}\n' for name, text in given.items()))
-        arguments = ['--params-file', str(params)]
-    context, node = _node_from_arguments(arguments)
+    context, node = node_from_arguments(ros_arguments(given, source, tmp_path))
     try:
         _check_types(node)
         config = node._binding.config
@@ -88,7 +64,7 @@ def test_an_integer_for_a_double_and_a_whole_double_for_an_integer_are_taken(tmp
 
 def test_a_number_of_the_wrong_kind_at_start_up_is_refused_by_name():
     with pytest.raises(InvalidParameterTypeException, match='num_slots'):
-        _node_from_arguments(['-p', 'num_slots:=12.5'])
+        node_from_arguments(['-p', 'num_slots:=12.5'])
 
 
 def test_coerced_value_converts_only_the_habitual_slips():
