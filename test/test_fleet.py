@@ -236,27 +236,34 @@ def test_without_separation_two_uavs_may_meet_and_the_coordinate_power_serves():
     assert result.min_throughput >= max(result.single_throughputs.values())
 
 
+def steps_of_both_solvers(fleet: FleetScenario, q: np.ndarray):
+    """One step from q by each solver: the data, and per solver z (K, M, 2) km and min_n of the
+    summed bounds (each UAV's bound rows evaluated here at its z)."""
+    p = joint_power(fleet_snr(q, fleet), fleet.scenario.power_budget_w).p
+    step = FleetStep(fleet)
+    data = step.data(q, p)
+    w = step.frames[0].nodes
+    answers = []
+    for solve in (step_clarabel, step_cvxpy):
+        z = solve(fleet, step.frames, step.rates, data)
+        answers.append((z, sum(rows.values(z_k, w) for rows, z_k in zip(data.rows, z)).min()))
+    start = sum(rows.values(step.frames[k].km(q[k]), w) for k, rows in enumerate(data.rows))
+    return step, data, answers, start.min()
+
+
 def test_the_clarabel_step_and_the_cvxpy_step_reach_the_same_bound():
     """One step from crossing-free straight lines, where the separation binds (300 m apart,
     one node between the lines): both solvers' answers give the same min_n of the summed
     bounds, computed here from each UAV's bound rows."""
     base = paper_scenario('I', ground_nodes_m=((1000.0, 250.0), (400.0, 100.0)))
     fleet = FleetScenario(base, ((0, 0), (0, 500)), ((2000, 0), (2000, 500)), 300.0)
-    q = straight_lines(fleet)
-    p = joint_power(fleet_snr(q, fleet), base.power_budget_w).p
-    step = FleetStep(fleet)
-    data = step.data(q, p)
-    w = step.frames[0].nodes
-    values = []
-    for solve in (step_clarabel, step_cvxpy):
-        z = solve(fleet, step.frames, step.rates, data)
-        values.append(sum(rows.values(z_k, w) for rows, z_k in zip(data.rows, z)).min())
+    _, data, answers, start = steps_of_both_solvers(fleet, straight_lines(fleet))
+    for z, _ in answers:
         assert np.linalg.norm(z[0] - z[1], axis=1).min() * 1000 >= 300.0
         slack = data.separation.slack(z)
         assert slack.min() > -1e-7 and slack.min() < 1e-6      # a separation row binds
+    values = [value for _, value in answers]
     assert values[0] == pytest.approx(values[1], rel=1e-6)
-    start = sum(rows.values(step.frames[k].km(q[k]), w)
-                for k, rows in enumerate(data.rows)).min()
     assert values[0] > start
 
 

@@ -4,16 +4,14 @@ clearance and the horizon energy recomputed outside the step's rows."""
 
 import numpy as np
 import pytest
-from test_fleet import check_plan
+from test_fleet import check_plan, steps_of_both_solvers
 
 from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
 from uav_comm_planner.core.fleet import FleetScenario, FleetSettings, plan_fleet
-from uav_comm_planner.core.fleet.model import fleet_snr
 from uav_comm_planner.core.fleet.planner import alternate
-from uav_comm_planner.core.fleet.power import joint_power
 from uav_comm_planner.core.fleet.shared_band import plan_shared_band
 from uav_comm_planner.core.fleet.starts import separate, straight_lines
-from uav_comm_planner.core.fleet.step import FleetStep, step_clarabel, step_cvxpy
+from uav_comm_planner.core.fleet.step import FleetStep
 from uav_comm_planner.core.model import flown_path
 from uav_comm_planner.core.optimizer import plan
 from uav_comm_planner.core.propulsion import ZENG2019
@@ -39,21 +37,6 @@ def energy_fleet(budget_wh: float | None) -> FleetScenario:
     """The letter's nodes over 100 s (the airframe's 30 m/s needs more than 50 s)."""
     base = paper_scenario('I', airframe=ZENG2019, horizon_s=100.0, energy_budget_wh=budget_wh)
     return FleetScenario(base, *ENDS, 100.0)
-
-
-def steps_of_both_solvers(fleet: FleetScenario, q: np.ndarray):
-    """One step from q by each solver: the data, and per solver z (K, M, 2) km and min_n of the
-    summed bounds (each UAV's bound rows evaluated here at its z)."""
-    p = joint_power(fleet_snr(q, fleet), fleet.scenario.power_budget_w).p
-    step = FleetStep(fleet)
-    data = step.data(q, p)
-    w = step.frames[0].nodes
-    answers = []
-    for solve in (step_clarabel, step_cvxpy):
-        z = solve(fleet, step.frames, step.rates, data)
-        answers.append((z, sum(rows.values(z_k, w) for rows, z_k in zip(data.rows, z)).min()))
-    start = sum(rows.values(step.frames[k].km(q[k]), w) for k, rows in enumerate(data.rows))
-    return step, data, answers, start.min()
 
 
 def blocks_of(step: FleetStep, data, kind: type):
