@@ -48,11 +48,6 @@ from uav_comm_planner.core.sca.surrogate import KM
 from uav_comm_planner.errors import SolverError
 
 STEP_METHODS = ('clarabel', 'cvxpy')
-#: Clarabel's options for the reference step, tried in turn until one gives a usable answer:
-#: the energy block's power cones in cvxpy's form can stall at the default iterations, and
-#: then at more (seen on the letter's nodes over 100 s with a binding budget, where a smaller
-#: static regularisation solves it).
-REFERENCE_ATTEMPTS = CLARABEL_ATTEMPTS
 
 
 def fleet_frames(fleet: FleetScenario) -> list[Frame]:
@@ -109,7 +104,7 @@ def step_cvxpy(fleet: FleetScenario, frames: list[Frame], rates: list[NodeRates]
     for (j, k), a, rhs in zip(fleet.pairs, data.separation.direction, data.separation.rhs):
         constraints.append(cp.sum(cp.multiply(a, z[j] - z[k]), axis=1) >= rhs)
     problem = cp.Problem(cp.Maximize(t), constraints)
-    solve_usable(problem, 'fleet trajectory step', attempts=REFERENCE_ATTEMPTS)
+    solve_usable(problem, 'fleet trajectory step', attempts=CLARABEL_ATTEMPTS)
     return np.stack([z_k.value for z_k in z])
 
 
@@ -266,5 +261,5 @@ class FleetStep:
         return q_new if keeps_separation(q_new, self.fleet) else None
 
 
-__all__ = ['fleet_frames', 'FleetStep', 'placed_block', 'REFERENCE_ATTEMPTS', 'step_clarabel',
+__all__ = ['fleet_frames', 'FleetStep', 'placed_block', 'step_clarabel',
            'step_cvxpy', 'STEP_METHODS', 'StepData', 'vehicle_blocks', 'vehicle_paths']
