@@ -311,4 +311,3 @@ def test_a_tour_flown_with_any_split_is_its_legs_then_its_hovers(seed):
             np.testing.assert_array_equal(q, fly_legs(scenario, tour, lambda *_: hovers))
             assert q.shape == (scenario.num_slots, 2)
     assert tour_legs(scenario, orders[0])[2][0] == 0     # its first stretch has no leg
-
