@@ -197,8 +197,8 @@ def tangent_pairs(corners: np.ndarray, back: np.ndarray, ahead: np.ndarray,
     ``ahead``: unit directions) lie on one side of the line, or within
     :data:`TANGENT_SLACK` of it. A shortest path round the zones bends only where it wraps
     round a zone, and there both its segments are tangent (Lee's reduced visibility graph):
-    the other pairs need no visibility test. A corner not ``alone`` (another zone near it) is taken as tangent to
-    every line."""
+    the other pairs need no visibility test. A corner not ``alone`` (another zone near it) is
+    taken as tangent to every line."""
     first = np.arange(len(corners))[rows]
     direction = corners[None, :] - corners[first, None]            # (R, K, 2)
     tolerance = TANGENT_SLACK * np.hypot(direction[..., 0], direction[..., 1])
