@@ -62,7 +62,6 @@ def test_the_smoothing_is_the_exponential_filter_and_gives_the_scenarios_terms()
         WindEstimate(0.0)
 
 
-
 def test_a_sample_after_a_lost_link_weighs_as_one_after_a_telemetry_gap_not_the_whole_gap():
     """A link down for 24 s of autopilot time: no estimate heard is no evidence of the wind,
     so the first sample after it (one gust of a turbulent wind) weighs as one TRACK_GAP_S
