@@ -225,3 +225,37 @@ def test_px4s_acceptance_radius_is_read_from_its_parameter_file_and_times_its_le
         math.sqrt(0.5 * 3.0 * 6.0 * math.tan(math.pi / 4)))
     with pytest.raises(InvalidScenarioError, match='NAV_ACC_RAD'):
         replace(PX4, acceptance_radius_m=0.0)
+
+
+def test_px4s_turn_gain_and_largest_tracking_error_are_read_and_time_its_legs(tmp_path):
+    from dataclasses import replace
+
+    from uav_comm_planner.errors import InvalidScenarioError
+    from uav_comm_planner.mission.request import vehicle_limits
+
+    params = tmp_path / 'px4.params'
+    params.write_text('1\t1\tMPC_XY_TRAJ_P\t1.0\t9\n1\t1\tMPC_XY_ERR_MAX\t0.5\t9\n')
+    limits = vehicle_limits(parameter_file=params, firmware='px4')
+    assert (limits.turn_gain, limits.max_position_error_m) == (1.0, 0.5)
+    assert px4_timing.timed_limits(PX4) == replace(PX4, acceptance_radius_m=2.0, turn_gain=0.5,
+                                                   max_position_error_m=2.0)
+    # The cruise along a straight leg: V (1 - TRACKING_LAG_S V / MPC_XY_ERR_MAX), the trajectory's
+    # clock slowed by the lag's share of the largest error.
+    line = np.array([[0.0, 0.0], [500.0, 0.0]])
+    for most_error in (None, 0.5, 0.1):
+        profile = px4_profile(line, 5.0, replace(PX4, max_position_error_m=most_error))
+        cruise = np.diff(profile.distance(np.array([40.0, 60.0])))[0] / 20.0
+        assert cruise == pytest.approx(
+            5.0 * (1.0 - TRACKING_LAG_S * 5.0 / (most_error or MAX_POSITION_ERROR_M)), rel=1e-6)
+    # A 30 degree bend, its corner speed sqrt(P A R tan(75 deg)) below the cruise at P = 0.5
+    # (3.35 m/s) and less so at P = 1 (4.73 m/s): flown sooner with the larger gain.
+    bend = np.array([[0.0, 0.0], [200.0, 0.0],
+                     [200.0 + 200.0 * math.cos(math.pi / 6), 200.0 * math.sin(math.pi / 6)]])
+    assert corner_speed(5 * math.pi / 6, 3.0, 2.0, 0.5) < corner_speed(5 * math.pi / 6, 3.0,
+                                                                       2.0, 1.0) < 5.0
+    assert (px4_profile(bend, 5.0, replace(PX4, turn_gain=1.0)).duration_s
+            < px4_profile(bend, 5.0, PX4).duration_s)
+    with pytest.raises(InvalidScenarioError, match='MPC_XY_TRAJ_P'):
+        replace(PX4, turn_gain=0.0)
+    with pytest.raises(InvalidScenarioError, match='MPC_XY_ERR_MAX'):
+        replace(PX4, max_position_error_m=float('nan'))

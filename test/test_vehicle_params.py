@@ -167,7 +167,8 @@ def test_px4_integer_parameters_are_decoded_bytewise():
         assert struct.pack('<f', shown) == struct.pack('<f', single)
     assert shortest_float32(math.inf) == math.inf and math.isnan(shortest_float32(math.nan))
     reader = ParameterRead(MAV.MAV_AUTOPILOT_PX4)
-    assert reader.names == ('MPC_XY_CRUISE', 'MPC_ACC_HOR', 'MPC_JERK_AUTO', 'NAV_ACC_RAD')
+    assert reader.names == ('MPC_XY_CRUISE', 'MPC_ACC_HOR', 'MPC_JERK_AUTO', 'NAV_ACC_RAD',
+                            'MPC_XY_TRAJ_P', 'MPC_XY_ERR_MAX')
 
 
 def test_a_connection_reads_the_vehicles_parameters_over_tcp_with_retries():

@@ -506,6 +506,9 @@ NOT_PARAMETERS = {
     (Scenario, 'altitude_range_m'): 'the node flies one altitude, altitude_m',
     (Scenario, 'max_climb_mps'): 'the node flies one altitude, altitude_m',
     (VehicleLimits, 'acceptance_radius_m'): "PX4's NAV_ACC_RAD: vehicle_params_file, the vehicle",
+    (VehicleLimits, 'turn_gain'): "PX4's MPC_XY_TRAJ_P: vehicle_params_file, the vehicle",
+    (VehicleLimits, 'max_position_error_m'): "PX4's MPC_XY_ERR_MAX: vehicle_params_file, the "
+                                             'vehicle',
 }
 
 

@@ -23,7 +23,6 @@ again at each accepted parameter change
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Protocol
 
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -34,7 +33,7 @@ from uav_comm_planner.ros.binding import ParameterBinding
 from uav_comm_planner.ros.params import PlannerConfig, PREFIXES
 from uav_comm_planner.vehicle.firmware import FIRMWARES
 from uav_comm_planner.vehicle.limits import VehicleLimits, VehicleParameters
-from uav_comm_planner.vehicle.px4_timing import ACCEPTANCE_RADIUS_M
+from uav_comm_planner.vehicle.px4_timing import timed_limits
 
 #: The name of the vehicle's parameters as a request (planner_status) and a reason to replan.
 SOURCE = 'vehicle parameters'
@@ -53,13 +52,6 @@ class ParameterHost(Protocol):
     def get_logger(self): ...
 
     def refuse(self, request: str, message: str, *, nodes: str | None = None) -> None: ...
-
-
-def timed_limits(limits: VehicleLimits) -> VehicleLimits:
-    """``limits`` as a plan is timed with them: PX4's acceptance radius unset is its default."""
-    if limits.acceptance_radius_m is None:
-        return replace(limits, acceptance_radius_m=ACCEPTANCE_RADIUS_M)
-    return limits
 
 
 class VehicleParameterWatch:

@@ -118,7 +118,9 @@ FIRMWARES = {
         parameters={'MPC_XY_CRUISE': ('max_speed_mps', 1.0),
                     'MPC_ACC_HOR': ('max_accel_mpss', 1.0),
                     'MPC_JERK_AUTO': ('max_jerk_mpsss', 1.0),
-                    'NAV_ACC_RAD': ('acceptance_radius_m', 1.0)},
+                    'NAV_ACC_RAD': ('acceptance_radius_m', 1.0),
+                    'MPC_XY_TRAJ_P': ('turn_gain', 1.0),
+                    'MPC_XY_ERR_MAX': ('max_position_error_m', 1.0)},
         # PX4 v1.16's MPC_XY_CRUISE, MPC_ACC_HOR and MPC_JERK_AUTO defaults.
         timing='px4', default_limits={'max_speed_mps': 5.0, 'max_accel_mpss': 3.0,
                                       'max_jerk_mpsss': 4.0},

@@ -32,6 +32,9 @@ LIMIT_RANGES = {
     'max_jerk_mpsss': (0.01, 10000.0),
     'jerk_time_s': (0.01, 10.0),
 }
+#: PX4's turn gain and largest tracking error, with the ranges PX4's parameter table gives them.
+PX4_SHAPE_RANGES = (('turn_gain', 'MPC_XY_TRAJ_P', (0.1, 1.0)),
+                    ('max_position_error_m', 'MPC_XY_ERR_MAX', (0.1, 10.0)))
 #: A vehicle slower than this to reach its cruise speed from rest is refused (seconds).
 MAX_RAMP_S = 3600.0
 
@@ -52,7 +55,11 @@ class VehicleLimits:
     (:attr:`airspeed_mps`);
     acceptance_radius_m: PX4's waypoint acceptance radius (NAV_ACC_RAD, metres), as the
     vehicle's parameter file gives it; None: PX4's default (2 m). ArduCopter's legs are timed
-    to rest and do not use it.
+    to rest and do not use it;
+    turn_gain: PX4's MPC_XY_TRAJ_P, the share of the acceleration a fly-through turn is flown
+    with; None: PX4's default (0.5);
+    max_position_error_m: PX4's MPC_XY_ERR_MAX (metres), the lag behind its trajectory at which
+    PX4 stops the trajectory's clock; None: PX4's default (2 m).
     """
 
     max_speed_mps: float = 10.0
@@ -62,6 +69,8 @@ class VehicleLimits:
     jerk_time_s: float = 0.3
     gust_margin_mps: float = 1.0
     acceptance_radius_m: float | None = None
+    turn_gain: float | None = None
+    max_position_error_m: float | None = None
 
     def __post_init__(self) -> None:
         for name in ('max_speed_mps', 'max_accel_mpss', 'max_jerk_mpsss'):
@@ -95,6 +104,13 @@ class VehicleLimits:
                                    or not 0.05 <= radius <= 200.0):
             raise InvalidScenarioError(f'vehicle acceptance_radius_m (NAV_ACC_RAD) must be in '
                                        f'[0.05, 200] m, got {radius!r}')
+        for name, parameter, (low, high) in PX4_SHAPE_RANGES:
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool)
+                                      or not isinstance(value, (int, float))
+                                      or not low <= value <= high):
+                raise InvalidScenarioError(f'vehicle {name} ({parameter}) must be in '
+                                           f'[{low:g}, {high:g}], got {value!r}')
         ramp_s = self.ramp_s
         if ramp_s > MAX_RAMP_S:
             raise InvalidScenarioError(

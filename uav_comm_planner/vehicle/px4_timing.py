@@ -40,7 +40,7 @@ does not fix are fitted to flights on PX4 v1.16 SITL (SIH quadrotor), named wher
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 import math
 
@@ -175,16 +175,21 @@ class SampledProfile:
 def px4_profile(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -> SampledProfile:
     """PX4's flight along ``vertices`` (V, 2) from rest to rest at cruise ``speed_mps``, fly-
     through waypoints at the inner vertices (module docstring), with the vehicle's acceptance
-    radius (``limits.acceptance_radius_m``, else :data:`ACCEPTANCE_RADIUS_M`)."""
+    radius, turn gain and largest tracking error (``limits``; PX4's defaults
+    :data:`ACCEPTANCE_RADIUS_M`, :data:`TRAJECTORY_GAIN`, :data:`MAX_POSITION_ERROR_M` where
+    they are None)."""
     return _simulate(*_key(vertices, speed_mps, limits))
 
 
 def _key(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -> tuple:
     """A leg's simulation by what it depends on (cached)."""
     vertices = np.asarray(vertices, dtype=float)
-    radius = acceptance_radius(limits)
+    shape = (acceptance_radius(limits),
+             TRAJECTORY_GAIN if limits.turn_gain is None else float(limits.turn_gain),
+             MAX_POSITION_ERROR_M if limits.max_position_error_m is None
+             else float(limits.max_position_error_m))
     return (vertices.round(6).tobytes(), len(vertices), round(float(speed_mps), 6),
-            float(limits.max_accel_mpss), float(limits.max_jerk_mpsss), radius)
+            float(limits.max_accel_mpss), float(limits.max_jerk_mpsss), shape)
 
 
 def acceptance_radius(limits: VehicleLimits) -> float:
@@ -192,6 +197,14 @@ def acceptance_radius(limits: VehicleLimits) -> float:
     :data:`ACCEPTANCE_RADIUS_M`."""
     return (ACCEPTANCE_RADIUS_M if limits.acceptance_radius_m is None
             else float(limits.acceptance_radius_m))
+
+
+def timed_limits(limits: VehicleLimits) -> VehicleLimits:
+    """``limits`` as a plan is timed with them: PX4's acceptance radius, turn gain and largest
+    tracking error where they are unset (None) given PX4's defaults."""
+    _, _, _, _, _, (radius, gain, most_error) = _key(np.zeros((1, 2)), 0.0, limits)
+    return replace(limits, acceptance_radius_m=radius, turn_gain=gain,
+                   max_position_error_m=most_error)
 
 
 def shortest_leg_m(limits: VehicleLimits) -> float:
@@ -202,24 +215,27 @@ def shortest_leg_m(limits: VehicleLimits) -> float:
 
 @lru_cache(maxsize=4096)
 def _simulate(vertex_bytes: bytes, count: int, speed: float, accel: float,
-              jerk: float, radius: float) -> SampledProfile:
-    return _flown(vertex_bytes, count, speed, accel, jerk, radius)
+              jerk: float, shape: tuple[float, float, float]) -> SampledProfile:
+    return _flown(vertex_bytes, count, speed, accel, jerk, shape)
 
 
 @lru_cache(maxsize=4096)
 def _reach_time(vertex_bytes: bytes, count: int, speed: float, accel: float,
-                jerk: float, radius: float) -> float:
+                jerk: float, shape: tuple[float, float, float]) -> float:
     """:attr:`SampledProfile.hold_start_s` of the leg, its simulation ended there (the
     vehicle's last metres to rest, a slow exponential approach, are most of a leg's steps and
     do not move it)."""
-    return _flown(vertex_bytes, count, speed, accel, jerk, radius, until_reached=True)
+    return _flown(vertex_bytes, count, speed, accel, jerk, shape, until_reached=True)
 
 
 def _flown(vertex_bytes: bytes, count: int, speed: float, accel: float, jerk: float,
-           radius: float, until_reached: bool = False) -> SampledProfile | float:
-    """The simulation of :func:`px4_profile` with acceptance radius ``radius`` (m); with
+           shape: tuple[float, float, float],
+           until_reached: bool = False) -> SampledProfile | float:
+    """The simulation of :func:`px4_profile` with ``shape``: the acceptance radius (m), the
+    turn gain (MPC_XY_TRAJ_P) and the largest tracking error (MPC_XY_ERR_MAX, m); with
     ``until_reached`` only up to the entry into the last vertex's acceptance radius, and only
     that time."""
+    radius, gain, most_error = shape
     vertices = np.frombuffer(vertex_bytes).reshape(count, 2)
     steps = np.diff(vertices, axis=0)
     lengths = np.linalg.norm(steps, axis=1)
@@ -240,7 +256,7 @@ def _flown(vertex_bytes: bytes, count: int, speed: float, accel: float, jerk: fl
         interior = math.acos(float(np.clip(-units[k] @ units[k + 1], -1.0, 1.0)))
         after = stopping_speed(float(lengths[k + 1]), 0.0, accel, jerk)
         if lengths[k + 1] > radius:
-            ends[k] = min(corner_speed(interior, accel, radius), after, speed)
+            ends[k] = min(corner_speed(interior, accel, radius, gain), after, speed)
     # The segment braked for from segment k on: the first turn PX4 cannot fly at the cruise,
     # or the last segment (the stop).
     last = len(lengths) - 1
@@ -253,7 +269,7 @@ def _flown(vertex_bytes: bytes, count: int, speed: float, accel: float, jerk: fl
     # stopping_speed's terms, and the names the loop reads, bound once.
     b_squared, eight_accel = b * b, 8.0 * accel
     end_terms = [4.0 * end * end for end in ends]
-    sqrt, lag, most_error, step = math.sqrt, TRACKING_LAG_S, MAX_POSITION_ERROR_M, _velocity_step
+    sqrt, lag, step = math.sqrt, TRACKING_LAG_S, _velocity_step
     times, distances = [0.0], [0.0]
     t = s = v = a = 0.0               # the trajectory: along-track distance, speed, accel
     x = u = 0.0                       # the vehicle following it
@@ -336,4 +352,4 @@ def px4_speed_for_time(vertices: np.ndarray, duration_s: float, max_speed_mps: f
 
 __all__ = ['ACCEPTANCE_RADIUS_M', 'HOVER_WANDER_M', 'SampledProfile', 'acceptance_radius',
            'corner_speed', 'px4_leg_time', 'px4_profile', 'px4_reach_time', 'px4_speed_for_time',
-           'shortest_leg_m', 'stopping_speed']
+           'shortest_leg_m', 'stopping_speed', 'timed_limits']
