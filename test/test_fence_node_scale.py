@@ -10,12 +10,12 @@ import json
 import threading
 import time
 
-from devtools.zone_probes import star, STAR_CENTRES
 from helpers import DEADLINE_S, NODES_B
 import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 
+from devtools.zone_probes import star, STAR_CENTRES
 from uav_comm_planner import plan
 from uav_comm_planner.core.zones import KeepOutPolygon, MAX_TOTAL_VERTICES, Zones
 from uav_comm_planner.errors import InvalidScenarioError
