@@ -26,28 +26,38 @@ def static_point(scenario: Scenario) -> np.ndarray:
 
 
 def nearest_neighbour_order(start: np.ndarray, w: np.ndarray) -> list[int]:
-    """Visit order of the nodes w (N, 2): always the closest unvisited node next."""
+    """Visit order of the nodes w (N, 2): always the closest unvisited node next (the first
+    of equal distances). One pass of N distances per node: O(N^2) in NumPy, O(N) memory."""
+    w = np.asarray(w, dtype=float)
+    visited = np.zeros(len(w), dtype=bool)
     order: list[int] = []
-    here = start
-    left = list(range(len(w)))
-    while left:
-        nearest = min(left, key=lambda i: float(np.linalg.norm(w[i] - here)))
+    here = np.asarray(start, dtype=float)
+    for _ in range(len(w)):
+        distance = np.where(visited, np.inf, np.linalg.norm(w - here, axis=1))
+        nearest = int(np.argmin(distance))
         order.append(nearest)
-        left.remove(nearest)
+        visited[nearest] = True
         here = w[nearest]
     return order
 
 
+#: The most nodes :func:`two_opt` improves a tour of: its tables are (N + 2)^2 (8 MB each at
+#: this bound, 0.8 GB at 10 000 nodes) and each move costs as much; a longer tour is kept as
+#: it was given.
+TWO_OPT_MAX_NODES = 1000
+
+
 def two_opt(start: np.ndarray, goal: np.ndarray, w: np.ndarray,
             order: list[int]) -> list[int]:
-    """Improve the open path start -> w[order] -> goal by 2-opt moves (endpoints fixed).
+    """Improve the open path start -> w[order] -> goal by 2-opt moves (endpoints fixed); a
+    path of more than :data:`TWO_OPT_MAX_NODES` nodes is returned as given.
 
     Reversing the stretch i..j replaces the edges (i-1, i) and (j, j+1) by (i-1, j) and
     (i, j+1); moves are made while one shortens the path by more than round-off.
     """
     order = list(order)
     n = len(order)
-    if n < 2:
+    if n < 2 or n > TWO_OPT_MAX_NODES:
         return order
     # Distances between the points start (0), w (1..N) and goal (N + 1), computed once.
     points = np.vstack([start, w, goal])
