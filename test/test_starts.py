@@ -313,7 +313,6 @@ def test_a_tour_flown_with_any_split_is_its_legs_then_its_hovers(seed):
     assert tour_legs(scenario, orders[0])[2][0] == 0     # its first stretch has no leg
 
 
-
 def test_the_nearest_neighbour_order_is_the_closest_unvisited_node_each_time():
     """Against the rule written out in Python, with ties (repeated nodes: the first of equal
     distances)."""
