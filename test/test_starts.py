@@ -350,3 +350,36 @@ def test_two_opt_of_a_tour_past_its_bound_is_the_tour_given_without_its_tables()
     small = w[:TWO_OPT_MAX_NODES // 10]
     improved = two_opt(np.zeros(2), np.ones(2), small, list(range(len(small))))
     assert improved != list(range(len(small)))
+
+
+def drop_one_by_one(scenario, order):
+    """The tour's nodes left out as the rule says, the whole tour worked out at every drop: the
+    node whose detour costs most (the first of equal ones) until it fits M + 1 legs."""
+    from uav_comm_planner.core.initial import _legs_needed
+
+    start, goal = np.asarray(scenario.start_m), np.asarray(scenario.goal_m)
+    order = list(order)
+    while order:
+        points = np.vstack([start, scenario.nodes[order], goal])
+        if _legs_needed(points, scenario).sum() <= scenario.num_slots + 1:
+            break
+        detour = (np.linalg.norm(points[1:-1] - points[:-2], axis=1)
+                  + np.linalg.norm(points[2:] - points[1:-1], axis=1)
+                  - np.linalg.norm(points[2:] - points[:-2], axis=1))
+        del order[int(np.argmax(detour))]
+    return order
+
+
+@pytest.mark.parametrize('seed', range(8))
+def test_the_nodes_left_out_of_a_tour_are_those_of_the_one_by_one_rule(seed):
+    rng = np.random.default_rng(seed)
+    nodes = rng.uniform(-500.0, 2500.0, size=(int(rng.integers(2, 120)), 2))
+    scenario = paper_scenario('I', ground_nodes_m=[tuple(p) for p in nodes],
+                              num_slots=int(rng.integers(5, 60)), horizon_s=200.0,
+                              max_speed_mps=20.0,
+                              wind_speed_mps=float(rng.choice([0.0, 6.0])), wind_from_deg=70.0)
+    order = [int(i) for i in rng.permutation(scenario.num_nodes)]
+    kept = tour_legs(scenario, order)[0]
+    assert kept == drop_one_by_one(scenario, order)
+    if len(order) > scenario.num_slots + 1:     # more nodes than legs: some are left out
+        assert len(kept) < len(order)
