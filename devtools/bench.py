@@ -41,6 +41,7 @@ from typing import Callable, Sequence, TextIO
 import numpy as np
 from scipy.special import betaincinv
 
+from devtools.energy_bench import energy_table
 from devtools.fleet_bench import fleet_table
 from devtools.flights import flight_cases, fly_case, format_flights
 from devtools.replans import (format_replan_drops, format_replans, measure_replan_drops,
@@ -476,6 +477,8 @@ def run(quick: bool = False, out: TextIO | None = None, *, flights: bool = True,
     section('Fleets: K = 1, 2, 3 UAVs planned jointly over one drop (orthogonal channels, '
             'd_min = 100 m; devtools/fleet_bench.py), one plan each',
             fleet_table(quick))
+    section('Energy: one drop planned with the airframe zeng2019, without and within an energy '
+            'budget (devtools/energy_bench.py), one plan each', energy_table(quick))
     cases, max_slots = (3, 80) if quick else (QUALITY_DROPS, 199)
     drops = (f'random drops: N 3-20, M 51-{max_slots}, slots 0.5-2 s, V 20-100 m/s; best known: '
              'the best of the default, the letter and 20 other random tours run to '

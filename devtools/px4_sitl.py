@@ -224,7 +224,7 @@ def start_mission(link) -> None:
         time.sleep(0.5)
     heard = f'; PX4 said: {" | ".join(said[-5:])}' if said else ''
     raise TakeoffError(f'PX4 did not take off in AUTO.MISSION within '
-                           f'{READY_TIMEOUT_S:g} s{heard}')
+                       f'{READY_TIMEOUT_S:g} s{heard}')
 
 
 def _took_off(link, deadline: float, said: list[str]) -> bool:

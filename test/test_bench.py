@@ -58,6 +58,17 @@ def test_every_section_is_printed(output):
         assert f'\n== {title}' in output
     assert output.count('\n== Scaling:') == 2
     assert output.count('\n== Speed:') == 2
+    assert output.count('\n== Energy:') == 1
+
+
+def test_the_energy_table_keeps_the_budget_it_states(output):
+    # The budgeted plan within its budget, below the free plan's energy, and within 5 % of its
+    # throughput.
+    rows = section(output, 'Energy:')[2:]
+    free, kept = ([float(value) for value in row.split()[-3:]] for row in rows)
+    budget = float(rows[1].split()[1])
+    assert kept[2] <= budget + 1e-2 < free[2]
+    assert kept[1] >= 0.95 * free[1]
     assert '\n== Flown:' not in output
 
 

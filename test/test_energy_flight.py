@@ -40,7 +40,7 @@ CASES = {
     'still air, six nodes (seed 7)': (held_out(7), {}),
     'told a 5 m/s wind, six nodes (seed 8)': (
         held_out(8, 400.0).replace(wind_speed_mps=WIND['SIM_WIND_SPD'],
-                            wind_from_deg=WIND['SIM_WIND_DIR']), WIND),
+                                   wind_from_deg=WIND['SIM_WIND_DIR']), WIND),
 }
 
 

@@ -181,3 +181,25 @@ def test_the_power_never_sums_above_the_budget_not_even_by_an_ulp():
         result = plan(random_scenario(seed, nodes=4, slots=30),
                       SolverSettings(compute_baselines=False))
         assert result.power.sum() <= result.scenario.power_budget_w
+
+
+def test_a_stack_of_power_steps_is_each_step_alone_and_its_shape_is_checked():
+    # Stacks of one shape, from problems where the closed form applies (high SNR, large
+    # budget) and where it does not (many slots without power), mixed in one stack.
+    from uav_comm_planner.core.power import waterfilling_powers
+
+    rng = np.random.default_rng(7)
+    for budget in (0.05, 1.0, 30.0):
+        stack = np.stack([10.0 ** rng.uniform(low, low + 1.0, size=(4, 25))
+                          for low in (-1.0, 2.0, 4.0, 0.0, 5.0)])
+        together = waterfilling_powers(stack, budget)
+        assert len(together) == len(stack)
+        for a, allocation in zip(stack, together):
+            alone = waterfilling_power(a, budget)
+            np.testing.assert_allclose(allocation.p, alone.p, rtol=1e-9, atol=1e-15 * budget)
+            assert allocation.efficiency == pytest.approx(alone.efficiency, rel=1e-12)
+            assert allocation.p.sum() <= budget
+    with pytest.raises(SolverError):
+        waterfilling_powers(np.ones((3, 4)), 1.0)
+    with pytest.raises(SolverError):
+        waterfilling_powers(-np.ones((2, 3, 4)), 1.0)

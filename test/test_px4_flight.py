@@ -16,7 +16,8 @@ for the letter's case I at 5 and at 10 m/s and for a random scenario of six node
 
 A mission PX4 refuses is reported by ``uav-comm-planner upload`` as one error line naming the
 item (instance 7). The held-out five-node case (instance 8) was drawn for this test and never
-used to fit PX4's leg timing: its median within a quarter of a slot. The figures are printed for the record (``pytest -s``).
+used to fit PX4's leg timing: its median within a quarter of a slot. The figures are printed
+for the record (``pytest -s``).
 """
 
 from __future__ import annotations

@@ -118,6 +118,33 @@ def test_a_px4_schedule_counts_each_hold_from_the_acceptance_radius():
     assert schedule.arrival_s <= end_s + 0.25 * result.scenario.slot_s
 
 
+@pytest.mark.parametrize('step_m', [2.2, 2.9])
+def test_a_stop_within_reach_of_the_one_before_is_one_stop_for_px4(step_m):
+    # Hover 40 s, 300 m in 60 s, hover 40 s, a step of step_m, hover 40 s, 300 m in 60 s: the
+    # hovers are runs of their own (the step beyond the 2 m that merges points), but PX4 may
+    # report the second reached while holding at the first (within NAV_ACC_RAD plus the
+    # vehicle's wander): one stop, its hold the two hovers and the step. ArduCopter flies the
+    # step.
+    from test_flyable import straight_pieces
+
+    result = straight_pieces(((0.0, 0.0), 20), ((300.0, 0.0), 30), ((0.0, 0.0), 20),
+                             ((0.0, step_m), 1), ((0.0, 0.0), 20), ((300.0, 0.0), 30))
+    ardupilot = schedule_flight(result, VehicleLimits(), firmware='ardupilot')
+    px4 = schedule_flight(result, PX4, firmware='px4')
+    assert len(ardupilot.stops) == 4
+    assert len(px4.stops) == 3
+    assert px4_timing.shortest_leg_m(PX4) == ACCEPTANCE_RADIUS_M + px4_timing.HOVER_WANDER_M
+    middle = px4.stops[1].position_m
+    assert 300.0 - 1e-9 <= middle[0] <= 300.0 + 1e-9 and 0.0 <= middle[1] <= step_m
+    # Timed as the same plan with no step at all: one hover of 82 s.
+    still = schedule_flight(straight_pieces(((0.0, 0.0), 20), ((300.0, 0.0), 30),
+                                            ((0.0, 0.0), 41), ((300.0, step_m), 30)),
+                            PX4, firmware='px4')
+    assert [leg.start_s for leg in px4.legs] == pytest.approx(
+        [leg.start_s for leg in still.legs], abs=0.2)
+    assert px4.arrival_s == pytest.approx(still.arrival_s, abs=0.2)
+
+
 def test_the_ardupilot_model_is_the_scurve_with_its_latency():
     model = LEG_MODELS['scurve']
     vertices = np.array([[0.0, 0.0], [120.0, 50.0], [400.0, 60.0]])

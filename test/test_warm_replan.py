@@ -275,10 +275,10 @@ def test_the_vehicle_ladder_tries_the_wider_search_unless_a_close_slower_plan_fl
 
 
 def test_the_vehicle_ladder_takes_the_plan_in_force_kept_where_it_flies_close():
-    """With the plan in force as a source (WARM_REPLAN): where the vehicle cannot fly the warm plan at a speed, the plan
-    in force flown on is tried first at that speed and taken when it delivers, as flown, within
-    WIDER_SEARCH_GAIN of what the warm plan stated; otherwise the ladder goes on and the kept
-    plan is one of those the best flown is chosen from."""
+    """With the plan in force as a source (WARM_REPLAN): where the vehicle cannot fly the warm
+    plan at a speed, the plan in force flown on is tried first at that speed and taken when it
+    delivers, as flown, within WIDER_SEARCH_GAIN of what the warm plan stated; otherwise the
+    ladder goes on and the kept plan is one of those the best flown is chosen from."""
     slow = VehicleLimits(max_accel_mpss=0.5)
     calls = []
     speeds = []

@@ -62,6 +62,29 @@ def test_the_smoothing_is_the_exponential_filter_and_gives_the_scenarios_terms()
         WindEstimate(0.0)
 
 
+def test_a_sample_after_a_lost_link_weighs_as_one_after_a_telemetry_gap_not_the_whole_gap():
+    """A link down for 24 s of autopilot time: no estimate heard is no evidence of the wind,
+    so the first sample after it (one gust of a turbulent wind) weighs as one TRACK_GAP_S
+    after the last, not as 24 s of wind (1 - exp(-2.4) = 0.91 of the weight at tau 10 s)."""
+    from uav_comm_planner.mission.progress import TRACK_GAP_S
+
+    tau = 10.0
+    estimate = WindEstimate(time_constant_s=tau)
+    for t in np.arange(0, 121) * 0.25:                  # 4 Hz for 30 s: 6 m/s from the east
+        estimate.add(float(t), -6.0, 0.0)
+    before = estimate.velocity_mps
+    estimate.add(30.0 + 24.0, -7.0, 0.0)                # the first sample after the gap
+    expected = before[0] + (1 - math.exp(-TRACK_GAP_S / tau)) * (-7.0 - before[0])
+    print(f'after the gap: {estimate.velocity_mps[0]:.4f} m/s east (the whole gap would give '
+          f'{before[0] + (1 - math.exp(-24.0 / tau)) * (-7.0 - before[0]):.4f})')
+    assert estimate.velocity_mps[0] == pytest.approx(expected, rel=1e-12)
+    assert estimate.speed_mps < 6.2
+    # Steps within a telemetry gap are the exponential filter unchanged.
+    estimate.add(54.0 + TRACK_GAP_S, -6.0, 0.0)
+    assert estimate.velocity_mps[0] == pytest.approx(
+        expected + (1 - math.exp(-TRACK_GAP_S / tau)) * (-6.0 - expected), rel=1e-12)
+
+
 class RecordingLink:
     """What a TargetStream sends, recorded: targets, mode changes, current items."""
 
@@ -290,7 +313,9 @@ def test_the_node_plans_for_the_wind_measured_publishes_it_and_keeps_its_paramet
     h.spin_until(lambda: winds and winds[-1].vector.x < -5.9, 'wind_estimate')
     assert winds[-1].header.frame_id == 'map' and abs(winds[-1].vector.y) < 1e-9
     # A wind the vehicle cannot fly in is refused, once; the plan in force stays.
-    tracker.add(1000.0, -150.0, 0.0)                    # (smoothed over 1000 s: all of it)
+    # After 1000 s of silence a sample weighs as one a telemetry gap later (0.095 of it at
+    # tau 20 s): the estimate about 148 m/s.
+    tracker.add(1000.0, -1500.0, 0.0)
     h.spin_until(lambda: any('wind estimate refused' in line for line in h.error_logs),
                  'refusal of the wind')
     assert h.node.stats.plans_published == 2 and tracker.replans == 1

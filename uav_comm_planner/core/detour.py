@@ -195,10 +195,10 @@ def tangent_pairs(corners: np.ndarray, back: np.ndarray, ahead: np.ndarray,
     """The corner pairs (i, j), i in ``rows`` and j > i, whose line is tangent at both corners
     to the polygon of corners round each one's zone: its neighbours there (``back``,
     ``ahead``: unit directions) lie on one side of the line, or within
-    :data:`TANGENT_SLACK` of it. A shortest path round the zones bends only where it wraps round a zone, and there
-    both its segments are tangent (Lee's reduced visibility graph): the other pairs need no
-    visibility test. A corner not ``alone`` (another zone near it) is taken as tangent to
-    every line."""
+    :data:`TANGENT_SLACK` of it. A shortest path round the zones bends only where it wraps
+    round a zone, and there both its segments are tangent (Lee's reduced visibility graph):
+    the other pairs need no visibility test. A corner not ``alone`` (another zone near it) is
+    taken as tangent to every line."""
     first = np.arange(len(corners))[rows]
     direction = corners[None, :] - corners[first, None]            # (R, K, 2)
     tolerance = TANGENT_SLACK * np.hypot(direction[..., 0], direction[..., 1])

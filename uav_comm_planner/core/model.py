@@ -79,12 +79,13 @@ def spectral_efficiency_to_rate(bits_per_use: np.ndarray, scenario: Scenario) ->
 
 def spectral_efficiencies(a: np.ndarray, p: np.ndarray,
                           offsets: np.ndarray | None = None) -> np.ndarray:
-    """o_n + mean_m log2(1 + p_n[m] a_n[m]): (N,) bits per channel use, for a and p (N, M).
+    """o_n + mean_m log2(1 + p_n[m] a_n[m]): (N,) bits per channel use, for a and p (N, M)
+    (or (..., N) for a stack of them, (..., N, M)).
 
     ``offsets`` o (N,) bits per use are the data a node already holds (the receding horizon,
     :mod:`uav_comm_planner.core.receding`); without them o = 0, the letter's rates.
     """
-    bits = np.log1p(np.asarray(p, dtype=float) * a).sum(axis=1) / (LN2 * a.shape[1])
+    bits = np.log1p(np.asarray(p, dtype=float) * a).sum(axis=-1) / (LN2 * a.shape[-1])
     return bits if offsets is None else bits + offsets
 
 

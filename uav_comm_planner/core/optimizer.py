@@ -17,7 +17,7 @@ from uav_comm_planner.core.feasibility import project_onto_speed_limit
 from uav_comm_planner.core.model import (average_rates, best_snr_per_watt, flown_path, LN2,
                                          snr_per_watt, spectral_efficiencies,
                                          spectral_efficiency_to_rate)
-from uav_comm_planner.core.power import checked_offsets, waterfilling_power
+from uav_comm_planner.core.power import checked_offsets, waterfilling_power, waterfilling_powers
 from uav_comm_planner.core.sca.block import BlockFactory
 from uav_comm_planner.core.sca.program import no_start_error, start_filter
 from uav_comm_planner.core.sca.reference import trajectory_step_cvxpy
@@ -426,12 +426,12 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
             check_stop()
             return waterfilling_power(a, scenario.power_budget_w, **extra).efficiency
 
-        def screened(q: np.ndarray) -> Run:      # what alternate() gives with one power step
-            check_stop()
-            allocation = power_solver(snr_per_watt(q, scenario), scenario.power_budget_w,
-                                      **extra)
-            value = float(spectral_efficiency_to_rate(allocation.efficiency, scenario))
-            return Run(q, allocation.p, (Step('power', value),), 1, 0, False)
+        def screened(qs: Mapping[str, np.ndarray]) -> dict[str, Run]:
+            check_stop()         # what alternate() gives with one power step, for each q
+            allocations = _power_steps(scenario, list(qs.values()), power_solver, offsets)
+            return {name: Run(q, allocation.p, (Step('power', float(
+                spectral_efficiency_to_rate(allocation.efficiency, scenario))),), 1, 0, False)
+                for (name, q), allocation in zip(qs.items(), allocations)}
         runs = search.screened_runs(
             scenario, {name: start.make for name, start in starts.items()},
             {name for name, start in starts.items() if start is STARTS['straight']},
@@ -461,6 +461,20 @@ def _best_plan(scenario: Scenario, settings: SolverSettings, power_method: str,
         solve_time_s=time.perf_counter() - began, start=best,
         upper_bound=(throughput_upper_bound(scenario) if offsets is None else math.inf),
         start_throughputs=values, offsets=offsets)
+
+
+def _power_steps(scenario: Scenario, trajectories: Sequence[np.ndarray],
+                 power_solver: PowerSolver, offsets: np.ndarray | None) -> list:
+    """The power step on each trajectory (M, 2) metres: the allocations, in order; the
+    water-filling step of the letter's problem for all at once (:func:`~uav_comm_planner.
+    core.power.waterfilling_powers`)."""
+    if power_solver is not waterfilling_power or offsets is not None or not trajectories:
+        return [power_solver(snr_per_watt(q, scenario), scenario.power_budget_w,
+                             **_offset_keywords(offsets)) for q in trajectories]
+    a = snr_per_watt(np.concatenate(trajectories), scenario)          # (N, K M)
+    stacked = a.reshape(scenario.num_nodes, len(trajectories), scenario.num_slots)
+    return waterfilling_powers(np.ascontiguousarray(stacked.transpose(1, 0, 2)),
+                               scenario.power_budget_w)
 
 
 def plan_along(scenario: Scenario, q: np.ndarray, settings: SolverSettings | None = None, *,

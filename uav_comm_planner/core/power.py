@@ -171,10 +171,17 @@ def _levels_if_all_active(a: np.ndarray, inv_a: np.ndarray,
     when every slot is then active, mu_n >= 1/a_n[m]; otherwise None. The usual case at high
     SNR, where it spares the sort and Newton's method.
     """
-    mean_log = np.log2(a).sum(axis=1) / a.shape[1]
-    inverse_g = np.exp2(mean_log.min() - mean_log)        # G_min / G_n, in (0, 1]
-    mu = (power_budget_w + inv_a.sum()) / (a.shape[1] * inverse_g.sum()) * inverse_g
+    mu = _all_active_levels(a, inv_a, power_budget_w)
     return mu if (mu * a.min(axis=1)).min() >= 1.0 else None
+
+
+def _all_active_levels(a: np.ndarray, inv_a: np.ndarray, power_budget_w: float) -> np.ndarray:
+    """The levels mu (..., N) of :func:`_levels_if_all_active` for a (..., N, M) (one
+    problem or a stack of them), whether or not every slot is then active."""
+    mean_log = np.log2(a).sum(axis=-1) / a.shape[-1]
+    inverse_g = np.exp2(mean_log.min(axis=-1, keepdims=True) - mean_log)  # G_min / G_n
+    total = power_budget_w + inv_a.sum(axis=(-2, -1))
+    return (total / (a.shape[-1] * inverse_g.sum(axis=-1)))[..., None] * inverse_g
 
 
 def _newton_target(a: np.ndarray, power_budget_w: float) -> tuple[_WaterLevels, float]:
@@ -285,6 +292,27 @@ def waterfilling_power(a: np.ndarray, power_budget_w: float, *,
     p = mu[:, None] - inv_a
     np.maximum(p, 0.0, out=p)
     return _within_budget(p, a, power_budget_w, offsets)
+
+
+def waterfilling_powers(a: np.ndarray, power_budget_w: float) -> list[PowerAllocation]:
+    """:func:`waterfilling_power` (no offsets) for a stack of problems a (K, N, M): the
+    closed form worked out for all K at once, the one-at-a-time step only for those where it
+    does not apply; for screening many trajectories, where the step's fixed cost per call
+    is most of its cost."""
+    a = np.asarray(a, dtype=float)
+    if a.ndim != 3 or a.size == 0 or not (a.min() > 0.0 and a.max() < math.inf):
+        raise SolverError('water-filling needs finite, positive SNR-per-watt arrays (K, N, M)')
+    inv_a = 1.0 / a
+    mu = _all_active_levels(a, inv_a, power_budget_w)
+    closed = (((mu * a.min(axis=-1)).min(axis=-1) >= 1.0)
+              & (power_budget_w >= _CLOSED_FORM_LEAST_SHARE * inv_a.sum(axis=(-2, -1))))
+    p = mu[..., None] - inv_a
+    np.maximum(p, 0.0, out=p)
+    within = p.sum(axis=(-2, -1)) <= power_budget_w
+    efficiency = spectral_efficiencies(a, p).min(axis=-1)
+    return [(PowerAllocation(p=p[k], efficiency=float(efficiency[k])) if within[k] else
+             _within_budget(p[k], a[k], power_budget_w)) if closed[k] else
+            waterfilling_power(a[k], power_budget_w) for k in range(len(a))]
 
 
 def power_dual_bound(a: np.ndarray, power_budget_w: float, weights: np.ndarray, nu: float, *,

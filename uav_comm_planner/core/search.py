@@ -62,14 +62,16 @@ def joined(first: Run, *later: Run) -> Run:
 def screened_runs(scenario: Scenario, starts: Mapping[str, Callable[[Scenario], np.ndarray]],
                   letter: set[str], letter_settings: SolverSettings, settings: SolverSettings,
                   run_from: Callable[..., Run], trajectory_solver: TrajectorySolver,
-                  draws: Mapping[str, tuple], screened: Callable[[np.ndarray], Run],
+                  draws: Mapping[str, tuple],
+                  screened: Callable[[Mapping[str, np.ndarray]], dict[str, Run]],
                   value_of: Callable[[np.ndarray], float],
                   closed_form: float | None = None) -> dict[str, Run]:
     """Runs from every start (by name, the function that makes its trajectory), screened: the
     ``letter`` start runs the letter's Algorithm 1 exactly (``letter_settings``), every other
     start is screened by one power step on it;
-    a tour of ``draws`` by ``screened`` (the same power step without the checks a tour
-    needs not: it is flown within the speed limit and out of the zones). The best
+    the tours of ``draws`` by ``screened`` (the same power step on every tour by name, all at
+    once, without the checks a tour needs not: it is flown within the speed limit and out of
+    the zones). The best
     :data:`RESPLIT` tours by it get their hover split searched (:func:`.splits.resplit`, each
     split valued by ``value_of``, the efficiency of one power step on its SNR per watt, or
     in closed form with ``closed_form``, the budget P_T, where that applies), each tour with
@@ -86,15 +88,16 @@ def screened_runs(scenario: Scenario, starts: Mapping[str, Callable[[Scenario], 
     """
     runs: dict[str, Run] = {}
     screen = dataclasses.replace(settings, max_outer_iterations=1)
+    # The tours, flown within the speed limit and out of the zones, screened all at once.
+    tours = screened({name: make(scenario) for name, make in starts.items() if name in draws})
     for name, make in starts.items():
-        q = make(scenario)
         if name in letter:
             trajectory_solver.set_tolerance(None)
-            runs[name] = run_from(q, letter_settings)
-        elif name in draws:     # a tour, flown within the speed limit and out of the zones
-            runs[name] = screened(q)
+            runs[name] = run_from(make(scenario), letter_settings)
+        elif name in draws:
+            runs[name] = tours[name]
         else:
-            runs[name] = run_from(q, screen, sca_steps=0)
+            runs[name] = run_from(make(scenario), screen, sca_steps=0)
     done = search(scenario, runs, letter, settings, run_from, trajectory_solver, draws, value_of,
                   closed_form)
     for name in letter:

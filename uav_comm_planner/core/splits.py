@@ -32,31 +32,47 @@ from uav_comm_planner.core.scenario import Scenario
 MIN_GAIN = 1e-9
 
 
-def searched_split(hovers: np.ndarray,
-                   value_of: Callable[[np.ndarray], float]) -> tuple[np.ndarray, float]:
+def searched_split(hovers: np.ndarray, value_of: Callable[[np.ndarray], float], *,
+                   values_of: Callable[[np.ndarray], np.ndarray] | None = None
+                   ) -> tuple[np.ndarray, float]:
     """The split (integers, one per stop in tour order) reached from ``hovers`` by moves of
-    slots to a neighbouring stop that raise ``value_of`` (module docstring), and its value."""
+    slots to a neighbouring stop that raise ``value_of`` (module docstring), and its value.
+    ``values_of``, if given, values every move of one round at once (splits (K, stops) to
+    values (K,)), as ``value_of`` would each."""
     best = np.asarray(hovers, dtype=int).copy()
     value = value_of(best)
     stops = len(best)
     step = max(1, int(best.sum()) // 8)
     while step >= 1 and stops >= 2:
         while True:
-            moves = []
-            for giver in np.flatnonzero(best >= step):
-                for taker in (giver - 1, giver + 1):
-                    if 0 <= taker < stops:
-                        moved = best.copy()
-                        moved[giver] -= step
-                        moved[taker] += step
-                        moves.append(moved)
-            values = [value_of(moved) for moved in moves]
-            if not values or max(values) <= value + MIN_GAIN * abs(value):
+            moves = _moves(best, step)
+            if not len(moves):
                 break
+            values = (values_of(moves) if values_of is not None else
+                      np.array([value_of(moved) for moved in moves]))
             k = int(np.argmax(values))
-            best, value = moves[k], values[k]
+            if values[k] <= value + MIN_GAIN * abs(value):
+                break
+            best, value = moves[k], float(values[k])
         step //= 2
     return best, value
+
+
+def _moves(split: np.ndarray, step: int) -> np.ndarray:
+    """Every split one move of ``step`` slots from a stop to the stop before or after it
+    makes from ``split``, (K, stops), in the order: givers in tour order, the stop before
+    first."""
+    stops = len(split)
+    givers = np.flatnonzero(split >= step)
+    givers = np.repeat(givers, 2)
+    takers = givers + np.tile([-1, 1], len(givers) // 2)
+    inside = (takers >= 0) & (takers < stops)
+    givers, takers = givers[inside], takers[inside]
+    moves = np.repeat(split[None, :], len(givers), axis=0)
+    rows = np.arange(len(givers))
+    moves[rows, givers] -= step
+    moves[rows, takers] += step
+    return moves
 
 
 def _all_active(log_sum: np.ndarray, inverse_sum: float, least: np.ndarray, slots: int,
@@ -70,15 +86,23 @@ def _all_active(log_sum: np.ndarray, inverse_sum: float, least: np.ndarray, slot
     all n, and the budget gives mu_n = (P_T + sum 1/a) / (M sum_k G_min / G_k) G_min / G_n
     (G_n the geometric mean of a_n, :func:`~uav_comm_planner.core.power.waterfilling_power`);
     the slots are all active when mu_n min_m a_n[m] >= 1."""
-    if power_budget_w < 1e-3 * inverse_sum:
-        return None
-    mean_log = log_sum / slots
-    lowest = float(mean_log.min())
-    inverse_g = np.exp2(lowest - mean_log)
-    level = (power_budget_w + inverse_sum) / (slots * float(inverse_g.sum()))
-    if float((level * inverse_g * least).min()) < 1.0:
-        return None
-    return math.log2(level) + lowest
+    bits = float(_all_active_rows(np.asarray(log_sum)[None, :], np.array([inverse_sum]), least,
+                                  slots, power_budget_w)[0])
+    return None if math.isnan(bits) else bits
+
+
+def _all_active_rows(log_sums: np.ndarray, inverse_sums: np.ndarray, least: np.ndarray,
+                     slots: int, power_budget_w: float) -> np.ndarray:
+    """:func:`_all_active` for K splits at once (log sums (K, N), inverse sums (K,)): the
+    efficiencies (K,), NaN where the closed form does not apply."""
+    mean_log = log_sums / slots
+    lowest = mean_log.min(axis=1)
+    inverse_g = np.exp2(lowest[:, None] - mean_log)
+    level = (power_budget_w + inverse_sums) / (slots * inverse_g.sum(axis=1))
+    applies = (((level[:, None] * inverse_g * least).min(axis=1) >= 1.0)
+               & (power_budget_w >= 1e-3 * inverse_sums))
+    with np.errstate(invalid='ignore', divide='ignore'):
+        return np.where(applies, np.log2(level) + lowest, np.nan)
 
 
 def resplit(scenario: Scenario, draw: tuple, value_of: Callable[[np.ndarray], float], *,
@@ -105,18 +129,21 @@ def resplit(scenario: Scenario, draw: tuple, value_of: Callable[[np.ndarray], fl
     def value_of_a(split: np.ndarray) -> float:
         return value_of(a_rows[:, flier.slot_rows(split)])
 
-    value_of_split = (value_of_a if power_budget_w is None else
-                      _closed_form(flier, a_rows, hovers, scenario.num_slots, power_budget_w,
-                                   value_of_a))
-    split, _ = searched_split(hovers, value_of_split)
+    if power_budget_w is None:
+        split, _ = searched_split(hovers, value_of_a)
+    else:
+        values_of = _closed_form(flier, a_rows, hovers, scenario.num_slots, power_budget_w,
+                                 value_of_a)
+        split, _ = searched_split(hovers, lambda one: float(values_of(one[None, :])[0]),
+                                  values_of=values_of)
     return None if np.array_equal(split, hovers) else flier(split)
 
 
 def _closed_form(flier: TourFlier, a_rows: np.ndarray, hovers: np.ndarray, num_slots: int,
                  power_budget_w: float, value_of_a: Callable[[np.ndarray], float]
-                 ) -> Callable[[np.ndarray], float]:
-    """A split's value by water-filling's closed form where every slot is active, else by
-    ``value_of_a`` (:func:`resplit`)."""
+                 ) -> Callable[[np.ndarray], np.ndarray]:
+    """The values (K,) of K splits (K, stops), each by water-filling's closed form where
+    every slot is active, else by ``value_of_a`` (:func:`resplit`)."""
     a_base = a_rows[:, flier.slot_rows(np.zeros_like(hovers))]
     a_stops = a_rows[:, flier.picked[flier.hover_at[:-1]]]        # (N, stops)
     log_base, log_stops = np.log2(a_base).sum(axis=1), np.log2(a_stops)
@@ -125,13 +152,15 @@ def _closed_form(flier: TourFlier, a_rows: np.ndarray, hovers: np.ndarray, num_s
     # holds (a stop is the last point of the leg to it, to round-off).
     least = np.minimum(a_base.min(axis=1, initial=np.inf), a_stops.min(axis=1))
 
-    def value_of_split(split: np.ndarray) -> float:
-        bits = _all_active(log_base + log_stops @ split,
-                           inverse_base + float(inverse_stops @ split), least,
-                           num_slots, power_budget_w)
-        return value_of_a(split) if bits is None else bits
+    def values_of_splits(splits: np.ndarray) -> np.ndarray:
+        values = _all_active_rows(log_base + splits @ log_stops.T,
+                                  inverse_base + splits @ inverse_stops, least,
+                                  num_slots, power_budget_w)
+        for k in np.flatnonzero(np.isnan(values)):
+            values[k] = value_of_a(splits[k])
+        return values
 
-    return value_of_split
+    return values_of_splits
 
 
 __all__ = ['MIN_GAIN', 'resplit', 'searched_split']

@@ -3,7 +3,9 @@
 Autopilots estimate the wind from their own motion (ArduPilot's WIND message, PX4's WIND_COV)
 several times a second, noisy and gusty. :class:`WindEstimate` smooths the air's velocity w
 (east, north, m/s: where the air moves to) exponentially in the autopilot's time,
-w <- w + (1 - exp(-dt / tau)) (sample - w), and gives it in the scenario's terms
+w <- w + (1 - exp(-dt / tau)) (sample - w), dt at most a telemetry gap (``TRACK_GAP_S``:
+a link down for 24 s is no evidence of the wind, and its first sample after, one gust of a
+turbulent wind, would take 0.91 of the weight at tau 10 s), and gives it in the scenario's terms
 (``wind_speed_mps``, ``wind_from_deg``: the direction it blows from, clockwise from north).
 A plan made for a wind w_p is out of date when the estimate is farther than a threshold from
 w_p (:meth:`WindEstimate.differs_from`).
@@ -17,6 +19,7 @@ import numpy as np
 
 from uav_comm_planner.core.scenario import Scenario
 from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.mission.progress import TRACK_GAP_S
 
 
 class WindEstimate:
@@ -53,7 +56,8 @@ class WindEstimate:
                 self._velocity = sample
             self._time_s = time_s
             return
-        weight = 1.0 - math.exp(-(time_s - self._time_s) / self.time_constant_s)
+        step_s = min(time_s - self._time_s, TRACK_GAP_S)     # a silence is no evidence
+        weight = 1.0 - math.exp(-step_s / self.time_constant_s)
         self._velocity = self._velocity + weight * (sample - self._velocity)
         self._time_s = time_s
 

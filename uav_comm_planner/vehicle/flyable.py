@@ -9,7 +9,8 @@ the autopilot keeps:
    a slot, and at least as long as a stop costs (V / A + A / J + tj and the leg latency, 7.5 s at
    ArduCopter's defaults), are hovers: the vehicle stops there; a shorter hover is flown
    through slowly. q0 and qF are stops, and so is a turn sharper
-   than ``MAX_TURN_DEG``, which the autopilot would cut.
+   than ``MAX_TURN_DEG``, which the autopilot would cut. Stops closer together than the
+   firmware flies a leg (PX4: its acceptance radius and a metre) are one.
 2. **Legs.** The points between two stops become one leg, simplified to as few fly-through
    waypoints as keep it within ``path_tolerance_m`` of the plan (a turn of a few degrees costs
    no time), none closer than the distance the vehicle needs to reach its speed, since
@@ -154,6 +155,22 @@ def _stop_runs(points: np.ndarray, slot_s: float, merge_radius_m: float,
     return stops
 
 
+def _one_stop_when_close(points: np.ndarray, runs: list[tuple[int, int]],
+                         shortest_m: float) -> list[tuple[int, int]]:
+    """``runs`` with every stop closer than ``shortest_m`` to the one before it merged into
+    that one (the leg between them dropped, the run spanning both: q0 and qF stay where they
+    are)."""
+    merged = [runs[0]]
+    for run in runs[1:]:
+        before = merged[-1]
+        here = points[_stop_index(points, *before)]
+        if np.linalg.norm(points[_stop_index(points, *run)] - here) < shortest_m:
+            merged[-1] = (before[0], run[1])
+        else:
+            merged.append(run)
+    return merged
+
+
 def _quantise(hold_s: float, resolution_s: float) -> float:
     return round(max(hold_s, 0.0) / resolution_s) * resolution_s
 
@@ -182,6 +199,7 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     resolution = FIRMWARES[firmware].hold_resolution_s
 
     model = leg_model(firmware)
+    runs = _one_stop_when_close(points, runs, model.shortest_leg_m(limits))
     stop_indices = [_stop_index(points, first, last) for first, last in runs]
     positions = [points[index].copy() for index in stop_indices]
     heights = _point_heights(altitudes, len(points))

@@ -19,7 +19,8 @@ import numpy as np
 
 from uav_comm_planner.vehicle.firmware import firmware_named
 from uav_comm_planner.vehicle.limits import VehicleLimits
-from uav_comm_planner.vehicle.px4_timing import px4_profile, px4_speed_for_time, START_DELAY_S
+from uav_comm_planner.vehicle.px4_timing import (px4_profile, px4_speed_for_time,
+                                                 shortest_leg_m, START_DELAY_S)
 from uav_comm_planner.vehicle.timing import LEG_LATENCY_S, Profile, speed_for_time
 
 #: A stop holds at least this long once the vehicle is at rest: with no hold the autopilot
@@ -55,7 +56,9 @@ class LegModel:
     after_timed_s: from the end of ``timed_s`` until the hold at the leg's end starts counting
     and the autopilot reports the waypoint reached (:meth:`reached_s`);
     per_vertex: whether the leg's inner vertices change its time (PX4 slows at each turn;
-    ArduCopter's S-curve spans the whole polyline).
+    ArduCopter's S-curve spans the whole polyline);
+    shortest_leg_m(limits): stops closer together than this are one (PX4 may report the next
+    reached before it flies there; ArduCopter flies any leg).
     """
 
     profile: Callable[[np.ndarray, float, VehicleLimits], LegProfile]
@@ -64,6 +67,7 @@ class LegModel:
     start_delay_s: float
     after_timed_s: float
     per_vertex: bool
+    shortest_leg_m: Callable[[VehicleLimits], float] = lambda limits: 0.0
 
     def reached_s(self, profile: LegProfile) -> float:
         """When, after the motion starts, the hold at the leg's end starts counting."""
@@ -96,7 +100,7 @@ LEG_MODELS = {
     'scurve': LegModel(_scurve_profile, lambda profile: profile.duration_s, _scurve_speed,
                        LEG_LATENCY_S / 2, LEG_LATENCY_S / 2, False),
     'px4': LegModel(px4_profile, lambda profile: profile.hold_start_s, px4_speed_for_time,
-                    START_DELAY_S, 0.0, True),
+                    START_DELAY_S, 0.0, True, shortest_leg_m),
 }
 
 
