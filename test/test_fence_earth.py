@@ -18,8 +18,7 @@ from uav_comm_planner.errors import FenceFileError
 from uav_comm_planner.mission.pipeline import plan_mission
 from uav_comm_planner.mission.request import MissionRequest
 from uav_comm_planner.vehicle import fence as fence_module
-from uav_comm_planner.vehicle.fence import (EDGE_CHORD_TOLERANCE_M, MAX_FENCE_DISTANCE_M,
-                                            read_fence, read_zones)
+from uav_comm_planner.vehicle.fence import MAX_FENCE_DISTANCE_M, read_fence, read_zones
 from uav_comm_planner.vehicle.geodesy import (enu_to_geodetic, geodetic_to_enu,
                                               geodetic_to_plane, Home)
 from uav_comm_planner.vehicle.limits import VehicleLimits
@@ -181,17 +180,19 @@ def test_the_margin_is_kept_from_the_edge_the_autopilot_draws(tmp_path):
     zones, planned = plan_against_the_north_edge(tmp_path)
     trajectory = np.asarray(planned.result.trajectory)
     clearance = north_clearance_as_ardupilot_draws_it(trajectory)
-    # The plan reaches the margin (the test is about the edge), and keeps it there, to the
-    # edge's cut tolerance and ArduPilot's spherical metres per degree (0.1 %).
+    # The plan reaches the margin (the test is about the edge), and keeps it there: each cut
+    # piece's chord is within a millimetre of the edge, the solver's cushion is a millimetre
+    # (a cut tolerance of 1 cm left points 6 mm inside the margin).
     assert clearance.min() < 6.0
-    assert clearance.min() >= 5.0 - EDGE_CHORD_TOLERANCE_M - 0.01
+    assert clearance.min() >= 5.0 - 1e-4
     rows = [item for item in planned.items[Q0_SEQ:] if item.command == NAV_WAYPOINT]
     latitudes = np.array([item.x for item in rows])
-    assert ((NORTH_EDGE_DEG - latitudes) * ARDUPILOT_M_PER_DEG).min() >= 4.98
-    # The field's long edges were cut into 37 pieces each, at points on their parallels; its
+    # To the mission's 1e-8 degree (1.1 mm).
+    assert ((NORTH_EDGE_DEG - latitudes) * ARDUPILOT_M_PER_DEG).min() >= 5.0 - 0.0006
+    # The field's long edges were cut into 115 pieces each, at points on their parallels; its
     # short ones (meridians, straight in the frame) not.
     vertices = zones.area.vertices_m
-    assert len(vertices) == 4 + 2 * 36
+    assert len(vertices) == 4 + 2 * 114
     latitude, _, _ = enu_to_geodetic(vertices[:, 0], vertices[:, 1], 0.0, FIELD_HOME)
     on_parallel = np.minimum(abs(latitude - 46.99), abs(latitude - NORTH_EDGE_DEG))
     assert on_parallel.max() < 1e-10
@@ -243,3 +244,16 @@ def test_an_edge_across_the_antimeridian_is_refused_as_the_autopilots_draw_it_th
     beside = [[-0.02, 179.95], [-0.02, 179.999], [0.02, 179.999], [0.02, 179.95]]
     zones = read_zones(plan_fence_file(tmp_path / 'beside.plan', [(True, beside)]), home)
     assert zones.area is not None
+
+
+def test_a_vertex_given_twice_in_a_row_is_refused_with_its_place(tmp_path):
+    """Its edge has no length: it was refused as "crosses itself: edges 2 and 7 meet" (the
+    numbering of the cut pieces), or would be written back without it if dropped."""
+    triangle = [[47.40, 8.56], [47.40, 8.56], [47.41, 8.57], [47.40, 8.57]]
+    path = plan_fence_file(tmp_path / 'twice.plan', [(False, triangle)])
+    with pytest.raises(FenceFileError, match=r'polygons\[0\].polygon: vertices 0 and 1 are the '
+                                             r'same place \(47.4, 8.56\): remove one'):
+        read_zones(path, ZURICH)
+    # The closing repeat of a ring is no repeat.
+    closed = plan_fence_file(tmp_path / 'closed.plan', [(False, triangle[1:] + triangle[1:2])])
+    assert len(read_zones(closed, ZURICH).keep_out) == 1

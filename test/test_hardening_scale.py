@@ -143,3 +143,29 @@ def test_a_short_seeded_run_of_the_parameter_design_and_table_fuzzer_finds_nothi
     assert '0 failures' in out
     for kind in ('parameters', 'design', 'table'):
         assert re.search(rf'{kind} +refused +\d+', out), out
+
+
+def test_a_path_with_more_corners_than_slots_asks_for_slots_without_a_warning():
+    """Four stars' path has 33 corners, each a slot point: 20 slots cannot fly it whatever the
+    horizon (the advice was a horizon of 1.8e308 s, after an overflow warning)."""
+    import warnings
+
+    from devtools.zone_probes import zones_of
+
+    from uav_comm_planner import plan
+    from uav_comm_planner.errors import InfeasibleHorizonError
+
+    scenario = dataclasses.replace(paper_scenario('I'), zones=zones_of('four-stars'),
+                                   num_slots=20, horizon_s=40.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        with pytest.raises(InfeasibleHorizonError) as refused:
+            plan(scenario)
+    message = str(refused.value)
+    stretches = int(message.split('its ')[1].split(' stretches')[0])
+    assert stretches > scenario.num_slots + 1
+    assert f'need num_slots {stretches - 1} or more' in message
+    assert 'horizon_s to' not in message and len(message) < 400
+    # With the slots it asks for, that path is planned.
+    enough = dataclasses.replace(scenario, num_slots=stretches - 1, horizon_s=600.0)
+    assert math.isfinite(plan(enough).min_throughput)

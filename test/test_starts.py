@@ -311,3 +311,75 @@ def test_a_tour_flown_with_any_split_is_its_legs_then_its_hovers(seed):
             np.testing.assert_array_equal(q, fly_legs(scenario, tour, lambda *_: hovers))
             assert q.shape == (scenario.num_slots, 2)
     assert tour_legs(scenario, orders[0])[2][0] == 0     # its first stretch has no leg
+
+
+def test_the_nearest_neighbour_order_is_the_closest_unvisited_node_each_time():
+    """Against the rule written out in Python, with ties (repeated nodes: the first of equal
+    distances)."""
+    rng = np.random.default_rng(11)
+    w = rng.uniform(-1000.0, 1000.0, size=(60, 2))
+    w[30:40] = w[0:10]
+    start = np.array([0.0, 0.0])
+    expected, here, left = [], start, list(range(len(w)))
+    while left:
+        nearest = min(left, key=lambda i: float(np.linalg.norm(w[i] - here)))
+        expected.append(nearest)
+        left.remove(nearest)
+        here = w[nearest]
+    assert nearest_neighbour_order(start, w) == expected
+
+
+def test_two_opt_of_a_tour_past_its_bound_is_the_tour_given_without_its_tables():
+    """Its (N + 2)^2 tables took 1.5 GB at 10 000 nodes (a MemoryError under a 3 GB cap)."""
+    import tracemalloc
+
+    from uav_comm_planner.core.initial import TWO_OPT_MAX_NODES
+
+    rng = np.random.default_rng(3)
+    w = rng.uniform(-1000.0, 1000.0, size=(3 * TWO_OPT_MAX_NODES, 2))
+    order = list(range(len(w)))
+    tracemalloc.start()
+    try:
+        kept = two_opt(np.zeros(2), np.ones(2), w, order)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert kept == order
+    assert peak < 10e6, peak
+    # At the bound it still improves.
+    small = w[:TWO_OPT_MAX_NODES // 10]
+    improved = two_opt(np.zeros(2), np.ones(2), small, list(range(len(small))))
+    assert improved != list(range(len(small)))
+
+
+def drop_one_by_one(scenario, order):
+    """The tour's nodes left out as the rule says, the whole tour worked out at every drop: the
+    node whose detour costs most (the first of equal ones) until it fits M + 1 legs."""
+    from uav_comm_planner.core.initial import _legs_needed
+
+    start, goal = np.asarray(scenario.start_m), np.asarray(scenario.goal_m)
+    order = list(order)
+    while order:
+        points = np.vstack([start, scenario.nodes[order], goal])
+        if _legs_needed(points, scenario).sum() <= scenario.num_slots + 1:
+            break
+        detour = (np.linalg.norm(points[1:-1] - points[:-2], axis=1)
+                  + np.linalg.norm(points[2:] - points[1:-1], axis=1)
+                  - np.linalg.norm(points[2:] - points[:-2], axis=1))
+        del order[int(np.argmax(detour))]
+    return order
+
+
+@pytest.mark.parametrize('seed', range(8))
+def test_the_nodes_left_out_of_a_tour_are_those_of_the_one_by_one_rule(seed):
+    rng = np.random.default_rng(seed)
+    nodes = rng.uniform(-500.0, 2500.0, size=(int(rng.integers(2, 120)), 2))
+    scenario = paper_scenario('I', ground_nodes_m=[tuple(p) for p in nodes],
+                              num_slots=int(rng.integers(5, 60)), horizon_s=200.0,
+                              max_speed_mps=20.0,
+                              wind_speed_mps=float(rng.choice([0.0, 6.0])), wind_from_deg=70.0)
+    order = [int(i) for i in rng.permutation(scenario.num_nodes)]
+    kept = tour_legs(scenario, order)[0]
+    assert kept == drop_one_by_one(scenario, order)
+    if len(order) > scenario.num_slots + 1:     # more nodes than legs: some are left out
+        assert len(kept) < len(order)

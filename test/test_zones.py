@@ -99,6 +99,12 @@ def test_bad_circles_and_margins_are_refused():
     ({'keep_out': [{'center_m': [10 ** 400, 0], 'radius_m': 5}]}, 'centre must be a finite'),
     ({'margin_m': 10 ** 400}, 'margin must be a finite number'),
     ({'margin_m': False}, 'margin must be a number'),
+    # NumPy would read True as 1.0 and parse '12': a vertex or a centre is a number.
+    ({'keep_out': [{'vertices_m': [[True, 0], [10, 0], [0, 10]]}]}, r'list of \(x, y\)'),
+    ({'keep_out': [{'vertices_m': [['0', '0'], [10, 0], [0, 10]]}]}, r'list of \(x, y\)'),
+    ({'area': [[0, 0], [100, 0], [0, False]]}, r'operating area must be a list of \(x, y\)'),
+    ({'keep_out': [{'center_m': [True, 0], 'radius_m': 5}]}, 'centre must be a finite'),
+    ({'keep_out': [{'center_m': ['12', 0], 'radius_m': 5}]}, 'centre must be a finite'),
 ])
 def test_zones_from_a_file_refuse_bad_numbers_with_a_typed_error(data, message):
     with pytest.raises(InvalidScenarioError, match=message):

@@ -89,6 +89,9 @@ class Fuzzer(SeededFuzzer):
             vertices = [[float(a), float(b)] for a, b in zip(latitude, longitude)]
             if not clean and self.rng.random() < 0.15:
                 self.rng.shuffle(vertices)
+            if not clean and vertices and self.rng.random() < 0.1:
+                repeated = self.rng.randrange(len(vertices))    # a vertex given twice in a row
+                vertices.insert(repeated, vertices[repeated])
             return vertices
         return [self.place(home) for _ in range(count)]
 

@@ -406,8 +406,18 @@ def _too_long(scenario: Scenario, path: np.ndarray, needed: int) -> InfeasibleHo
         f'goal unreachable around the zones: the shortest path that keeps their margin of '
         f'{scenario.zones.margin_m:g} m is {path_length(path):.1f} m with {len(path) - 2} '
         f'corners and needs {needed} legs of {scenario.slot_s:g} s at {scenario.max_speed_mps:g}'
-        f' m/s, the horizon has {legs}; raise horizon_s to '
-        f'{horizon_needed_s(path, scenario):.1f} s or more, or max_speed_mps, or move the zones')
+        f' m/s, the horizon has {legs}; {_remedy(path, scenario)}')
+
+
+def _remedy(path: np.ndarray, scenario: Scenario) -> str:
+    """What lets the slots fly ``path``: a longer horizon, or, when its corners alone (each a
+    slot point) outnumber the slots, more slots, since no horizon is long enough then."""
+    stretches = int((np.linalg.norm(np.diff(path, axis=0), axis=1) > 0).sum())
+    if stretches > scenario.num_slots + 1:
+        return (f'its {stretches} stretches need num_slots {stretches - 1} or more (every '
+                f'corner is a slot point), or move the zones')
+    return (f'raise horizon_s to {horizon_needed_s(path, scenario):.1f} s or more, or '
+            f'max_speed_mps, or move the zones')
 
 
 def horizon_needed_s(path: np.ndarray, scenario: Scenario) -> float:

@@ -36,7 +36,23 @@ MAX_TOTAL_VERTICES = 4000
 MAX_ZONE_EXTENT_M = 1.0e7
 
 
+def _numbers_only(value: ArrayLike) -> bool:
+    """Whether every entry of ``value`` is a real number: an int or a float (numpy's too),
+    never a bool or a string, which NumPy would read as 1.0 or parse (``True``, ``'12'``)."""
+    if isinstance(value, np.ndarray) and value.dtype.kind in 'iuf':
+        return True
+    try:
+        entries = np.array(value, dtype=object).ravel()
+    except (TypeError, ValueError):
+        return False
+    return all(isinstance(v, (int, float, np.integer, np.floating))
+               and not isinstance(v, (bool, np.bool_)) for v in entries)
+
+
 def _finite_points(name: str, vertices: ArrayLike) -> np.ndarray:
+    if not _numbers_only(vertices):
+        raise InvalidScenarioError(f'{name} must be a list of (x, y) vertices in metres, '
+                                   f'got {_short(vertices)}')
     try:
         points = np.array(vertices, dtype=float)
     except OverflowError:
@@ -171,6 +187,8 @@ class KeepOutCircle:
         try:
             center = np.array(self.center_m, dtype=float)
         except (TypeError, ValueError, OverflowError):
+            center = np.array([math.nan])
+        if not _numbers_only(self.center_m):
             center = np.array([math.nan])
         if center.shape != (2,) or not np.isfinite(center).all():
             raise InvalidScenarioError(f'a keep-out circle\'s centre must be a finite (x, y) '
