@@ -325,3 +325,23 @@ def node_from_arguments(arguments: list[str]):
     except BaseException:
         context.try_shutdown()
         raise
+
+
+def keep_out_plan_file(path, polygons: list[list[list[float]]]):
+    """A QGroundControl ``.plan`` at ``path`` whose geofence keeps out of each polygon
+    ([[lat, lon], ...]); ``path``."""
+    import json
+
+    path.write_text(json.dumps({'fileType': 'Plan', 'version': 1, 'geoFence': {
+        'version': 2, 'circles': [], 'polygons': [
+            {'inclusion': False, 'version': 1, 'polygon': polygon} for polygon in polygons]}}))
+    return path
+
+
+def build_no_polygon(monkeypatch) -> None:
+    """Make building a keep-out polygon fail the test: a bound must refuse the file first."""
+    from uav_comm_planner.core.zones import KeepOutPolygon
+
+    def never(*args, **kwargs):
+        raise AssertionError('a polygon was built before the vertices were counted')
+    monkeypatch.setattr(KeepOutPolygon, '__post_init__', never)

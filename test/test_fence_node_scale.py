@@ -10,14 +10,14 @@ import json
 import threading
 import time
 
-from helpers import DEADLINE_S, NODES_B
+from helpers import build_no_polygon, DEADLINE_S, keep_out_plan_file, NODES_B
 import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 
 from devtools.zone_probes import star, STAR_CENTRES
 from uav_comm_planner import plan
-from uav_comm_planner.core.zones import KeepOutPolygon, MAX_TOTAL_VERTICES, Zones
+from uav_comm_planner.core.zones import MAX_TOTAL_VERTICES, Zones
 from uav_comm_planner.errors import InvalidScenarioError
 from uav_comm_planner.ros.node import PlannerNode
 from uav_comm_planner.vehicle.fence import fence_from_zones
@@ -106,15 +106,9 @@ def test_a_fence_at_the_vertex_bound_never_holds_the_executor(harness, tmp_path)
 def test_a_fence_past_the_vertex_bound_stops_the_start_in_one_line(ros_context, tmp_path,
                                                                    monkeypatch):
     one = fence_from_zones(FOUR_STARS, HOME).plan_section()['polygons'][0]['polygon']
-    polygons = [{'inclusion': False, 'version': 1,
-                 'polygon': [[lat + 0.004 * i, lon] for lat, lon in one]} for i in range(20)]
-    path = tmp_path / 'fence.plan'
-    path.write_text(json.dumps({'fileType': 'Plan', 'version': 1, 'geoFence': {
-        'version': 2, 'polygons': polygons, 'circles': []}}))
-
-    def never(*args, **kwargs):
-        raise AssertionError('a polygon was built before the vertices were counted')
-    monkeypatch.setattr(KeepOutPolygon, '__post_init__', never)
+    path = keep_out_plan_file(tmp_path / 'fence.plan', [
+        [[lat + 0.004 * i, lon] for lat, lon in one] for i in range(20)])
+    build_no_polygon(monkeypatch)
     with pytest.raises(InvalidScenarioError) as refused:
         PlannerNode(context=ros_context, parameter_overrides=[
             Parameter('fence_file', value=str(path))] + [

@@ -7,11 +7,10 @@ replaces, to the same numbers."""
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import time
 
-from helpers import run_fuzz_target
+from helpers import build_no_polygon, keep_out_plan_file, run_fuzz_target
 import numpy as np
 import pytest
 
@@ -119,16 +118,10 @@ def test_a_fences_vertices_are_counted_before_any_polygon_is_built(tmp_path, mon
     home = Home(47.397742, 8.545594, 488.0)
     ring = [[47.39 + 0.001 * math.sin(2 * math.pi * k / 1000),
              8.54 + 0.001 * math.cos(2 * math.pi * k / 1000)] for k in range(1000)]
-    polygons = [{'inclusion': False, 'version': 1,
-                 'polygon': [[lat + 0.003 * i, lon] for lat, lon in ring]}
+    polygons = [[[lat + 0.003 * i, lon] for lat, lon in ring]
                 for i in range(MAX_TOTAL_VERTICES // 1000 + 1)]
-    path = tmp_path / 'fence.plan'
-    path.write_text(json.dumps({'fileType': 'Plan', 'version': 1, 'geoFence': {
-        'version': 2, 'polygons': polygons, 'circles': []}}))
-
-    def never(*args, **kwargs):
-        raise AssertionError('a polygon was built before the vertices were counted')
-    monkeypatch.setattr(KeepOutPolygon, '__post_init__', never)
+    path = keep_out_plan_file(tmp_path / 'fence.plan', polygons)
+    build_no_polygon(monkeypatch)
     with pytest.raises(FenceFileError, match=f'the fence has {len(polygons) * 1000} polygon '
                                              f'vertices in all, more than {MAX_TOTAL_VERTICES}'):
         read_zones(path, home)
