@@ -184,12 +184,17 @@ def px4_profile(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -
 def _key(vertices: np.ndarray, speed_mps: float, limits: VehicleLimits) -> tuple:
     """A leg's simulation by what it depends on (cached)."""
     vertices = np.asarray(vertices, dtype=float)
-    shape = (acceptance_radius(limits),
-             TRAJECTORY_GAIN if limits.turn_gain is None else float(limits.turn_gain),
-             MAX_POSITION_ERROR_M if limits.max_position_error_m is None
-             else float(limits.max_position_error_m))
     return (vertices.round(6).tobytes(), len(vertices), round(float(speed_mps), 6),
-            float(limits.max_accel_mpss), float(limits.max_jerk_mpsss), shape)
+            float(limits.max_accel_mpss), float(limits.max_jerk_mpsss), _shape(limits))
+
+
+def _shape(limits: VehicleLimits) -> tuple[float, float, float]:
+    """The acceptance radius, turn gain and largest tracking error a leg is timed with:
+    ``limits``' own, PX4's defaults where they are None."""
+    return (acceptance_radius(limits),
+            TRAJECTORY_GAIN if limits.turn_gain is None else float(limits.turn_gain),
+            MAX_POSITION_ERROR_M if limits.max_position_error_m is None
+            else float(limits.max_position_error_m))
 
 
 def acceptance_radius(limits: VehicleLimits) -> float:
@@ -202,7 +207,7 @@ def acceptance_radius(limits: VehicleLimits) -> float:
 def timed_limits(limits: VehicleLimits) -> VehicleLimits:
     """``limits`` as a plan is timed with them: PX4's acceptance radius, turn gain and largest
     tracking error where they are unset (None) given PX4's defaults."""
-    _, _, _, _, _, (radius, gain, most_error) = _key(np.zeros((1, 2)), 0.0, limits)
+    radius, gain, most_error = _shape(limits)
     return replace(limits, acceptance_radius_m=radius, turn_gain=gain,
                    max_position_error_m=most_error)
 
