@@ -21,6 +21,7 @@ import numpy as np
 
 from uav_comm_planner.core.drops import random_scenario
 from uav_comm_planner.core.energy import horizon_energy_j, JOULES_PER_WH
+from uav_comm_planner.core.initial import straight_line
 from uav_comm_planner.core.optimizer import plan
 from uav_comm_planner.core.scenario import Scenario, SolverSettings
 from uav_comm_planner.vehicle.airframe import airframe_named
@@ -44,8 +45,7 @@ def energy_table(quick: bool = False) -> str:
     airframe = airframe_named(AIRFRAME)
     scenario = random_scenario(num_nodes, num_slots, SEED, side_m=2000.0).replace(
         airframe=airframe)
-    line = np.linspace(scenario.start_m, scenario.goal_m, num_slots + 2)[1:-1]
-    straight_wh = horizon_energy_j(line, scenario, airframe) / JOULES_PER_WH
+    straight_wh = horizon_energy_j(straight_line(scenario), scenario, airframe) / JOULES_PER_WH
     free = _timed(scenario)
     budget_wh = 0.5 * (free[2] + straight_wh)
     kept = _timed(scenario.replace(energy_budget_wh=budget_wh))
