@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import heapq
+import math
 from typing import Callable
 
 import numpy as np
@@ -112,15 +113,20 @@ def _drop_until_flyable(scenario: Scenario, order: list[int]) -> list[int]:
     points = np.vstack([scenario.start_m, scenario.nodes[order], scenario.goal_m])
     legs = [int(k) for k in _legs_needed(points, scenario)]     # legs[p]: p to its next
     total, room = sum(legs), scenario.num_slots + 1
+    if total <= room:
+        return order
     last = len(points) - 1
     before, after = list(range(-1, last)), list(range(1, last + 2))
     gone = [False] * len(points)
+    xy = points.tolist()
+
+    def distance(a: int, b: int) -> float:      # as np.linalg.norm works it out, in floats
+        dx, dy = xy[b][0] - xy[a][0], xy[b][1] - xy[a][1]
+        return math.sqrt(dx * dx + dy * dy)
 
     def detour(p: int) -> float:
-        a, b = points[before[p]][None], points[after[p]][None]
-        here = points[p][None]
-        return float(np.linalg.norm(here - a, axis=1)[0] + np.linalg.norm(b - here, axis=1)[0]
-                     - np.linalg.norm(b - a, axis=1)[0])
+        a, b = before[p], after[p]
+        return distance(a, p) + distance(p, b) - distance(a, b)
 
     heap = [(-detour(p), p) for p in range(1, last)]
     heapq.heapify(heap)
@@ -213,10 +219,13 @@ class TourFlier:
         stops = len(legs)
         # Row k of the pattern: stretch k's leg points, each once, then stop k + 1 as often
         # as it is hovered over.
-        self.picked = np.concatenate([np.append(np.arange(first[k], first[k] + legs[k]),
-                                                len(stretch) + k) for k in range(stops)])
-        self.counts = np.ones(len(self.picked), dtype=int)
         self.hover_at = np.cumsum(legs + 1) - 1
+        self.picked = np.empty(int(legs.sum()) + stops, dtype=int)
+        in_stretch = np.ones(len(self.picked), dtype=bool)
+        in_stretch[self.hover_at] = False
+        self.picked[in_stretch] = np.arange(int(legs.sum()))
+        self.picked[self.hover_at] = len(stretch) + np.arange(stops)
+        self.counts = np.ones(len(self.picked), dtype=int)
         self.counts[self.hover_at[-1]] = 0           # no hover after the last stretch
 
     def slot_rows(self, hovers: np.ndarray) -> np.ndarray:
