@@ -257,3 +257,27 @@ def test_a_vertex_given_twice_in_a_row_is_refused_with_its_place(tmp_path):
     # The closing repeat of a ring is no repeat.
     closed = plan_fence_file(tmp_path / 'closed.plan', [(False, triangle[1:] + triangle[1:2])])
     assert len(read_zones(closed, ZURICH).keep_out) == 1
+
+
+def test_a_polygon_that_crosses_itself_names_the_files_edges_not_their_cut_pieces(tmp_path):
+    """A bow tie of 10 km edges: each edge is cut into pieces to follow it as the autopilot
+    draws it, and the refusal names the edges as the file numbers them (it named pieces
+    45 and 136)."""
+    bow_tie = [[47.39, 8.54], [47.48, 8.67], [47.39, 8.67], [47.48, 8.54]]
+    vertices, edge = fence_module._edges_as_drawn('polygon 1', tuple(map(tuple, bow_tie)),
+                                                  ZURICH)
+    assert len(vertices) > 20 and np.array_equal(np.unique(edge), np.arange(4))
+    path = plan_fence_file(tmp_path / 'bow_tie.plan', [(False, bow_tie)])
+    with pytest.raises(FenceFileError, match=r'fence polygon 1: a keep-out polygon crosses '
+                                             r'itself: edges 1 and 3 meet \(edge k from '
+                                             r'vertex k to the next\)'):
+        read_zones(path, ZURICH)
+    shifted = bow_tie[1:] + bow_tie[:1]          # the same crossing, edges numbered one less
+    path = plan_fence_file(tmp_path / 'shifted.plan', [(True, shifted)])
+    with pytest.raises(FenceFileError, match=r'the operating area crosses itself: edges 2 and '
+                                             r'4 meet'):
+        read_zones(path, ZURICH)
+    completed = run('plan', '--case', 'I', '--home=47.397742,8.545594,488', '--fence',
+                    str(path))
+    assert completed.returncode == 2, completed.stderr
+    assert completed.stderr.count('\n') == 1 and 'edges 2 and 4 meet' in completed.stderr

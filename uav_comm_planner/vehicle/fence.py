@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from uav_comm_planner.core.crossings import first_crossing
 from uav_comm_planner.core.zones import (KeepOutCircle, KeepOutPolygon, MAX_POLYGON_VERTICES,
                                          MAX_TOTAL_VERTICES, OperatingArea, Zones)
 from uav_comm_planner.errors import FenceFileError, InvalidScenarioError
@@ -112,8 +113,9 @@ class GeoFence:
         keep_out: list = []
         for index, polygon in enumerate(self.polygons):
             what = f'polygon {index + 1}'
-            vertices = _edges_as_drawn(what, polygon.vertices_deg, home)
+            vertices, edge = _edges_as_drawn(what, polygon.vertices_deg, home)
             kind = OperatingArea if polygon.inclusion else KeepOutPolygon
+            _refuse_crossing(what, kind, vertices, edge)
             zone = _zone(what, kind, vertices, (home, polygon, index))
             if polygon.inclusion:
                 area = zone
@@ -197,11 +199,24 @@ def _to_metres(what: str, degrees: np.ndarray, home: Home, *,
     return np.column_stack([east, north])
 
 
+def _refuse_crossing(what: str, kind, vertices: np.ndarray, edge: np.ndarray) -> None:
+    """InvalidScenarioError if the polygon of ``vertices`` (K, 2), cut from the file's edges
+    (``edge[k]``: the file's edge that the piece from vertex k lies on), crosses itself, naming
+    the file's edges that meet (the zone would name its pieces)."""
+    crossing = first_crossing(vertices)
+    if crossing is not None:
+        first, second = (int(edge[k]) + 1 for k in crossing)
+        raise InvalidScenarioError(
+            f'fence {what}: {kind.what} crosses itself: edges {first} and {second} meet (edge '
+            f'k from vertex k to the next); give the vertices in order around the boundary')
+
+
 def _edges_as_drawn(what: str, vertices_deg: tuple[tuple[float, float], ...],
-                    home: Home) -> np.ndarray:
+                    home: Home) -> tuple[np.ndarray, np.ndarray]:
     """A fence polygon's vertices in the planning frame (K, 2) metres, each edge, straight in
     latitude and longitude as the autopilot draws it, cut into pieces whose chords are within
-    :data:`EDGE_CHORD_TOLERANCE_M` of it (the vertices given, then the cut points, in order)."""
+    :data:`EDGE_CHORD_TOLERANCE_M` of it (the vertices given, then the cut points, in order),
+    and for each vertex the index of the given edge its piece lies on (K,)."""
     degrees = np.array(vertices_deg, dtype=float)
     corners = _to_metres(what, degrees, home)
     jump = np.abs(np.roll(degrees[:, 1], -1) - degrees[:, 1])
@@ -241,7 +256,7 @@ def _edges_as_drawn(what: str, vertices_deg: tuple[tuple[float, float], ...],
             t = np.arange(1, pieces[index])[:, None] / pieces[index]
             cut = start[index] + t * (end[index] - start[index])
             rows.append(_to_metres(what, _absolute(cut, home), home))
-    return np.vstack(rows)
+    return np.vstack(rows), np.repeat(np.arange(len(degrees)), pieces)
 
 
 def _absolute(relative: np.ndarray, home: Home) -> np.ndarray:
