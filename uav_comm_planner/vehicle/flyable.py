@@ -156,19 +156,20 @@ def _stop_runs(points: np.ndarray, slot_s: float, merge_radius_m: float,
 
 
 def _one_stop_when_close(points: np.ndarray, runs: list[tuple[int, int]],
-                         shortest_m: float) -> list[tuple[int, int]]:
+                         shortest_m: float) -> tuple[list[tuple[int, int]], list[int]]:
     """``runs`` with every stop closer than ``shortest_m`` to the one before it merged into
     that one (the leg between them dropped, the run spanning both: q0 and qF stay where they
-    are)."""
-    merged = [runs[0]]
+    are), and the point each run stops at (:func:`_stop_index`)."""
+    merged, stops = [runs[0]], [_stop_index(points, *runs[0])]
     for run in runs[1:]:
-        before = merged[-1]
-        here = points[_stop_index(points, *before)]
-        if np.linalg.norm(points[_stop_index(points, *run)] - here) < shortest_m:
-            merged[-1] = (before[0], run[1])
+        stop = _stop_index(points, *run)
+        if np.linalg.norm(points[stop] - points[stops[-1]]) < shortest_m:
+            merged[-1] = (merged[-1][0], run[1])
+            stops[-1] = _stop_index(points, *merged[-1])
         else:
             merged.append(run)
-    return merged
+            stops.append(stop)
+    return merged, stops
 
 
 def _quantise(hold_s: float, resolution_s: float) -> float:
@@ -199,8 +200,7 @@ def schedule_flight(result: PlanResult, limits: VehicleLimits, *, firmware: str 
     resolution = FIRMWARES[firmware].hold_resolution_s
 
     model = leg_model(firmware)
-    runs = _one_stop_when_close(points, runs, model.shortest_leg_m(limits))
-    stop_indices = [_stop_index(points, first, last) for first, last in runs]
+    runs, stop_indices = _one_stop_when_close(points, runs, model.shortest_leg_m(limits))
     positions = [points[index].copy() for index in stop_indices]
     heights = _point_heights(altitudes, len(points))
     paths, simplified, cruises, shapes = [], [], [], []  # per leg; shape: vertices, speed, profile
