@@ -1,6 +1,9 @@
 """The dual upper bound over the flyable paths: above every plan, above the dual value of any
 flyable trajectory computed independently, exact where the optimum is known."""
 
+import subprocess
+import sys
+
 from helpers import random_scenario
 import numpy as np
 import pytest
@@ -102,3 +105,30 @@ def test_a_replan_with_offsets_has_no_dual_bound():
     result = plan(scenario, SolverSettings(compute_baselines=False),
                   offsets=np.array([0.5, 0.0, 0.2]))
     assert result.tight_upper_bound == np.inf
+
+
+def test_a_leg_longer_than_the_grid_reaches_every_cell_and_its_footprint_stays_small():
+    """Slots of hours make a leg billions of cells long: the footprint is capped at the grid
+    (nx + ny + 2 cells), which reaches every cell from every cell, as the leg itself does."""
+    rng = np.random.default_rng(4)
+    values = rng.normal(size=(7, 5))
+    capped = bound._footprint_rows(7 + 5 + 2.0)
+    assert np.array_equal(bound._dilate(values, bound._footprint_rows(40.0)),
+                          bound._dilate(values, capped))
+    assert np.all(bound._dilate(values, capped) == values.max())     # every cell, one leg
+    assert len(capped) < 40
+
+
+def test_slots_of_a_billion_seconds_get_their_dual_bound_in_little_memory():
+    """`plan --slots 6 --horizon 6061375163` (a Hypothesis draw) built a footprint of 2e9 rows
+    for the dual bound and took 24 GB; under a 4 GB limit it now answers in a second."""
+    script = ('import resource; resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30)); '
+              'from uav_comm_planner import paper_scenario, plan, SolverSettings; '
+              "r = plan(paper_scenario('I', num_slots=6, horizon_s=6061375163.0), "
+              'SolverSettings(compute_baselines=False)); '
+              'print(r.min_throughput, r.tight_upper_bound)')
+    done = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    value, upper = map(float, done.stdout.split())
+    assert 0.0 < value <= upper < float('inf')

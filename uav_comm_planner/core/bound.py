@@ -101,7 +101,12 @@ def grid_for(scenario: Scenario) -> Grid:
 
 def _footprint_rows(reach_cells: float) -> list[tuple[int, int]]:
     """(row offset j, half-width) of the cell offsets a leg allows:
-    max(|i| - 1, 0)^2 + max(|j| - 1, 0)^2 <= reach^2."""
+    max(|i| - 1, 0)^2 + max(|j| - 1, 0)^2 <= reach^2.
+
+    :func:`_geometry` caps the reach at nx + ny + 2 cells: every row |j| < ny then reaches
+    across the whole grid (half-width above nx) and the rows |j| >= ny fall off it, so the
+    dilation is the same as with the leg's own reach, which a slot of hours makes billions of
+    cells (a footprint of as many rows)."""
     rows = []
     span = int(math.floor(reach_cells)) + 1
     for j in range(-span, span + 1):
@@ -174,7 +179,8 @@ def _geometry(scenario: Scenario) -> _Geometry:
     start, goal = np.asarray(scenario.start_m, float), np.asarray(scenario.goal_m, float)
     return _Geometry(
         grid=grid, snr=snr, snr_outside=snr_outside,
-        rows=_footprint_rows(reach / grid.cell_m), border=edge_gap <= reach,
+        rows=_footprint_rows(min(reach / grid.cell_m, sum(grid.shape) + 2.0)),
+        border=edge_gap <= reach,
         first=grid.squared_gaps(start) <= reach ** 2, last=grid.squared_gaps(goal) <= reach ** 2,
         first_outside=grid.edge_distance(start) <= reach,
         last_outside=grid.edge_distance(goal) <= reach)
