@@ -13,6 +13,19 @@ class InvalidChannelError(InvalidScenarioError):
     """A channel name that is not one the planner knows ('free-space', 'los:urban', ...)."""
 
 
+class SelfCrossingError(InvalidScenarioError):
+    """A polygon zone that crosses itself; ``edges``: the two edges that meet, 0-based (edge k
+    from vertex k to the next), so that a caller that built the polygon can name them its
+    own way (a fence names the file's edges, not the pieces they were cut into)."""
+
+    def __init__(self, message: str, edges: tuple[int, int]):
+        super().__init__(message)
+        self.edges = edges
+
+    def __reduce__(self):
+        return type(self), (str(self), self.edges)
+
+
 class InfeasibleHorizonError(InvalidScenarioError):
     """The goal cannot be reached from the start within the horizon at the speed limit."""
 

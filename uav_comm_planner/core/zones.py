@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike
 from uav_comm_planner.core.crossings import first_crossing as _first_crossing
 from uav_comm_planner.core.crossings import segment_meets_edges as _segment_meets_edges
 from uav_comm_planner.core.numbers import real_number
-from uav_comm_planner.errors import InvalidScenarioError
+from uav_comm_planner.errors import InvalidScenarioError, SelfCrossingError
 
 #: Vertices a polygon zone may have at most (a fence vertex is one MAVLink item).
 MAX_POLYGON_VERTICES = 1000
@@ -96,15 +96,19 @@ def _segments_cross(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) 
         (o3 == 0 and on(c, d, a)) or (o4 == 0 and on(c, d, b))
 
 
+def crossing_message(name: str, first: int, second: int, numbering: str = '') -> str:
+    """What a refusal of a polygon that crosses itself says: its 0-based edges ``first`` and
+    ``second`` meet (``numbering``: how they are numbered, if not the polygon's own way)."""
+    return (f'{name} crosses itself: edges {first + 1} and {second + 1} meet{numbering}; give '
+            f'the vertices in order around the boundary')
+
+
 def _simple_polygon(name: str, vertices: ArrayLike) -> np.ndarray:
     """The vertices, counter-clockwise, of a simple polygon with a positive area."""
     points = _finite_points(name, vertices)
     crossing = _first_crossing(points)
     if crossing is not None:
-        i, j = crossing
-        raise InvalidScenarioError(
-            f'{name} crosses itself: edges {i + 1} and {j + 1} meet; give the '
-            f'vertices in order around the boundary')
+        raise SelfCrossingError(crossing_message(name, *crossing), crossing)
     area = 0.5 * float(np.sum(points[:, 0] * np.roll(points[:, 1], -1)
                               - np.roll(points[:, 0], -1) * points[:, 1]))
     scale = float(np.ptp(points, axis=0).max())
@@ -554,6 +558,6 @@ class Zones:
                    keep_out=tuple(keep_out), margin_m=data.get('margin_m', 5.0))
 
 
-__all__ = ['KeepOut', 'KeepOutCircle', 'KeepOutPolygon', 'MAX_KEEP_OUT_ZONES',
+__all__ = ['crossing_message', 'KeepOut', 'KeepOutCircle', 'KeepOutPolygon', 'MAX_KEEP_OUT_ZONES',
            'MAX_POLYGON_VERTICES', 'MAX_TOTAL_VERTICES', 'MAX_ZONE_EXTENT_M',
            'OperatingArea', 'Zones']

@@ -32,10 +32,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from uav_comm_planner.core.crossings import first_crossing
-from uav_comm_planner.core.zones import (KeepOutCircle, KeepOutPolygon, MAX_POLYGON_VERTICES,
-                                         MAX_TOTAL_VERTICES, OperatingArea, Zones)
-from uav_comm_planner.errors import FenceFileError, InvalidScenarioError
+from uav_comm_planner.core.zones import (crossing_message, KeepOutCircle, KeepOutPolygon,
+                                         MAX_POLYGON_VERTICES, MAX_TOTAL_VERTICES,
+                                         OperatingArea, Zones)
+from uav_comm_planner.errors import FenceFileError, InvalidScenarioError, SelfCrossingError
 from uav_comm_planner.files import read_json_file
 from uav_comm_planner.vehicle.geodesy import enu_to_geodetic, geodetic_to_plane, Home
 
@@ -115,8 +115,7 @@ class GeoFence:
             what = f'polygon {index + 1}'
             vertices, edge = _edges_as_drawn(what, polygon.vertices_deg, home)
             kind = OperatingArea if polygon.inclusion else KeepOutPolygon
-            _refuse_crossing(what, kind, vertices, edge)
-            zone = _zone(what, kind, vertices, (home, polygon, index))
+            zone = _zone(what, kind, vertices, (home, polygon, index), edge=edge)
             if polygon.inclusion:
                 area = zone
             else:
@@ -172,10 +171,19 @@ def zone_outlines(zones: Zones) -> list[tuple[str, np.ndarray]]:
     return [(kind, np.vstack([ring, ring[:1]])) for kind, ring in outlines]
 
 
-def _zone(what: str, kind, *args):
+def _zone(what: str, kind, *args, edge: np.ndarray | None = None):
+    """``kind(*args)``, its refusal prefixed with the fence zone ``what``; for a polygon cut
+    from the file's edges (``edge[k]``: the file's edge that the piece from vertex k lies on,
+    :func:`_edges_as_drawn`), a crossing names the file's edges, not the pieces."""
     try:
         with np.errstate(all='ignore'):
             return kind(*args)
+    except SelfCrossingError as exc:
+        if edge is None:
+            raise InvalidScenarioError(f'fence {what}: {exc}') from None
+        first, second = (int(edge[k]) for k in exc.edges)
+        raise InvalidScenarioError(f'fence {what}: ' + crossing_message(
+            kind.what, first, second, ' (edge k from vertex k to the next)')) from None
     except InvalidScenarioError as exc:
         raise InvalidScenarioError(f'fence {what}: {exc}') from None
 
@@ -197,18 +205,6 @@ def _to_metres(what: str, degrees: np.ndarray, home: Home, *,
             f'{home.longitude_deg:.8g}), farther than the planning frame holds '
             f'({MAX_FENCE_DISTANCE_M / 1000:g} km): move home or the zone')
     return np.column_stack([east, north])
-
-
-def _refuse_crossing(what: str, kind, vertices: np.ndarray, edge: np.ndarray) -> None:
-    """InvalidScenarioError if the polygon of ``vertices`` (K, 2), cut from the file's edges
-    (``edge[k]``: the file's edge that the piece from vertex k lies on), crosses itself, naming
-    the file's edges that meet (the zone would name its pieces)."""
-    crossing = first_crossing(vertices)
-    if crossing is not None:
-        first, second = (int(edge[k]) + 1 for k in crossing)
-        raise InvalidScenarioError(
-            f'fence {what}: {kind.what} crosses itself: edges {first} and {second} meet (edge '
-            f'k from vertex k to the next); give the vertices in order around the boundary')
 
 
 def _edges_as_drawn(what: str, vertices_deg: tuple[tuple[float, float], ...],
